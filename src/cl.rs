@@ -1,0 +1,1 @@
+//! APT CL data (GOTO/...) reader.

@@ -1,0 +1,1 @@
+//! RS-274 / ISO 6983 G-code: lossless nom parser, block model, emitter.

@@ -1,0 +1,1 @@
+//! Geometric errors: error tables, B-spline fits, the error model.

@@ -1,0 +1,13 @@
+//! kinpost: a post-processor for multi-axis machine tools.
+//!
+//! Tool poses (tool tip + tool axis) from CAM programs become the axis words a
+//! particular machine needs, through one kinematic chain evaluator, with the
+//! machine's measured geometric errors taken into account.
+
+pub mod cl;
+pub mod error;
+pub mod gcode;
+pub mod geometric;
+pub mod machine;
+
+pub use error::{Error, Location, Result};

@@ -1,0 +1,496 @@
+//! The one kinematic chain evaluator.
+//!
+//! A machine is a serial chain of elements written from the workpiece frame W
+//! to the tool-tip frame T (see `../shared/spec/kinematics.md`):
+//!
+//! ```text
+//! T_WT(q) = E1 · E2 · … · En
+//! ```
+//!
+//! Joints may carry six position-dependent error motions `E_j(q)` that enter
+//! right after the joint's motion (`M_j(q) · E_j(q)`); position-independent
+//! errors are fixed elements of the same small-angle form. The *theoretical*
+//! machine is evaluated with [`NoErrors`]; the *actual* machine with an error
+//! model implementing [`JointErrors`]. Both go through the same code here:
+//! forward kinematics, the analytic Jacobian (including the derivative of the
+//! error motions) and everything built on them.
+//!
+//! Internal units: millimetres for lengths and prismatic joints, radians for
+//! revolute joints and angles. Conversion to degrees happens at the edges.
+
+use nalgebra::{Matrix3, Matrix4, OMatrix, U6, Unit, Vector3, Vector4, Vector6};
+
+/// Largest number of joints a chain may have (X, Y, Z, A, B, C, plus one spare).
+pub const MAX_JOINTS: usize = 7;
+
+/// Whether a joint translates or rotates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum JointKind {
+    /// Linear axis: `Trans(q · u)`, q in mm.
+    Prismatic,
+    /// Rotary axis: `Rot(u, q)`, q in rad internally (degrees in files and programs).
+    Revolute,
+}
+
+/// One element of the chain.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Element {
+    /// Fixed homogeneous transform (a `translate`, a `rotate`, or a
+    /// position-independent error element). Stored as a full 4×4 matrix so
+    /// that the small-angle error form (not exactly orthonormal) is kept exactly.
+    Fixed(Matrix4<f64>),
+    /// A joint: index into [`Chain::joints`].
+    Joint(usize),
+}
+
+/// A joint of the chain.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Joint {
+    /// NC address letter (X, Y, Z, A, B, C, or any other name).
+    pub name: String,
+    /// Prismatic or revolute.
+    pub kind: JointKind,
+    /// Unit direction of motion (prismatic) or rotation axis (revolute), in
+    /// the frame just before the joint.
+    pub axis: Unit<Vector3<f64>>,
+    /// Index of this joint's element in [`Chain::elements`].
+    pub element: usize,
+}
+
+/// The six error motions of one joint at one position (ISO 230-1 style):
+/// `[δx, δy, δz, εx, εy, εz]`, mm and rad, in the joint's moving frame.
+pub type ErrorMotion = Vector6<f64>;
+
+/// The small-angle homogeneous error matrix of `kinematics.md`:
+///
+/// ```text
+/// | 1    −εz   εy   δx |
+/// | εz    1   −εx   δy |
+/// | −εy   εx    1   δz |
+/// | 0     0     0    1 |
+/// ```
+pub fn error_matrix(e: &ErrorMotion) -> Matrix4<f64> {
+    Matrix4::new(
+        1.0, -e[5], e[4], e[0], //
+        e[5], 1.0, -e[3], e[1], //
+        -e[4], e[3], 1.0, e[2], //
+        0.0, 0.0, 0.0, 1.0,
+    )
+}
+
+/// Derivative of [`error_matrix`] for a derivative of the error motions
+/// (the identity drops out; the map is linear in `e`).
+pub fn error_matrix_derivative(de: &ErrorMotion) -> Matrix4<f64> {
+    Matrix4::new(
+        0.0, -de[5], de[4], de[0], //
+        de[5], 0.0, -de[3], de[1], //
+        -de[4], de[3], 0.0, de[2], //
+        0.0, 0.0, 0.0, 0.0,
+    )
+}
+
+/// Source of position-dependent joint errors for the chain evaluator.
+///
+/// The theoretical machine uses [`NoErrors`]. An error model (fitted tables,
+/// diagnosed effects, …) implements this trait; the chain code is the same.
+pub trait JointErrors {
+    /// Error motions of joint `joint` (chain joint index) at position `q`
+    /// (internal units), or `None` if the joint carries no error.
+    fn error(&self, joint: usize, q: f64) -> Option<ErrorMotion>;
+
+    /// Error motions and their derivative with respect to `q` (per mm or per
+    /// rad). The default differentiates [`JointErrors::error`] numerically
+    /// (central difference); models with analytic derivatives override it.
+    fn error_and_derivative(&self, joint: usize, q: f64) -> Option<(ErrorMotion, ErrorMotion)> {
+        let e = self.error(joint, q)?;
+        let h = 1e-6 * (1.0 + q.abs());
+        let ep = self.error(joint, q + h).unwrap_or(e);
+        let em = self.error(joint, q - h).unwrap_or(e);
+        Some((e, (ep - em) / (2.0 * h)))
+    }
+
+    /// True when no joint carries an error (lets the evaluator skip work).
+    fn is_empty(&self) -> bool {
+        false
+    }
+}
+
+/// The theoretical machine: no joint errors.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoErrors;
+
+impl JointErrors for NoErrors {
+    fn error(&self, _joint: usize, _q: f64) -> Option<ErrorMotion> {
+        None
+    }
+    fn error_and_derivative(&self, _joint: usize, _q: f64) -> Option<(ErrorMotion, ErrorMotion)> {
+        None
+    }
+    fn is_empty(&self) -> bool {
+        true
+    }
+}
+
+/// Tool pose in the workpiece frame: tool tip (mm) and unit tool axis
+/// (pointing from the tip towards the spindle).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pose {
+    /// Tool tip position, mm.
+    pub tip: Vector3<f64>,
+    /// Tool axis direction (unit for a rigid chain; within 1e-12 of unit with
+    /// small-angle error matrices).
+    pub axis: Vector3<f64>,
+}
+
+impl Pose {
+    /// Builds a pose from tip and axis; the axis is normalised.
+    pub fn new(tip: Vector3<f64>, axis: Vector3<f64>) -> Self {
+        Pose {
+            tip,
+            axis: axis.normalize(),
+        }
+    }
+
+    /// Distance between tool tips, mm.
+    pub fn tip_distance(&self, other: &Pose) -> f64 {
+        (self.tip - other.tip).norm()
+    }
+
+    /// Angle between tool axes, rad (robust near zero: uses atan2 of the
+    /// cross and dot products rather than acos).
+    pub fn axis_angle(&self, other: &Pose) -> f64 {
+        let a = self.axis.normalize();
+        let b = other.axis.normalize();
+        a.cross(&b).norm().atan2(a.dot(&b))
+    }
+}
+
+/// 6×n Jacobian of `[tip; axis]` with respect to the joints (chain order):
+/// rows 0–2 are d(tip)/dq (mm per mm or mm per rad), rows 3–5 d(axis)/dq.
+pub type Jacobian = OMatrix<f64, U6, nalgebra::Dyn>;
+
+/// A serial kinematic chain from workpiece to tool tip.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Chain {
+    /// Elements in order from the workpiece frame to the tool-tip frame.
+    pub elements: Vec<Element>,
+    /// Joints in chain order (the order of `q`).
+    pub joints: Vec<Joint>,
+}
+
+/// Homogeneous translation.
+pub fn translation(v: &Vector3<f64>) -> Matrix4<f64> {
+    let mut m = Matrix4::identity();
+    m[(0, 3)] = v.x;
+    m[(1, 3)] = v.y;
+    m[(2, 3)] = v.z;
+    m
+}
+
+/// Rodrigues rotation `R = I + sinθ [u]x + (1 − cosθ)[u]x²` as a 3×3 matrix.
+pub fn rotation3(u: &Unit<Vector3<f64>>, theta: f64) -> Matrix3<f64> {
+    let k = u.cross_matrix();
+    let (s, c) = theta.sin_cos();
+    Matrix3::identity() + k * s + k * k * (1.0 - c)
+}
+
+/// Homogeneous rotation by `theta` (rad) about unit axis `u` through the origin.
+pub fn rotation(u: &Unit<Vector3<f64>>, theta: f64) -> Matrix4<f64> {
+    let mut m = Matrix4::identity();
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&rotation3(u, theta));
+    m
+}
+
+impl Chain {
+    /// An empty chain (identity).
+    pub fn new() -> Self {
+        Chain {
+            elements: Vec::new(),
+            joints: Vec::new(),
+        }
+    }
+
+    /// Appends a fixed translation (mm).
+    pub fn translate(&mut self, v: Vector3<f64>) -> &mut Self {
+        self.elements.push(Element::Fixed(translation(&v)));
+        self
+    }
+
+    /// Appends a fixed rotation by `angle` rad about `axis`.
+    pub fn rotate(&mut self, axis: Vector3<f64>, angle: f64) -> &mut Self {
+        self.elements
+            .push(Element::Fixed(rotation(&Unit::new_normalize(axis), angle)));
+        self
+    }
+
+    /// Appends a fixed error element (position-independent error, such as
+    /// squareness or an axis location error) of the small-angle form.
+    pub fn fixed_error(&mut self, e: ErrorMotion) -> &mut Self {
+        self.elements.push(Element::Fixed(error_matrix(&e)));
+        self
+    }
+
+    /// Appends a joint; returns its joint index.
+    pub fn joint(&mut self, name: &str, kind: JointKind, axis: Vector3<f64>) -> usize {
+        let index = self.joints.len();
+        self.joints.push(Joint {
+            name: name.to_string(),
+            kind,
+            axis: Unit::new_normalize(axis),
+            element: self.elements.len(),
+        });
+        self.elements.push(Element::Joint(index));
+        index
+    }
+
+    /// Number of joints.
+    pub fn dof(&self) -> usize {
+        self.joints.len()
+    }
+
+    /// Joint index of the joint called `name` (case-insensitive).
+    pub fn joint_index(&self, name: &str) -> Option<usize> {
+        self.joints
+            .iter()
+            .position(|j| j.name.eq_ignore_ascii_case(name))
+    }
+
+    /// Returns a copy of this chain with a fixed element inserted at element
+    /// position `at` (0 = before everything, `elements.len()` = at the tool).
+    /// Joint element indices are kept consistent.
+    pub fn with_fixed_inserted(&self, at: usize, m: Matrix4<f64>) -> Chain {
+        let mut c = self.clone();
+        c.elements.insert(at, Element::Fixed(m));
+        for j in &mut c.joints {
+            if j.element >= at {
+                j.element += 1;
+            }
+        }
+        c
+    }
+
+    /// Motion transform `M_j(q)` of joint `j`.
+    pub fn joint_motion(&self, j: usize, q: f64) -> Matrix4<f64> {
+        let joint = &self.joints[j];
+        match joint.kind {
+            JointKind::Prismatic => translation(&(joint.axis.into_inner() * q)),
+            JointKind::Revolute => rotation(&joint.axis, q),
+        }
+    }
+
+    /// Derivative `dM_j/dq` of the joint motion.
+    fn joint_motion_derivative(&self, j: usize, q: f64) -> Matrix4<f64> {
+        let joint = &self.joints[j];
+        match joint.kind {
+            JointKind::Prismatic => {
+                let mut m = Matrix4::zeros();
+                let u = joint.axis.into_inner();
+                m[(0, 3)] = u.x;
+                m[(1, 3)] = u.y;
+                m[(2, 3)] = u.z;
+                m
+            }
+            JointKind::Revolute => {
+                let mut m = Matrix4::zeros();
+                let r = joint.axis.cross_matrix() * rotation3(&joint.axis, q);
+                m.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
+                m
+            }
+        }
+    }
+
+    /// Transform of joint `j` including its error motion: `M_j(q) · E_j(q)`.
+    fn joint_transform(&self, j: usize, q: f64, errors: &dyn JointErrors) -> Matrix4<f64> {
+        let m = self.joint_motion(j, q);
+        match errors.error(j, q) {
+            Some(e) => m * error_matrix(&e),
+            None => m,
+        }
+    }
+
+    /// Forward kinematics: `T_WT(q)` for joint values `q` (chain order,
+    /// internal units) on the machine described by `errors`.
+    pub fn transform(&self, q: &[f64], errors: &dyn JointErrors) -> Matrix4<f64> {
+        debug_assert_eq!(q.len(), self.joints.len());
+        let mut t = Matrix4::identity();
+        for el in &self.elements {
+            match el {
+                Element::Fixed(m) => t *= m,
+                Element::Joint(j) => t *= self.joint_transform(*j, q[*j], errors),
+            }
+        }
+        t
+    }
+
+    /// Forward kinematics: tool tip `T·[0,0,0,1]` and tool axis `T·[0,0,1,0]`.
+    pub fn pose(&self, q: &[f64], errors: &dyn JointErrors) -> Pose {
+        let t = self.transform(q, errors);
+        Pose {
+            tip: Vector3::new(t[(0, 3)], t[(1, 3)], t[(2, 3)]),
+            axis: Vector3::new(t[(0, 2)], t[(1, 2)], t[(2, 2)]),
+        }
+    }
+
+    /// Forward kinematics and the analytic 6×n Jacobian of `[tip; axis]`.
+    ///
+    /// For joint `k` with `T = P · G_k(q_k) · S`, `dT/dq_k = P · G_k' · S`
+    /// where `G_k' = M_k' E_k + M_k E_k'`. The suffix is only needed applied to
+    /// the tip point and the axis direction, so one backward pass of 4-vectors
+    /// and one forward pass of 4×4 prefixes suffice.
+    pub fn pose_and_jacobian(&self, q: &[f64], errors: &dyn JointErrors) -> (Pose, Jacobian) {
+        let n = self.joints.len();
+        debug_assert_eq!(q.len(), n);
+        // Per-joint transforms and derivatives.
+        let mut g = [Matrix4::<f64>::identity(); MAX_JOINTS];
+        let mut dg = [Matrix4::<f64>::zeros(); MAX_JOINTS];
+        for j in 0..n {
+            let m = self.joint_motion(j, q[j]);
+            let dm = self.joint_motion_derivative(j, q[j]);
+            match errors.error_and_derivative(j, q[j]) {
+                Some((e, de)) => {
+                    let em = error_matrix(&e);
+                    g[j] = m * em;
+                    dg[j] = dm * em + m * error_matrix_derivative(&de);
+                }
+                None => {
+                    g[j] = m;
+                    dg[j] = dm;
+                }
+            }
+        }
+        let elem = |el: &Element| -> Matrix4<f64> {
+            match el {
+                Element::Fixed(m) => *m,
+                Element::Joint(j) => g[*j],
+            }
+        };
+        // Backward pass: suffix applied to tip point and axis direction.
+        let ne = self.elements.len();
+        let mut s_tip = Vector4::new(0.0, 0.0, 0.0, 1.0);
+        let mut s_ax = Vector4::new(0.0, 0.0, 1.0, 0.0);
+        let mut suffix = [(Vector4::zeros(), Vector4::zeros()); MAX_JOINTS];
+        for i in (0..ne).rev() {
+            if let Element::Joint(j) = self.elements[i] {
+                suffix[j] = (s_tip, s_ax);
+            }
+            let m = elem(&self.elements[i]);
+            s_tip = m * s_tip;
+            s_ax = m * s_ax;
+        }
+        // Forward pass: prefix products.
+        let mut jac = Jacobian::zeros(n);
+        let mut prefix = Matrix4::<f64>::identity();
+        for el in &self.elements {
+            if let Element::Joint(j) = el {
+                let d = prefix * dg[*j];
+                let (st, sa) = suffix[*j];
+                let dt = d * st;
+                let da = d * sa;
+                jac[(0, *j)] = dt[0];
+                jac[(1, *j)] = dt[1];
+                jac[(2, *j)] = dt[2];
+                jac[(3, *j)] = da[0];
+                jac[(4, *j)] = da[1];
+                jac[(5, *j)] = da[2];
+            }
+            prefix *= elem(el);
+        }
+        let pose = Pose {
+            tip: Vector3::new(prefix[(0, 3)], prefix[(1, 3)], prefix[(2, 3)]),
+            axis: Vector3::new(prefix[(0, 2)], prefix[(1, 2)], prefix[(2, 2)]),
+        };
+        (pose, jac)
+    }
+}
+
+impl Default for Chain {
+    fn default() -> Self {
+        Chain::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn zhao() -> Chain {
+        let mut c = Chain::new();
+        c.joint("C", JointKind::Revolute, Vector3::new(0.0, 0.0, -1.0));
+        c.joint("X", JointKind::Prismatic, Vector3::x());
+        c.joint("Z", JointKind::Prismatic, Vector3::z());
+        c.joint("B", JointKind::Revolute, Vector3::y());
+        c.translate(Vector3::new(0.0, 0.0, -20.0));
+        c
+    }
+
+    /// Error model used to check the Jacobian's error-derivative terms.
+    struct Wavy;
+    impl JointErrors for Wavy {
+        fn error(&self, joint: usize, q: f64) -> Option<ErrorMotion> {
+            let s = (joint as f64 + 1.0) * 1e-3;
+            Some(ErrorMotion::new(
+                s * (0.1 * q).sin(),
+                s * (0.07 * q).cos(),
+                s * q * 0.01,
+                s * 1e-2 * (0.05 * q).sin(),
+                s * 1e-2 * q,
+                s * 1e-2 * (0.3 * q).cos(),
+            ))
+        }
+    }
+
+    #[test]
+    fn zhao_pose_matches_hand_derivation() {
+        // At C=0: tip = (X - 20 sin B, 0, Z - 20 cos B), axis = (sin B, 0, cos B).
+        let c = zhao();
+        let b: f64 = 0.3;
+        let p = c.pose(&[0.0, 10.0, 5.0, b], &NoErrors);
+        assert!((p.tip - Vector3::new(10.0 - 20.0 * b.sin(), 0.0, 5.0 - 20.0 * b.cos())).norm() < 1e-12);
+        assert!((p.axis - Vector3::new(b.sin(), 0.0, b.cos())).norm() < 1e-15);
+        // A positive C command turns the part by +C about +z, so a point fixed
+        // in the machine appears turned by −C in the workpiece frame.
+        let p = c.pose(&[std::f64::consts::FRAC_PI_2, 10.0, 0.0, 0.0], &NoErrors);
+        assert!((p.tip - Vector3::new(0.0, -10.0, -20.0)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn jacobian_matches_finite_differences_with_errors() {
+        let c = zhao();
+        let q = [0.4, 12.0, -7.0, 0.6];
+        for errors in [&NoErrors as &dyn JointErrors, &Wavy] {
+            let (p0, jac) = c.pose_and_jacobian(&q, errors);
+            let p1 = c.pose(&q, errors);
+            assert!((p0.tip - p1.tip).norm() < 1e-12);
+            for k in 0..4 {
+                let h = 1e-6;
+                let mut qp = q;
+                let mut qm = q;
+                qp[k] += h;
+                qm[k] -= h;
+                let pp = c.pose(&qp, errors);
+                let pm = c.pose(&qm, errors);
+                let dt = (pp.tip - pm.tip) / (2.0 * h);
+                let da = (pp.axis - pm.axis) / (2.0 * h);
+                for r in 0..3 {
+                    assert!((jac[(r, k)] - dt[r]).abs() < 1e-6, "tip row {r} col {k}");
+                    assert!((jac[(r + 3, k)] - da[r]).abs() < 1e-8, "axis row {r} col {k}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn error_matrix_layout_follows_spec() {
+        let e = ErrorMotion::new(1.0, 2.0, 3.0, 0.1, 0.2, 0.3);
+        let m = error_matrix(&e);
+        assert_eq!(m[(0, 1)], -0.3);
+        assert_eq!(m[(0, 2)], 0.2);
+        assert_eq!(m[(1, 0)], 0.3);
+        assert_eq!(m[(1, 2)], -0.1);
+        assert_eq!(m[(2, 0)], -0.2);
+        assert_eq!(m[(2, 1)], 0.1);
+        assert_eq!(m[(0, 3)], 1.0);
+        assert_eq!(m[(2, 3)], 3.0);
+    }
+}
