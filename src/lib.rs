@@ -8,6 +8,8 @@ pub mod cl;
 pub mod error;
 pub mod gcode;
 pub mod geometric;
+pub mod linkage;
 pub mod machine;
+pub mod program;
 
 pub use error::{Error, Location, Result};

@@ -1,0 +1,6 @@
+//! Five-axis linkage to four-axis linkage (seed 003), and the exact nonlinear
+//! error of linearly interpolated blocks.
+
+pub mod nonlinear;
+
+pub use nonlinear::{NonlinearError, nonlinear_error, point_segment_distance};

@@ -1,0 +1,6 @@
+//! NC programs as sequences of blocks: modal state, poses, output formatting.
+
+pub mod format;
+pub mod modal;
+
+pub use modal::{BlockError, BlockMeaning, FeedMode, ModalState, Motion, PoseStart, TcpCode, Units, WordRef};

@@ -1,0 +1,427 @@
+//! Modal state of an NC program and the poses its blocks describe.
+//!
+//! The state machine is fed one block at a time (its words, in order, and its
+//! bare keywords) and says whether the block carries a tool pose that must be
+//! converted, and what that pose is. Rules (documented in `docs/programs.md`):
+//!
+//! - Motion: `G0` rapid, `G1` linear, `G2`/`G3` arcs, `G80`–`G89` canned
+//!   cycles; non-modal `G4 G10 G28 G30 G52 G53 G92` make the block pass through.
+//! - `G90`/`G91` absolute / incremental tool tip; the tool axis is always absolute.
+//! - `G20`/`G21` (and Siemens `G70`/`G71`, `G700`/`G710`) inch / mm: inch
+//!   values are converted to mm for the chain and back for output.
+//! - `G93`/`G94`/`G95` feed modes; `F` is modal.
+//! - Pose mode is switched on by `G43.4`, `G43.5` (Fanuc TCP) and `TRAORI`
+//!   (Sinumerik), off by `G49` and `TRAFOOF`. A linear move that carries
+//!   `I J K` or `A3= B3= C3=` is a pose in any case and switches pose mode on.
+//!   With [`PoseStart::On`] (the default of `kinpost post`) pose mode is on
+//!   from the first block, for CAM programs that carry poses without a TCP code.
+//! - In pose mode a `G0`/`G1` block with any of `X Y Z I J K A3 B3 C3` is a
+//!   pose; missing coordinates keep their modal values. An arc or a canned
+//!   cycle with coordinates in pose mode is an error.
+
+use nalgebra::Vector3;
+
+/// One word of a block, as the modal state needs it.
+#[derive(Debug, Clone, Copy)]
+pub struct WordRef<'a> {
+    /// Upper-case address (`X`, `G`, `A3`, …).
+    pub address: &'a str,
+    /// Numeric value as written (program units).
+    pub value: f64,
+    /// Index of the word's item in the parsed line (for error columns and rewriting).
+    pub item: usize,
+}
+
+/// Motion mode (G-code group 1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Motion {
+    /// `G0`.
+    Rapid,
+    /// `G1`.
+    Linear,
+    /// `G2` / `G3`.
+    Arc,
+    /// Canned cycles and anything else that moves but is not a straight line.
+    Other,
+}
+
+/// Units of lengths in the program.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Units {
+    /// `G21` / `G71` / `G710`.
+    Mm,
+    /// `G20` / `G70` / `G700`.
+    Inch,
+}
+
+impl Units {
+    /// Millimetres per program unit.
+    pub fn mm_per_unit(self) -> f64 {
+        match self {
+            Units::Mm => 1.0,
+            Units::Inch => 25.4,
+        }
+    }
+}
+
+/// Feed mode (G-code group 5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FeedMode {
+    /// `G94`: F in units per minute.
+    PerMinute,
+    /// `G93`: F is the inverse of the block's time in minutes.
+    InverseTime,
+    /// `G95`: F in units per revolution.
+    PerRevolution,
+}
+
+/// Whether pose mode is on before the program says anything.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PoseStart {
+    /// Poses from the first block (CAM pose programs without a TCP code).
+    On,
+    /// Only `G43.4`/`G43.5`/`TRAORI` or a move with a tool axis switch it on.
+    Off,
+}
+
+/// A TCP code in the block that the emitter must rewrite.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TcpCode {
+    /// `G43.4` or `G43.5` (word item index).
+    FanucOn(usize),
+    /// `TRAORI` keyword (keyword item index).
+    SiemensOn(usize),
+}
+
+/// What one block means.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlockMeaning {
+    /// The tool pose this block commands (tip in mm, unit axis), if it is a pose block.
+    pub pose: Option<(Vector3<f64>, Vector3<f64>)>,
+    /// Items of the words that describe the pose (X Y Z I J K A3 B3 C3), to be replaced.
+    pub pose_items: Vec<usize>,
+    /// TCP-on codes to be rewritten to their machine-coordinate equivalent.
+    pub tcp_codes: Vec<TcpCode>,
+    /// Item of the `H` (or `D`) word that goes with a Fanuc TCP code, dropped with it.
+    pub tcp_offset_items: Vec<usize>,
+    /// Motion mode in force for this block.
+    pub motion: Motion,
+    /// Feed mode in force.
+    pub feed_mode: FeedMode,
+    /// Units in force.
+    pub units: Units,
+    /// Absolute (`G90`) or incremental (`G91`).
+    pub absolute: bool,
+    /// Feed in force (program units per minute, or 1/min in G93), if any.
+    pub feed: Option<f64>,
+    /// Item index of an `F` word in this block, if any.
+    pub feed_item: Option<usize>,
+    /// Warnings (e.g. a tool vector normalised).
+    pub warnings: Vec<String>,
+}
+
+/// A problem with a block: message and the item it concerns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BlockError {
+    /// Item index the problem concerns, if one.
+    pub item: Option<usize>,
+    /// What is wrong and what was expected.
+    pub message: String,
+}
+
+/// Tolerance on the length of a programmed tool vector: within it the vector
+/// is normalised with a warning; beyond it the block is an error.
+pub const TOOL_VECTOR_TOLERANCE: f64 = 1e-3;
+
+/// The modal state of a program.
+#[derive(Debug, Clone)]
+pub struct ModalState {
+    /// Motion mode.
+    pub motion: Motion,
+    /// `G90` (true) or `G91`.
+    pub absolute: bool,
+    /// Length units.
+    pub units: Units,
+    /// Feed mode.
+    pub feed_mode: FeedMode,
+    /// Modal feed value.
+    pub feed: Option<f64>,
+    /// Pose mode on.
+    pub pose_mode: bool,
+    /// Modal tool tip, mm (None until the program sets the coordinate).
+    pub tip: [Option<f64>; 3],
+    /// Modal tool axis (programmed components, not normalised).
+    pub axis: Vector3<f64>,
+}
+
+impl ModalState {
+    /// The state at program start.
+    pub fn new(start: PoseStart) -> Self {
+        ModalState {
+            motion: Motion::Rapid,
+            absolute: true,
+            units: Units::Mm,
+            feed_mode: FeedMode::PerMinute,
+            feed: None,
+            pose_mode: start == PoseStart::On,
+            tip: [None; 3],
+            axis: Vector3::z(),
+        }
+    }
+
+    /// Applies one block and says what it means.
+    pub fn apply(&mut self, words: &[WordRef<'_>], keywords: &[(usize, &str)]) -> Result<BlockMeaning, BlockError> {
+        let mut tcp_codes = Vec::new();
+        let mut tcp_offset_items = Vec::new();
+        let mut non_modal = false;
+        let mut feed_item = None;
+        let mut fanuc_tcp_here = false;
+        for w in words {
+            match w.address {
+                "G" => {
+                    let code = (w.value * 10.0).round() as i64;
+                    match code {
+                        0 => self.motion = Motion::Rapid,
+                        10 => self.motion = Motion::Linear,
+                        20 | 30 => self.motion = Motion::Arc,
+                        800 => self.motion = Motion::Rapid,
+                        810..=890 => self.motion = Motion::Other,
+                        900 => self.absolute = true,
+                        910 => self.absolute = false,
+                        200 | 700 | 7000 => self.units = Units::Inch,
+                        210 | 710 | 7100 => self.units = Units::Mm,
+                        930 => self.feed_mode = FeedMode::InverseTime,
+                        940 => self.feed_mode = FeedMode::PerMinute,
+                        950 => self.feed_mode = FeedMode::PerRevolution,
+                        434 | 435 => {
+                            self.pose_mode = true;
+                            fanuc_tcp_here = true;
+                            tcp_codes.push(TcpCode::FanucOn(w.item));
+                        }
+                        490 => self.pose_mode = false,
+                        40 | 100 | 280 | 300 | 520 | 530 | 920 => non_modal = true,
+                        _ => {}
+                    }
+                }
+                "F" => {
+                    self.feed = Some(w.value);
+                    feed_item = Some(w.item);
+                }
+                _ => {}
+            }
+        }
+        if fanuc_tcp_here {
+            tcp_offset_items.extend(words.iter().filter(|w| w.address == "H").map(|w| w.item));
+        }
+        for (item, k) in keywords {
+            match *k {
+                "TRAORI" => {
+                    self.pose_mode = true;
+                    tcp_codes.push(TcpCode::SiemensOn(*item));
+                }
+                "TRAFOOF" => self.pose_mode = false,
+                _ => {}
+            }
+        }
+
+        let is_tip = |a: &str| matches!(a, "X" | "Y" | "Z");
+        let is_axis = |a: &str| matches!(a, "I" | "J" | "K" | "A3" | "B3" | "C3");
+        let has_tip = words.iter().any(|w| is_tip(w.address));
+        let has_axis = words.iter().any(|w| is_axis(w.address));
+        let straight = matches!(self.motion, Motion::Rapid | Motion::Linear);
+        if straight && has_axis && !non_modal {
+            self.pose_mode = true;
+        }
+
+        let mut meaning = BlockMeaning {
+            pose: None,
+            pose_items: Vec::new(),
+            tcp_codes,
+            tcp_offset_items,
+            motion: self.motion,
+            feed_mode: self.feed_mode,
+            units: self.units,
+            absolute: self.absolute,
+            feed: self.feed,
+            feed_item,
+            warnings: Vec::new(),
+        };
+        if !self.pose_mode || non_modal || !(has_tip || has_axis) {
+            return Ok(meaning);
+        }
+        if !straight {
+            let item = words.iter().find(|w| is_tip(w.address)).map(|w| w.item);
+            let what = match self.motion {
+                Motion::Arc => "circular interpolation (G2/G3)",
+                _ => "a canned cycle",
+            };
+            return Err(BlockError {
+                item,
+                message: format!(
+                    "{what} cannot be converted in pose mode: tool poses must be straight G0/G1 moves (linearise arcs in the CAM system)"
+                ),
+            });
+        }
+
+        // Update the modal tip and axis.
+        let scale = self.units.mm_per_unit();
+        for w in words {
+            let slot = match w.address {
+                "X" => Some(0),
+                "Y" => Some(1),
+                "Z" => Some(2),
+                _ => None,
+            };
+            if let Some(i) = slot {
+                let v = w.value * scale;
+                self.tip[i] = if self.absolute {
+                    Some(v)
+                } else {
+                    match self.tip[i] {
+                        Some(old) => Some(old + v),
+                        None => {
+                            return Err(BlockError {
+                                item: Some(w.item),
+                                message: format!(
+                                    "incremental {} move (G91) but the tool tip {} is not known yet: give an absolute position first",
+                                    w.address, w.address
+                                ),
+                            });
+                        }
+                    }
+                };
+                meaning.pose_items.push(w.item);
+            }
+            let comp = match w.address {
+                "I" | "A3" => Some(0),
+                "J" | "B3" => Some(1),
+                "K" | "C3" => Some(2),
+                _ => None,
+            };
+            if let Some(i) = comp {
+                self.axis[i] = w.value;
+                meaning.pose_items.push(w.item);
+            }
+        }
+        meaning.pose_items.sort_unstable();
+
+        let names = ["X", "Y", "Z"];
+        let mut tip = Vector3::zeros();
+        for i in 0..3 {
+            match self.tip[i] {
+                Some(v) => tip[i] = v,
+                None => {
+                    return Err(BlockError {
+                        item: meaning.pose_items.first().copied(),
+                        message: format!(
+                            "the tool tip {} is not known yet: the first pose block must give X, Y and Z",
+                            names[i]
+                        ),
+                    });
+                }
+            }
+        }
+        let norm = self.axis.norm();
+        let axis_item = words.iter().find(|w| is_axis(w.address)).map(|w| w.item);
+        if !norm.is_finite() || norm < 1e-12 {
+            return Err(BlockError {
+                item: axis_item,
+                message: "the tool vector (I, J, K) is zero: expected a unit vector pointing from the tool tip towards the spindle".into(),
+            });
+        }
+        if (norm - 1.0).abs() > TOOL_VECTOR_TOLERANCE {
+            return Err(BlockError {
+                item: axis_item,
+                message: format!(
+                    "the tool vector ({}, {}, {}) has length {norm:.6}, not 1 (tolerance {TOOL_VECTOR_TOLERANCE}): expected a unit vector",
+                    self.axis.x, self.axis.y, self.axis.z
+                ),
+            });
+        }
+        if (norm - 1.0).abs() > 1e-9 {
+            meaning.warnings.push(format!(
+                "tool vector of length {norm:.9} normalised to unit length"
+            ));
+        }
+        meaning.pose = Some((tip, self.axis / norm));
+        Ok(meaning)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn w(address: &'static str, value: f64, item: usize) -> WordRef<'static> {
+        WordRef {
+            address,
+            value,
+            item,
+        }
+    }
+
+    #[test]
+    fn pose_block_with_modal_components() {
+        let mut m = ModalState::new(PoseStart::On);
+        let b = m
+            .apply(&[w("G", 1.0, 0), w("X", 1.0, 2), w("Y", 2.0, 4), w("Z", 3.0, 6), w("F", 100.0, 8)], &[])
+            .unwrap();
+        let (tip, axis) = b.pose.unwrap();
+        assert_eq!(tip, Vector3::new(1.0, 2.0, 3.0));
+        assert_eq!(axis, Vector3::z());
+        assert_eq!(b.pose_items, vec![2, 4, 6]);
+        let b = m.apply(&[w("X", 5.0, 0), w("I", 0.6, 2), w("K", 0.8, 4)], &[]).unwrap();
+        let (tip, axis) = b.pose.unwrap();
+        assert_eq!(tip, Vector3::new(5.0, 2.0, 3.0));
+        assert!((axis - Vector3::new(0.6, 0.0, 0.8)).norm() < 1e-15);
+        assert_eq!(b.feed, Some(100.0));
+    }
+
+    #[test]
+    fn inch_and_incremental() {
+        let mut m = ModalState::new(PoseStart::On);
+        m.apply(&[w("G", 20.0, 0)], &[]).unwrap();
+        let b = m.apply(&[w("G", 1.0, 0), w("X", 1.0, 1), w("Y", 0.0, 2), w("Z", 2.0, 3)], &[]).unwrap();
+        assert_eq!(b.pose.unwrap().0, Vector3::new(25.4, 0.0, 50.8));
+        m.apply(&[w("G", 91.0, 0)], &[]).unwrap();
+        let b = m.apply(&[w("X", 1.0, 1)], &[]).unwrap();
+        assert!((b.pose.unwrap().0.x - 50.8).abs() < 1e-12);
+    }
+
+    #[test]
+    fn tcp_codes_switch_pose_mode() {
+        let mut m = ModalState::new(PoseStart::Off);
+        let b = m.apply(&[w("G", 0.0, 0), w("X", 1.0, 1), w("Y", 1.0, 2), w("Z", 1.0, 3)], &[]).unwrap();
+        assert!(b.pose.is_none());
+        let b = m.apply(&[w("G", 43.5, 0), w("H", 1.0, 2)], &[]).unwrap();
+        assert_eq!(b.tcp_codes, vec![TcpCode::FanucOn(0)]);
+        assert_eq!(b.tcp_offset_items, vec![2]);
+        // Machine-coordinate moves before TCP do not define the tool tip.
+        assert!(m.apply(&[w("X", 2.0, 1)], &[]).is_err());
+        let b = m.apply(&[w("X", 2.0, 1), w("Y", 1.0, 2), w("Z", 1.0, 3)], &[]).unwrap();
+        assert!(b.pose.is_some());
+        m.apply(&[w("G", 49.0, 0)], &[]).unwrap();
+        assert!(m.apply(&[w("X", 2.0, 1)], &[]).unwrap().pose.is_none());
+        let b = m.apply(&[], &[(0, "TRAORI")]).unwrap();
+        assert_eq!(b.tcp_codes, vec![TcpCode::SiemensOn(0)]);
+        let b = m.apply(&[w("A3", 0.0, 0), w("B3", 0.0, 1), w("C3", 1.0, 2)], &[]).unwrap();
+        assert!(b.pose.is_some());
+    }
+
+    #[test]
+    fn errors_name_the_item() {
+        let mut m = ModalState::new(PoseStart::On);
+        let e = m.apply(&[w("G", 1.0, 0), w("X", 1.0, 3)], &[]).unwrap_err();
+        assert!(e.message.contains("Y is not known"), "{}", e.message);
+        let mut m = ModalState::new(PoseStart::On);
+        m.apply(&[w("X", 0.0, 0), w("Y", 0.0, 1), w("Z", 0.0, 2)], &[]).unwrap();
+        let e = m.apply(&[w("G", 2.0, 0), w("X", 1.0, 5)], &[]).unwrap_err();
+        assert_eq!(e.item, Some(5));
+        let e = m.apply(&[w("G", 1.0, 0), w("I", 0.0, 1), w("J", 0.0, 2), w("K", 0.0, 7)], &[]).unwrap_err();
+        assert!(e.message.contains("zero"));
+        let e = m.apply(&[w("I", 0.0, 1), w("J", 0.0, 2), w("K", 1.1, 7)], &[]).unwrap_err();
+        assert!(e.message.contains("length"));
+        let b = m.apply(&[w("I", 0.0, 1), w("J", 0.0, 2), w("K", 1.0004, 7)], &[]).unwrap();
+        assert_eq!(b.warnings.len(), 1);
+    }
+}
