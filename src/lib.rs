@@ -5,11 +5,15 @@
 //! machine's measured geometric errors taken into account.
 
 pub mod cl;
+pub mod cli;
 pub mod error;
 pub mod gcode;
+pub mod input;
 pub mod geometric;
 pub mod linkage;
 pub mod machine;
+pub mod output;
+pub mod post;
 pub mod program;
 
 pub use error::{Error, Location, Result};

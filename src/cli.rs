@@ -1,0 +1,237 @@
+//! The command line: clap definitions and dispatch into the library.
+
+use crate::error::{Error, Result};
+use crate::input::{self, FilterProgress};
+use crate::machine::{IkSolver, Machine};
+use crate::output::write_atomically;
+use crate::post::{PostOptions, post_cl, post_gcode};
+use crate::program::PoseStart;
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use std::io::Write;
+use std::path::PathBuf;
+
+/// kinpost — tool poses to machine axes, with the machine's geometric errors compensated.
+///
+/// Lengths are in mm and angles in degrees on the command line, in programs
+/// and in every report (orientation errors also in µrad and arcsec).
+#[derive(Debug, Parser)]
+#[command(name = "kinpost", version, about, long_about = None, propagate_version = true)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Convert a program of tool poses (G-code X Y Z + I J K / A3= B3= C3=, or
+    /// APT CL GOTO/) into machine axis words. Works as a stdin→stdout filter
+    /// and as a LinuxCNC [FILTER] program.
+    Post(PostArgs),
+    /// Parse a program and summarise its blocks, words and opaque lines, or
+    /// re-emit it from the parse tree (--echo; byte-identical).
+    Parse(ParseArgs),
+    /// Show a machine: its chain, joints, limits, IK family and output format.
+    Machine(MachineArgs),
+}
+
+/// Choosing a machine.
+#[derive(Debug, Args, Clone)]
+pub struct MachineChoice {
+    /// Machine file (JSON) or the name of an embedded machine
+    /// (zhao2022-xzbc, wang2023-xyzab, …). Default: the embedded zhao2022-xzbc.
+    #[arg(long, short = 'm', value_name = "FILE|NAME")]
+    pub machine: Option<String>,
+}
+
+impl MachineChoice {
+    /// Loads the chosen machine.
+    pub fn load(&self) -> Result<Machine> {
+        match &self.machine {
+            None => Ok(Machine::embedded_default()),
+            Some(m) => {
+                let p = PathBuf::from(m);
+                if p.exists() {
+                    Machine::load(&p)
+                } else if let Some(machine) = Machine::embedded(m) {
+                    Ok(machine)
+                } else {
+                    Err(Error::Usage(format!(
+                        "--machine {m}: no such file, and no embedded machine of that name (embedded: {})",
+                        Machine::embedded_names().join(", ")
+                    )))
+                }
+            }
+        }
+    }
+}
+
+/// When pose mode starts.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum PoseStartArg {
+    /// Every straight move with X Y Z / I J K is a tool pose from the first
+    /// block on; G49 / TRAFOOF switch pose mode off, G43.4 / G43.5 / TRAORI on.
+    On,
+    /// Only after G43.4 / G43.5 / TRAORI, or a move that carries a tool axis.
+    Tcp,
+}
+
+/// Input kind.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum InputKind {
+    /// Decide from the content (APT CL if it starts with CL statements).
+    Auto,
+    /// RS-274 / ISO 6983 G-code.
+    Gcode,
+    /// APT CL data (GOTO/x,y,z,i,j,k).
+    Cl,
+}
+
+/// `kinpost post`.
+#[derive(Debug, Args)]
+pub struct PostArgs {
+    /// Program to convert (`-` or nothing: standard input).
+    #[arg(value_name = "PROGRAM")]
+    pub input: Option<PathBuf>,
+    #[command(flatten)]
+    pub machine: MachineChoice,
+    /// Write the output here (atomically: a failed run leaves FILE untouched).
+    /// Default: standard output.
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub output: Option<PathBuf>,
+    /// Decimals of every axis word, overriding the machine file.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=12))]
+    pub decimals: Option<u32>,
+    /// When pose mode starts.
+    #[arg(long, value_enum, default_value = "on")]
+    pub pose_start: PoseStartArg,
+    /// Largest tool-axis miss accepted on a machine that cannot reach every
+    /// tool axis (four-axis machines), µrad. Poses beyond it are an error.
+    #[arg(long, value_name = "URAD", default_value_t = 100.0)]
+    pub axis_tolerance_urad: f64,
+    /// Write only the axes whose value changed (modal), not all axes.
+    #[arg(long)]
+    pub modal_axes: bool,
+    /// Input format.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub input_kind: InputKind,
+    /// Print no summary on standard error.
+    #[arg(long, short = 'q')]
+    pub quiet: bool,
+}
+
+/// `kinpost parse`.
+#[derive(Debug, Args)]
+pub struct ParseArgs {
+    /// Program to parse (`-` or nothing: standard input).
+    #[arg(value_name = "PROGRAM")]
+    pub input: Option<PathBuf>,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Re-emit the program from the parse tree instead of summarising it.
+    #[arg(long, conflicts_with = "json")]
+    pub echo: bool,
+}
+
+/// `kinpost machine`.
+#[derive(Debug, Args)]
+pub struct MachineArgs {
+    #[command(flatten)]
+    pub machine: MachineChoice,
+    /// Print as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Post(a) => post(a),
+        Command::Parse(a) => parse(a),
+        Command::Machine(a) => machine(a),
+    }
+}
+
+fn post(a: PostArgs) -> Result<()> {
+    if !(a.axis_tolerance_urad >= 0.0) {
+        return Err(Error::Usage("--axis-tolerance-urad must be a number ≥ 0".into()));
+    }
+    let machine = a.machine.load()?;
+    let mut solver = IkSolver::new(&machine);
+    let mut inp = input::open(a.input.as_deref())?;
+    let kind = match a.input_kind {
+        InputKind::Auto => {
+            if crate::cl::looks_like_cl(&input::peek(&mut *inp.reader)?) {
+                InputKind::Cl
+            } else {
+                InputKind::Gcode
+            }
+        }
+        k => k,
+    };
+    let opts = PostOptions {
+        decimals: a.decimals,
+        pose_start: match a.pose_start {
+            PoseStartArg::On => PoseStart::On,
+            PoseStartArg::Tcp => PoseStart::Off,
+        },
+        axis_tolerance_rad: a.axis_tolerance_urad * 1e-6,
+        modal_axes: a.modal_axes,
+        file_name: inp.name.clone(),
+    };
+    let mut progress = FilterProgress::new(inp.size);
+    let stats = write_atomically(a.output.as_deref(), |out| {
+        if kind == InputKind::Cl {
+            post_cl(&machine, &mut solver, &mut inp.reader, out, &opts, |n| progress.update(n))
+        } else {
+            post_gcode(&machine, &mut solver, &mut inp.reader, out, &opts, |n| progress.update(n))
+        }
+    })?;
+    if !a.quiet {
+        let mut e = std::io::stderr().lock();
+        for w in &stats.warnings {
+            let _ = writeln!(e, "warning: {w}");
+        }
+        let _ = writeln!(
+            e,
+            "kinpost: {} poses converted for {} ({} lines); largest tool-axis miss {:.3} µrad",
+            stats.poses,
+            machine.name,
+            stats.lines,
+            stats.max_axis_miss_rad * 1e6
+        );
+    }
+    Ok(())
+}
+
+fn parse(a: ParseArgs) -> Result<()> {
+    let mut inp = input::open(a.input.as_deref())?;
+    let name = inp.name.clone();
+    if a.echo {
+        return write_atomically(None, |out| {
+            crate::gcode::echo(&mut inp.reader, out).map_err(|e| Error::io(&name, e))
+        });
+    }
+    let summary = crate::gcode::summarize(&mut inp.reader).map_err(|e| Error::io(&name, e))?;
+    let mut out = std::io::stdout().lock();
+    let text = if a.json {
+        serde_json::to_string_pretty(&summary).unwrap_or_default()
+    } else {
+        summary.to_text(&name)
+    };
+    writeln!(out, "{text}").map_err(|e| Error::io("<stdout>", e))
+}
+
+fn machine(a: MachineArgs) -> Result<()> {
+    let machine = a.machine.load()?;
+    let solver = IkSolver::new(&machine);
+    let mut out = std::io::stdout().lock();
+    let text = if a.json {
+        serde_json::to_string_pretty(&machine.summary_json(&solver)).unwrap_or_default()
+    } else {
+        machine.summary_text(&solver)
+    };
+    writeln!(out, "{text}").map_err(|e| Error::io("<stdout>", e))
+}

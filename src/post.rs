@@ -1,0 +1,476 @@
+//! `kinpost post`: tool poses in, machine axis words out.
+//!
+//! The program streams through block by block: parse (lossless), modal state,
+//! pose → machine axes (analytic IK, optionally refined by compensation),
+//! and the emitter, which rewrites only the axis words of converted blocks.
+//! Everything else leaves byte for byte as it came.
+
+use crate::cl::{ClReader, ClStatement, FeedUnit, SpindleDir};
+use crate::error::{Error, Location, Result};
+use crate::gcode::{ItemKind, Line, LineReader};
+use crate::machine::{IkSolver, Machine, Pose};
+use crate::program::format::push_fixed;
+use crate::program::{ModalState, PoseStart, TcpCode, Units, WordRef};
+use nalgebra::Vector3;
+use std::io::{BufRead, Write};
+
+/// Turns a tool pose into joint values (chain order, internal units).
+///
+/// The theoretical machine uses the analytic IK ([`IkSolver`]); compensation
+/// wraps it with Newton refinement on the error-aware chain.
+pub trait PoseSolver {
+    /// Joint values for `pose`, continuing from `previous`.
+    fn solve(&mut self, pose: &Pose, previous: Option<&[f64]>) -> std::result::Result<SolvedPose, String>;
+}
+
+/// The joint values found for one pose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SolvedPose {
+    /// Joint values, chain order, mm / rad.
+    pub q: Vec<f64>,
+    /// Angle by which the reachable tool axis misses the programmed one, rad
+    /// (non-zero on four-axis machines for poses off the machine's cone).
+    pub axis_miss_rad: f64,
+}
+
+impl PoseSolver for IkSolver {
+    fn solve(&mut self, pose: &Pose, previous: Option<&[f64]>) -> std::result::Result<SolvedPose, String> {
+        IkSolver::solve(self, pose, previous)
+            .map(|s| SolvedPose {
+                q: s.q,
+                axis_miss_rad: s.axis_miss_rad,
+            })
+            .map_err(|e| e.to_string())
+    }
+}
+
+/// Options of the post-processor.
+#[derive(Debug, Clone)]
+pub struct PostOptions {
+    /// Decimals for every axis, overriding the machine file.
+    pub decimals: Option<u32>,
+    /// Whether pose mode is on before the program switches it.
+    pub pose_start: PoseStart,
+    /// Largest tool-axis miss accepted on a machine that cannot reach every axis, rad.
+    pub axis_tolerance_rad: f64,
+    /// Write only the axes whose value changed (modal output) instead of all axes.
+    pub modal_axes: bool,
+    /// Name of the input file for messages.
+    pub file_name: String,
+}
+
+impl Default for PostOptions {
+    fn default() -> Self {
+        PostOptions {
+            decimals: None,
+            pose_start: PoseStart::On,
+            axis_tolerance_rad: 1e-4,
+            modal_axes: false,
+            file_name: "<stdin>".into(),
+        }
+    }
+}
+
+/// What the post-processor did.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct PostStats {
+    /// Lines read.
+    pub lines: usize,
+    /// Blocks converted from poses to machine axes.
+    pub poses: usize,
+    /// Largest tool-axis miss, rad.
+    pub max_axis_miss_rad: f64,
+    /// Warnings with their locations.
+    pub warnings: Vec<String>,
+}
+
+/// Emits the machine's axis words for one converted block.
+struct AxisWriter<'m> {
+    machine: &'m Machine,
+    decimals: Vec<usize>,
+    /// Last values written (output order, file units), for modal output and G91.
+    last: Option<Vec<f64>>,
+}
+
+impl<'m> AxisWriter<'m> {
+    fn new(machine: &'m Machine, decimals: Option<u32>) -> Self {
+        let decimals = machine
+            .axes
+            .iter()
+            .map(|a| decimals.unwrap_or(a.decimals) as usize)
+            .collect();
+        AxisWriter {
+            machine,
+            decimals,
+            last: None,
+        }
+    }
+
+    /// Axis words for joint values `q` (chain order, internal units), written
+    /// in program `units`, absolute or incremental, separated by `sep`.
+    fn words(&mut self, q: &[f64], units: Units, absolute: bool, modal: bool, sep: &str) -> std::result::Result<String, String> {
+        let mut values = Vec::with_capacity(self.machine.axes.len());
+        for axis in &self.machine.axes {
+            let v = crate::machine::output_value(axis, q[axis.joint]);
+            let v = if axis.kind == crate::machine::JointKind::Prismatic {
+                v / units.mm_per_unit()
+            } else {
+                v
+            };
+            values.push(v);
+        }
+        // Round to the written precision so that incremental output does not drift.
+        for (v, d) in values.iter_mut().zip(&self.decimals) {
+            let s = 10f64.powi(*d as i32);
+            *v = (*v * s).round() / s;
+        }
+        let mut out = String::new();
+        for (k, axis) in self.machine.axes.iter().enumerate() {
+            let previous = self.last.as_ref().map(|l| l[k]);
+            if modal && previous == Some(values[k]) {
+                continue;
+            }
+            let v = if absolute {
+                values[k]
+            } else {
+                match previous {
+                    Some(p) => values[k] - p,
+                    None => {
+                        return Err(format!(
+                            "incremental output (G91) needs an earlier absolute position of axis {}",
+                            axis.name
+                        ));
+                    }
+                }
+            };
+            if !out.is_empty() {
+                out.push_str(sep);
+            }
+            out.push_str(&axis.name);
+            push_fixed(&mut out, v, self.decimals[k]);
+        }
+        self.last = Some(values);
+        Ok(out)
+    }
+}
+
+/// Converts a G-code pose program, writing the machine program to `out`.
+pub fn post_gcode<R: BufRead, W: Write>(
+    machine: &Machine,
+    solver: &mut dyn PoseSolver,
+    input: R,
+    out: &mut W,
+    opts: &PostOptions,
+    mut progress: impl FnMut(u64),
+) -> Result<PostStats> {
+    let mut stats = PostStats::default();
+    let mut modal = ModalState::new(opts.pose_start);
+    let mut writer = AxisWriter::new(machine, opts.decimals);
+    let mut previous: Option<Vec<f64>> = None;
+    let mut bytes_read = 0u64;
+    let mut buf = Vec::with_capacity(256);
+    for line in LineReader::new(input) {
+        let line = line.map_err(|e| Error::io(&opts.file_name, e))?;
+        stats.lines += 1;
+        bytes_read += line.bytes.len() as u64;
+        progress(bytes_read);
+        let loc = |item: Option<usize>| {
+            let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);
+            Location::new(&opts.file_name, line.number, col)
+        };
+        let mut words = Vec::new();
+        let mut keywords = Vec::new();
+        for (i, item) in line.items.iter().enumerate() {
+            match &item.kind {
+                ItemKind::Word(w) => words.push(WordRef {
+                    address: w.address.as_str(),
+                    value: w.value,
+                    item: i,
+                }),
+                ItemKind::Keyword(k) => keywords.push((i, k.as_str())),
+                _ => {}
+            }
+        }
+        let meaning = modal.apply(&words, &keywords).map_err(|e| {
+            Error::input_with(loc(e.item), e.message, String::from_utf8_lossy(&line.bytes))
+        })?;
+        for w in &meaning.warnings {
+            stats.warnings.push(format!("{}: {w}", loc(meaning.pose_items.first().copied())));
+        }
+        if let Some(i) = opaque_in_pose_block(&line, modal.pose_mode, meaning.pose.is_some()) {
+            return Err(Error::input_with(
+                loc(Some(i)),
+                "this block must be converted but holds syntax kinpost does not evaluate (an expression, parameter or macro call); expected plain numeric words",
+                String::from_utf8_lossy(&line.bytes),
+            ));
+        }
+        let Some((tip, axis)) = meaning.pose else {
+            if meaning.tcp_codes.is_empty() {
+                line.write_to(out).map_err(|e| Error::io("<output>", e))?;
+            } else {
+                buf.clear();
+                rewrite(&line, &[], "", &meaning.tcp_codes, &meaning.tcp_offset_items, &mut buf);
+                out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
+            }
+            continue;
+        };
+        let pose = Pose::new(tip, axis);
+        let solved = solver
+            .solve(&pose, previous.as_deref())
+            .map_err(|m| Error::input_with(loc(meaning.pose_items.first().copied()), m, String::from_utf8_lossy(&line.bytes)))?;
+        if solved.axis_miss_rad > opts.axis_tolerance_rad {
+            return Err(Error::input_with(
+                loc(meaning.pose_items.first().copied()),
+                format!(
+                    "machine {} cannot reach this tool axis: the closest reachable axis misses it by {:.3} µrad ({:.6}°), more than the tolerance {:.3} µrad (--axis-tolerance-urad)",
+                    machine.name,
+                    solved.axis_miss_rad * 1e6,
+                    solved.axis_miss_rad.to_degrees(),
+                    opts.axis_tolerance_rad * 1e6
+                ),
+                String::from_utf8_lossy(&line.bytes),
+            ));
+        }
+        stats.max_axis_miss_rad = stats.max_axis_miss_rad.max(solved.axis_miss_rad);
+        stats.poses += 1;
+        let sep = separator(&line);
+        let words_text = writer
+            .words(&solved.q, meaning.units, meaning.absolute, opts.modal_axes, sep)
+            .map_err(|m| Error::input(loc(meaning.pose_items.first().copied()), m))?;
+        buf.clear();
+        rewrite(&line, &meaning.pose_items, &words_text, &meaning.tcp_codes, &meaning.tcp_offset_items, &mut buf);
+        out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
+        previous = Some(solved.q);
+    }
+    Ok(stats)
+}
+
+/// The item index of an opaque item in a block that must be converted (or may
+/// carry coordinates in pose mode).
+fn opaque_in_pose_block(line: &Line, pose_mode: bool, is_pose: bool) -> Option<usize> {
+    if !(pose_mode || is_pose) {
+        return None;
+    }
+    line.items.iter().position(|it| {
+        matches!(it.kind, ItemKind::Opaque)
+            && (is_pose
+                || line
+                    .item_bytes(it)
+                    .iter()
+                    .any(|b| matches!(b.to_ascii_uppercase(), b'X' | b'Y' | b'Z' | b'I' | b'J' | b'K')))
+    })
+}
+
+/// The separator between words in this line's style: a space, or nothing
+/// when the block is written without spaces (`G1X1Y2`).
+fn separator(line: &Line) -> &'static str {
+    let words = line
+        .items
+        .iter()
+        .filter(|i| !matches!(i.kind, ItemKind::Space | ItemKind::EndOfLine))
+        .count();
+    let spaces = line.items.iter().filter(|i| matches!(i.kind, ItemKind::Space)).count();
+    if words > 1 && spaces == 0 { "" } else { " " }
+}
+
+/// Rewrites `line` into `out`: the items in `replace` (sorted) are removed and
+/// `words` is written where the first of them stood; TCP-on codes become
+/// their machine-coordinate equivalent (`G49`, `TRAFOOF`) and the tool length
+/// offset words that went with them are dropped. All other bytes are kept.
+pub fn rewrite(line: &Line, replace: &[usize], words: &str, tcp: &[TcpCode], drop: &[usize], out: &mut Vec<u8>) {
+    let mut pending_space: Option<&[u8]> = None;
+    let mut inserted = false;
+    for (i, item) in line.items.iter().enumerate() {
+        let bytes = line.item_bytes(item);
+        if matches!(item.kind, ItemKind::Space) {
+            if let Some(p) = pending_space {
+                out.extend_from_slice(p);
+            }
+            pending_space = Some(bytes);
+            continue;
+        }
+        if replace.binary_search(&i).is_ok() {
+            if !inserted {
+                inserted = true;
+                if !words.is_empty() {
+                    if let Some(p) = pending_space {
+                        out.extend_from_slice(p);
+                    }
+                    out.extend_from_slice(words.as_bytes());
+                }
+            }
+            pending_space = None;
+            continue;
+        }
+        if drop.contains(&i) {
+            pending_space = pending_space.filter(|_| out.is_empty());
+            continue;
+        }
+        if let Some(p) = pending_space.take() {
+            out.extend_from_slice(p);
+        }
+        match tcp.iter().find(|c| matches!(c, TcpCode::FanucOn(k) | TcpCode::SiemensOn(k) if *k == i)) {
+            Some(TcpCode::FanucOn(_)) => {
+                // Keep the letter's case as written.
+                let g = if bytes.first() == Some(&b'g') { b"g49" } else { b"G49" };
+                out.extend_from_slice(g);
+            }
+            Some(TcpCode::SiemensOn(_)) => out.extend_from_slice(b"TRAFOOF"),
+            None => out.extend_from_slice(bytes),
+        }
+    }
+    if let Some(p) = pending_space {
+        out.extend_from_slice(p);
+    }
+}
+
+/// Converts APT CL data to a G-code program for `machine`.
+///
+/// Statements are translated: `GOTO` → `G0`/`G1` with the machine's axes,
+/// `FEDRAT` → `F`, `RAPID` → `G0` for the next `GOTO`, `LOADTL` → `T.. M6`,
+/// `SPINDL` → `S.. M3/M4/M5`, `COOLNT` → `M7/M8/M9`, `FINI` → `M30`,
+/// `END` → `M2`, `$$` and `PARTNO` → comments; any other statement is kept
+/// as a comment so nothing is lost.
+pub fn post_cl<R: BufRead, W: Write>(
+    machine: &Machine,
+    solver: &mut dyn PoseSolver,
+    input: R,
+    out: &mut W,
+    opts: &PostOptions,
+    mut progress: impl FnMut(u64),
+) -> Result<PostStats> {
+    let io = |e: std::io::Error| Error::io("<output>", e);
+    let mut stats = PostStats::default();
+    let mut writer = AxisWriter::new(machine, opts.decimals);
+    let mut previous: Option<Vec<f64>> = None;
+    let mut axis = Vector3::z();
+    let mut rapid_next = false;
+    let mut units = Units::Mm;
+    let mut feed: Option<f64> = None;
+    let mut feed_written: Option<f64> = None;
+    let mut motion_written: Option<u8> = None;
+    let mut bytes_read = 0u64;
+    writeln!(
+        out,
+        "(kinpost: APT CL {} for machine {})",
+        sanitize_comment(&opts.file_name),
+        sanitize_comment(&machine.name)
+    )
+    .map_err(io)?;
+    writeln!(out, "G21 G90 G94").map_err(io)?;
+    for record in ClReader::new(input, &opts.file_name) {
+        let record = record?;
+        stats.lines += 1;
+        bytes_read += record.text.len() as u64;
+        progress(bytes_read);
+        let loc = Location::new(&opts.file_name, record.line, record.col);
+        let text = String::from_utf8_lossy(&record.text).trim().to_string();
+        match &record.statement {
+            ClStatement::Goto { tip, axis: a } => {
+                let scale = units.mm_per_unit();
+                let tip = Vector3::new(tip[0], tip[1], tip[2]) * scale;
+                if let Some(a) = a {
+                    axis = Vector3::new(a[0], a[1], a[2]);
+                }
+                let norm = axis.norm();
+                if !(norm > 1e-12) || (norm - 1.0).abs() > crate::program::modal::TOOL_VECTOR_TOLERANCE {
+                    return Err(Error::input_with(
+                        loc,
+                        format!("tool axis of length {norm:.6}: expected a unit vector"),
+                        text,
+                    ));
+                }
+                let pose = Pose::new(tip, axis / norm);
+                let solved = solver
+                    .solve(&pose, previous.as_deref())
+                    .map_err(|m| Error::input_with(loc.clone(), m, text.clone()))?;
+                if solved.axis_miss_rad > opts.axis_tolerance_rad {
+                    return Err(Error::input_with(
+                        loc,
+                        format!(
+                            "machine {} cannot reach this tool axis: it misses by {:.3} µrad, more than the tolerance {:.3} µrad",
+                            machine.name,
+                            solved.axis_miss_rad * 1e6,
+                            opts.axis_tolerance_rad * 1e6
+                        ),
+                        text,
+                    ));
+                }
+                stats.max_axis_miss_rad = stats.max_axis_miss_rad.max(solved.axis_miss_rad);
+                stats.poses += 1;
+                let words = writer
+                    .words(&solved.q, Units::Mm, true, opts.modal_axes, " ")
+                    .map_err(|m| Error::input(loc.clone(), m))?;
+                let motion = if rapid_next { 0 } else { 1 };
+                rapid_next = false;
+                let mut block = String::new();
+                if motion_written != Some(motion) {
+                    block.push_str(if motion == 0 { "G0 " } else { "G1 " });
+                    motion_written = Some(motion);
+                }
+                block.push_str(&words);
+                if motion == 1 && feed.is_some() && feed != feed_written {
+                    block.push_str(" F");
+                    push_fixed(&mut block, feed.unwrap_or(0.0), 1);
+                    feed_written = feed;
+                }
+                writeln!(out, "{}", block.trim_end()).map_err(io)?;
+                previous = Some(solved.q);
+            }
+            ClStatement::Fedrat { value, unit } => {
+                feed = Some(match unit {
+                    FeedUnit::InchPerMinute => value * 25.4,
+                    _ => *value,
+                });
+                if matches!(unit, FeedUnit::MmPerRev | FeedUnit::InchPerRev) {
+                    writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?;
+                }
+            }
+            ClStatement::Rapid => rapid_next = true,
+            ClStatement::TlAxis(a) => axis = Vector3::new(a[0], a[1], a[2]),
+            ClStatement::LoadTl(n) => writeln!(out, "T{n} M6").map_err(io)?,
+            ClStatement::Spindle { rpm, dir, off } => {
+                if *off {
+                    writeln!(out, "M5").map_err(io)?;
+                } else {
+                    let m = match dir {
+                        Some(SpindleDir::Ccw) => "M4",
+                        _ => "M3",
+                    };
+                    match rpm {
+                        Some(s) => writeln!(out, "S{} {m}", crate::program::format::fixed(*s, 0)).map_err(io)?,
+                        None => writeln!(out, "{m}").map_err(io)?,
+                    }
+                }
+            }
+            ClStatement::Coolant(on) => writeln!(out, "{}", if *on { "M8" } else { "M9" }).map_err(io)?,
+            ClStatement::Units(u) => {
+                units = match u {
+                    crate::cl::ClUnits::Inches => Units::Inch,
+                    crate::cl::ClUnits::Mm => Units::Mm,
+                };
+                writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?;
+            }
+            ClStatement::Comment(c) => writeln!(out, "({})", sanitize_comment(c.trim())).map_err(io)?,
+            ClStatement::End => {
+                let t = text.to_ascii_uppercase();
+                writeln!(out, "{}", if t.starts_with("FINI") { "M30" } else { "M2" }).map_err(io)?
+            }
+            ClStatement::Other { .. } => writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?,
+        }
+    }
+    Ok(stats)
+}
+
+/// Makes text safe inside a `( )` comment: parentheses become brackets and
+/// line breaks become spaces.
+fn sanitize_comment(s: &str) -> String {
+    s.chars()
+        .map(|c| match c {
+            '(' => '[',
+            ')' => ']',
+            '\r' | '\n' => ' ',
+            c => c,
+        })
+        .collect()
+}
