@@ -2,5 +2,6 @@
 //! error of linearly interpolated blocks.
 
 pub mod nonlinear;
+pub mod plan;
 
 pub use nonlinear::{NonlinearError, nonlinear_error, point_segment_distance};
