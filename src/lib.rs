@@ -7,6 +7,7 @@
 pub mod cl;
 pub mod cli;
 pub mod compensate;
+pub mod demo;
 pub mod error;
 pub mod gcode;
 pub mod input;
