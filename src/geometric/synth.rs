@@ -266,7 +266,7 @@ pub fn zhao2022_tables(seed: u64) -> String {
             Column {
                 name: "EYX",
                 unit: FileUnit::Mm,
-                shape: shape([2.6, -0.3, 0.8, 0.0], 0.2, 2.5, 0.0, 0.05),
+                shape: shape([2.2, -0.3, 0.8, 0.0], 0.2, 2.5, 0.0, 0.05),
             },
             Column {
                 name: "EZX",
@@ -357,6 +357,7 @@ pub fn wang2023_tables(seed: u64) -> String {
     );
     let col = |name: &'static str, unit: FileUnit, shape: Shape| Column { name, unit, shape };
     use FileUnit::{Arcsec, Um, Urad};
+    use std::f64::consts::PI;
     let specs = [
         AxisSpec {
             axis: "X",
@@ -449,31 +450,17 @@ pub fn wang2023_tables(seed: u64) -> String {
             step: 15.0,
             runs: 3,
             columns: vec![
+                // A turns fully: its errors are periodic (one harmonic per
+                // revolution), so -180° and 180° agree.
                 col(
                     "EAA",
                     Arcsec,
-                    positioning(shape([0.0, 12.0, -5.0, 0.0], 8.0, 3.1416, 0.0, 1.0), 4.0),
+                    positioning(shape([3.0, 0.0, 0.0, 0.0], 25.0, PI, 0.3, 1.0), 4.0),
                 ),
-                col(
-                    "EYA",
-                    Um,
-                    shape([0.0, 1.0, 0.0, 0.0], 2.0, 3.1416, 0.5, 0.15),
-                ),
-                col(
-                    "EZA",
-                    Um,
-                    shape([0.0, 0.0, 0.0, 0.0], 2.0, 3.1416, 2.1, 0.15),
-                ),
-                col(
-                    "EBA",
-                    Urad,
-                    shape([0.0, 0.0, 1.0, 0.0], 4.0, 3.1416, 0.3, 0.5),
-                ),
-                col(
-                    "ECA",
-                    Urad,
-                    shape([0.0, 0.0, -1.0, 0.0], 3.0, 3.1416, 1.9, 0.5),
-                ),
+                col("EYA", Um, shape([0.0, 0.0, 0.0, 0.0], 2.0, PI, 0.5, 0.15)),
+                col("EZA", Um, shape([0.5, 0.0, 0.0, 0.0], 1.5, PI, 2.1, 0.15)),
+                col("EBA", Urad, shape([0.0, 0.0, 0.0, 0.0], 4.0, PI, 0.3, 0.5)),
+                col("ECA", Urad, shape([1.0, 0.0, 0.0, 0.0], 3.0, PI, 1.9, 0.5)),
             ],
         },
         AxisSpec {
