@@ -745,3 +745,16 @@ mod never_panics {
         }
     }
 }
+
+#[test]
+fn dense_scans_are_cross_validated_quickly() {
+    let pos = travel(-500.0, 500.0, 0.5);
+    let (x, y) = sample(smooth, &pos, 1, 5e-5, 9);
+    let t0 = std::time::Instant::now();
+    let f = bspline::fit(&x, &y, &SplineOptions::default()).unwrap();
+    let dt = t0.elapsed().as_secs_f64();
+    assert!(dt < 10.0, "{dt} s for {} positions", pos.len());
+    assert_eq!(f.positions, 2001);
+    assert!(f.cv.is_some());
+    eprintln!("dense: {dt:.3} s, {} knots", f.interior_knots);
+}
