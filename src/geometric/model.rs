@@ -130,7 +130,7 @@ impl FixedError {
             Some(name) => {
                 let j = chain.joint_index(name).ok_or_else(|| {
                     Error::input(
-                        Location::default(),
+                        Location::new("<error model>", 0, 0),
                         format!(
                             "fixed error `{}`: joint {name} is not in the chain (joints: {})",
                             self.name,
