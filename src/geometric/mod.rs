@@ -1,1 +1,24 @@
 //! Geometric errors: error tables, B-spline fits, the error model.
+//!
+//! * [`table`]: the error-table CSV of `formats.md` §1 ([`parse_tables`]).
+//! * [`bspline`]: least-squares cubic B-splines with cross-validated knots.
+//! * [`iso230_2`]: ISO 230-2 positioning figures from bidirectional runs.
+//! * [`model`]: the fitted [`ErrorModel`], its JSON form, and
+//!   [`BoundErrors`], the chain evaluator's error source.
+//! * [`synth`]: deterministic synthetic tables for the fixture machines.
+//!
+//! See `docs/error-tables.md`.
+
+pub mod bspline;
+pub mod iso230_2;
+pub mod model;
+pub mod synth;
+pub mod table;
+
+pub use bspline::{BSpline, Extrapolation, KnotChoice};
+pub use iso230_2::Iso230_2;
+pub use model::{
+    AxisErrors, BoundErrors, ColumnReport, ColumnSpline, ErrorModel, FitOptions, FitReport,
+    FixedError, ModelMeta,
+};
+pub use table::{Component, ErrorColumn, ErrorTable, parse_tables, read_tables};

@@ -1,0 +1,708 @@
+//! The error model: fitted error splines per axis plus fixed error elements,
+//! bound to a kinematic chain as a [`JointErrors`] source.
+
+use std::path::Path;
+
+use nalgebra::Matrix4;
+use serde::{Deserialize, Serialize};
+
+use super::bspline::{self, BSpline, Extrapolation, KnotChoice, SplineOptions};
+use super::iso230_2::{self, Iso230_2};
+use super::table::{
+    Component, ErrorTable, RAD_PER_ARCSEC, angle_unit, is_rotary_axis, length_unit, parse_tables,
+};
+use crate::error::{Error, Location, Result};
+use crate::machine::chain::{Chain, ErrorMotion, JointErrors, JointKind, error_matrix};
+
+/// Value of the `format` field of a model JSON file.
+pub const MODEL_FORMAT: &str = "kinpost-error-model";
+/// Current model JSON version.
+pub const MODEL_VERSION: u32 = 1;
+
+/// Options for [`ErrorModel::fit`].
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct FitOptions {
+    /// Interior knot count: cross-validated (default) or fixed.
+    pub knots: KnotChoice,
+    /// Behaviour outside the measured travel (default: hold the end value).
+    pub extrapolation: Extrapolation,
+}
+
+impl FitOptions {
+    /// Options with a fixed number of uniform interior knots.
+    pub fn fixed_knots(n: usize) -> Self {
+        FitOptions {
+            knots: KnotChoice::Fixed(n),
+            ..Default::default()
+        }
+    }
+
+    fn spline(&self) -> SplineOptions {
+        SplineOptions {
+            knots: self.knots,
+            extrapolation: self.extrapolation,
+        }
+    }
+}
+
+/// One fitted error column of an axis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColumnSpline {
+    /// Which error motion.
+    pub component: Component,
+    /// Column name (e.g. `EXX`).
+    pub name: String,
+    /// The fitted function: position (mm, or deg for rotary axes) → error
+    /// (mm or rad).
+    pub spline: BSpline,
+}
+
+/// The position-dependent errors of one axis: up to six fitted splines.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisErrors {
+    /// Axis letter (upper-case), matched case-insensitively to chain joints.
+    pub axis: String,
+    /// Rotary axis: spline positions are degrees.
+    pub rotary: bool,
+    /// Fitted columns, at most one per component.
+    pub columns: Vec<ColumnSpline>,
+}
+
+impl AxisErrors {
+    /// Error motions and their derivatives with respect to the position in
+    /// table units (per mm, or per degree for rotary axes). Rotary positions
+    /// outside a column's measured range are first replaced by the equivalent
+    /// angle (± k·360°) nearest to that range; then the column's
+    /// extrapolation policy applies.
+    pub fn error_at(&self, pos: f64) -> (ErrorMotion, ErrorMotion) {
+        let mut e = ErrorMotion::zeros();
+        let mut d = ErrorMotion::zeros();
+        for c in &self.columns {
+            let p = if self.rotary {
+                wrap_angle(pos, c.spline.range())
+            } else {
+                pos
+            };
+            let (v, dv) = c.spline.value_and_derivative(p);
+            e[c.component.index()] = v;
+            d[c.component.index()] = dv;
+        }
+        (e, d)
+    }
+
+    /// The column of component `c`, if fitted.
+    pub fn column(&self, c: Component) -> Option<&ColumnSpline> {
+        self.columns.iter().find(|s| s.component == c)
+    }
+}
+
+/// The angle equivalent to `deg` (mod 360) that lies in, or nearest to, `[lo, hi]`.
+fn wrap_angle(deg: f64, (lo, hi): (f64, f64)) -> f64 {
+    if !deg.is_finite() || (lo..=hi).contains(&deg) {
+        return deg;
+    }
+    let p = deg - 360.0 * ((deg - lo) / 360.0).floor(); // in [lo, lo + 360)
+    if p <= hi {
+        return p;
+    }
+    let below = p - 360.0;
+    if (lo - below) < (p - hi) { below } else { p }
+}
+
+/// A position-independent error (squareness, axis location or orientation),
+/// a fixed element of the small-angle form placed in the chain.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FixedError {
+    /// Description, e.g. `"squareness XZ"`.
+    pub name: String,
+    /// Placed right after this joint's element (and its error motion); at the
+    /// start of the chain (workpiece side) when `None`.
+    pub after_joint: Option<String>,
+    /// `[δx, δy, δz, εx, εy, εz]` in mm and rad.
+    pub motion: [f64; 6],
+}
+
+impl FixedError {
+    /// Returns a copy of `chain` with this error element inserted.
+    pub fn apply(&self, chain: &Chain) -> Result<Chain> {
+        let at = match &self.after_joint {
+            None => 0,
+            Some(name) => {
+                let j = chain.joint_index(name).ok_or_else(|| {
+                    Error::input(
+                        Location::new("<error model>", 0, 0),
+                        format!(
+                            "fixed error `{}`: joint {name} is not in the chain (joints: {})",
+                            self.name,
+                            joint_names(chain)
+                        ),
+                    )
+                })?;
+                chain.joints[j].element + 1
+            }
+        };
+        Ok(chain.with_fixed_inserted(at, self.matrix()))
+    }
+
+    /// The small-angle error matrix of this element.
+    pub fn matrix(&self) -> Matrix4<f64> {
+        error_matrix(&ErrorMotion::from_column_slice(&self.motion))
+    }
+}
+
+fn joint_names(chain: &Chain) -> String {
+    chain
+        .joints
+        .iter()
+        .map(|j| j.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Where a model came from.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct ModelMeta {
+    /// The error-table file(s) it was fitted from, if known.
+    #[serde(default)]
+    pub source: Option<String>,
+    /// Program and version that wrote it.
+    #[serde(default)]
+    pub generator: Option<String>,
+    /// Free text.
+    #[serde(default)]
+    pub description: Option<String>,
+    /// Fit options used.
+    #[serde(default)]
+    pub fit: Option<FitOptions>,
+}
+
+/// Fitted geometric errors of a machine.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ErrorModel {
+    /// Position-dependent errors per axis.
+    pub axes: Vec<AxisErrors>,
+    /// Position-independent error elements, in order.
+    pub fixed: Vec<FixedError>,
+    /// Provenance.
+    pub meta: ModelMeta,
+}
+
+/// Fit statistics of one column.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ColumnReport {
+    /// Axis letter.
+    pub axis: String,
+    /// Column name (`EXX`, …).
+    pub name: String,
+    /// Component.
+    pub component: Component,
+    /// Internal unit of the values (`mm` or `rad`).
+    pub unit: String,
+    /// Unit of the residuals and scores below (`µm` or `µrad`).
+    pub display_unit: String,
+    /// Unit of the positions (`mm` or `deg`).
+    pub position_unit: String,
+    /// Number of samples.
+    pub points: usize,
+    /// Number of distinct positions.
+    pub positions: usize,
+    /// Measured travel `[first, last]`.
+    pub range: [f64; 2],
+    /// Spline degree (3 unless fewer than 4 positions).
+    pub degree: usize,
+    /// Number of uniform interior knots.
+    pub knots: usize,
+    /// `"cross-validation"` or `"fixed"`.
+    pub knots_chosen_by: String,
+    /// Cross-validation score of the chosen count (RMS prediction error).
+    pub cv_score: Option<f64>,
+    /// All cross-validation scores `(knots, score)`.
+    pub cv_scores: Vec<(usize, f64)>,
+    /// RMS residual.
+    pub rms_residual: f64,
+    /// Largest absolute residual.
+    pub max_residual: f64,
+    /// RMS residual in arc seconds (rotations only).
+    pub rms_residual_arcsec: Option<f64>,
+    /// Largest residual in arc seconds (rotations only).
+    pub max_residual_arcsec: Option<f64>,
+    /// Policy outside the measured travel.
+    pub extrapolation: Extrapolation,
+}
+
+/// What [`ErrorModel::fit`] found.
+#[derive(Debug, Clone, PartialEq, Serialize, Default)]
+pub struct FitReport {
+    /// Per fitted column.
+    pub columns: Vec<ColumnReport>,
+    /// ISO 230-2 figures per axis where the positioning error was measured
+    /// in both directions.
+    pub iso230_2: Vec<Iso230_2>,
+}
+
+impl FitReport {
+    /// A human-readable report; every number carries its unit.
+    pub fn to_text(&self) -> String {
+        let mut s = String::new();
+        s.push_str("Least-squares cubic B-spline fit of the error tables\n");
+        for c in &self.columns {
+            let u = &c.display_unit;
+            let arc = |v: Option<f64>| v.map_or(String::new(), |a| format!(" ({a:.3} arcsec)"));
+            s.push_str(&format!(
+                "  {} {:<4} {}: {} points at {} positions over {}…{} {}; degree {}, {} interior knots ({})",
+                c.axis,
+                c.name,
+                c.component,
+                c.points,
+                c.positions,
+                c.range[0],
+                c.range[1],
+                c.position_unit,
+                c.degree,
+                c.knots,
+                c.knots_chosen_by
+            ));
+            if let Some(cv) = c.cv_score {
+                s.push_str(&format!(", CV score {cv:.4} {u}"));
+            }
+            s.push_str(&format!(
+                "\n      residual RMS {:.4} {u}{}, max {:.4} {u}{}; outside travel: {}\n",
+                c.rms_residual,
+                arc(c.rms_residual_arcsec),
+                c.max_residual,
+                arc(c.max_residual_arcsec),
+                c.extrapolation
+            ));
+        }
+        for iso in &self.iso230_2 {
+            s.push_str(&iso.to_text());
+        }
+        s
+    }
+}
+
+/// Error location for a table (header line).
+fn table_loc(t: &ErrorTable) -> Location {
+    t.location()
+}
+
+impl ErrorModel {
+    /// Fits every column of `tables` (several tables of one axis are merged;
+    /// samples of the same column in two tables are fitted together).
+    pub fn fit(tables: &[ErrorTable], opts: &FitOptions) -> Result<(ErrorModel, FitReport)> {
+        let mut model = ErrorModel {
+            meta: ModelMeta {
+                source: {
+                    let mut files: Vec<&str> = tables.iter().map(|t| t.file.as_str()).collect();
+                    files.dedup();
+                    (!files.is_empty()).then(|| files.join(", "))
+                },
+                generator: Some(format!("kinpost {}", env!("CARGO_PKG_VERSION"))),
+                description: None,
+                fit: Some(*opts),
+            },
+            ..Default::default()
+        };
+        let mut report = FitReport::default();
+        // Axes in order of first appearance.
+        let mut axis_names: Vec<String> = Vec::new();
+        for t in tables {
+            let a = t.axis.to_uppercase();
+            if !axis_names.contains(&a) {
+                axis_names.push(a);
+            }
+        }
+        for axis in axis_names {
+            let of_axis: Vec<&ErrorTable> = tables
+                .iter()
+                .filter(|t| t.axis.eq_ignore_ascii_case(&axis))
+                .collect();
+            let rotary = is_rotary_axis(&axis);
+            let mut columns = Vec::new();
+            for comp in Component::ALL {
+                let mut x = Vec::new();
+                let mut y = Vec::new();
+                let mut name = None;
+                let mut first_table = None;
+                for t in &of_axis {
+                    if let Some(c) = t.column(comp) {
+                        x.extend_from_slice(&t.positions);
+                        y.extend_from_slice(&c.values);
+                        name.get_or_insert_with(|| c.name.clone());
+                        first_table.get_or_insert(*t);
+                    }
+                }
+                let (Some(name), Some(t0)) = (name, first_table) else {
+                    continue;
+                };
+                let f = bspline::fit(&x, &y, &opts.spline()).map_err(|e| {
+                    Error::input(table_loc(t0), format!("axis {axis}, column {name}: {e}"))
+                })?;
+                let k = comp.display_factor();
+                let arcsec = (!comp.is_translation()).then_some(1.0 / RAD_PER_ARCSEC);
+                let (lo, hi) = f.spline.range();
+                report.columns.push(ColumnReport {
+                    axis: axis.clone(),
+                    name: name.clone(),
+                    component: comp,
+                    unit: comp.internal_unit().to_string(),
+                    display_unit: comp.display_unit().to_string(),
+                    position_unit: if rotary { "deg" } else { "mm" }.to_string(),
+                    points: f.points,
+                    positions: f.positions,
+                    range: [lo, hi],
+                    degree: f.spline.degree(),
+                    knots: f.interior_knots,
+                    knots_chosen_by: match opts.knots {
+                        KnotChoice::Fixed(_) => "fixed",
+                        KnotChoice::CrossValidation { .. } if f.cv.is_some() => "cross-validation",
+                        KnotChoice::CrossValidation { .. } => "too few positions to cross-validate",
+                    }
+                    .to_string(),
+                    cv_score: f.cv.as_ref().map(|c| c.score * k),
+                    cv_scores: f
+                        .cv
+                        .as_ref()
+                        .map(|c| c.scores.iter().map(|&(m, s)| (m, s * k)).collect())
+                        .unwrap_or_default(),
+                    rms_residual: f.rms * k,
+                    max_residual: f.max * k,
+                    rms_residual_arcsec: arcsec.map(|a| f.rms * a),
+                    max_residual_arcsec: arcsec.map(|a| f.max * a),
+                    extrapolation: opts.extrapolation,
+                });
+                columns.push(ColumnSpline {
+                    component: comp,
+                    name,
+                    spline: f.spline,
+                });
+            }
+            for t in &of_axis {
+                if let Some(iso) = iso230_2::from_table(t) {
+                    report.iso230_2.push(iso);
+                }
+            }
+            model.axes.push(AxisErrors {
+                axis,
+                rotary,
+                columns,
+            });
+        }
+        Ok((model, report))
+    }
+
+    /// The errors of axis `name` (case-insensitive), if modelled.
+    pub fn axis(&self, name: &str) -> Option<&AxisErrors> {
+        self.axes.iter().find(|a| a.axis.eq_ignore_ascii_case(name))
+    }
+
+    /// The model as JSON (see `docs/error-tables.md`).
+    pub fn to_json(&self) -> serde_json::Value {
+        let doc = ModelJson {
+            format: MODEL_FORMAT.to_string(),
+            version: MODEL_VERSION,
+            meta: self.meta.clone(),
+            axes: self
+                .axes
+                .iter()
+                .map(|a| AxisJson {
+                    axis: a.axis.clone(),
+                    rotary: a.rotary,
+                    position_unit: if a.rotary { "deg" } else { "mm" }.to_string(),
+                    columns: a
+                        .columns
+                        .iter()
+                        .map(|c| ColumnJson {
+                            name: c.name.clone(),
+                            component: c.component,
+                            unit: c.component.internal_unit().to_string(),
+                            degree: c.spline.degree(),
+                            knots: c.spline.knots().to_vec(),
+                            coefficients: c.spline.coefficients().to_vec(),
+                            extrapolation: c.spline.extrapolation(),
+                        })
+                        .collect(),
+                })
+                .collect(),
+            fixed: self.fixed.clone(),
+        };
+        serde_json::to_value(doc).unwrap_or(serde_json::Value::Null)
+    }
+
+    /// Reads a model from JSON text; `file` is used in messages.
+    pub fn from_json_str(text: &str, file: &str) -> Result<ErrorModel> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let doc: ModelJson = serde_json::from_str(text).map_err(|e| {
+            Error::input(
+                Location::new(file, e.line(), e.column()),
+                format!("error model JSON: {e}"),
+            )
+        })?;
+        let whole = |msg: String| Error::input(Location::new(file, 0, 0), msg);
+        if doc.format != MODEL_FORMAT {
+            return Err(whole(format!(
+                "`format` is `{}`, expected `{MODEL_FORMAT}`",
+                doc.format
+            )));
+        }
+        if doc.version != MODEL_VERSION {
+            return Err(whole(format!(
+                "model version {} is not supported (this program reads version {MODEL_VERSION})",
+                doc.version
+            )));
+        }
+        let mut axes: Vec<AxisErrors> = Vec::new();
+        for (ai, a) in doc.axes.into_iter().enumerate() {
+            let axis = a.axis.trim().to_uppercase();
+            let at = |needle: &str, msg: String| {
+                Error::input(
+                    locate(text, file, needle),
+                    format!("axes[{ai}] ({axis}): {msg}"),
+                )
+            };
+            if axis.is_empty() {
+                return Err(at("\"axis\"", "empty axis name".into()));
+            }
+            if axes.iter().any(|b| b.axis == axis) {
+                return Err(at(&a.axis, "axis given twice".into()));
+            }
+            // Rescale the knots to degrees / mm.
+            let pos_factor = match (a.rotary, a.position_unit.as_str()) {
+                (false, "mm") | (true, "deg") => 1.0,
+                (false, u) => length_unit(u).ok_or_else(|| {
+                    at(
+                        u,
+                        format!("unknown position unit `{u}` for a linear axis (mm)"),
+                    )
+                })?,
+                (true, u) => angle_unit(u).map(|f| f.to_degrees()).ok_or_else(|| {
+                    at(
+                        u,
+                        format!("unknown position unit `{u}` for a rotary axis (deg)"),
+                    )
+                })?,
+            };
+            let mut columns: Vec<ColumnSpline> = Vec::new();
+            for (ci, c) in a.columns.into_iter().enumerate() {
+                let ctx = |m: String| at(&c.name, format!("columns[{ci}] ({}): {m}", c.name));
+                if columns.iter().any(|d| d.component == c.component) {
+                    return Err(ctx(format!("component {} given twice", c.component)));
+                }
+                let vf = if c.component.is_translation() {
+                    length_unit(&c.unit)
+                } else {
+                    angle_unit(&c.unit)
+                }
+                .ok_or_else(|| ctx(format!("unknown unit `{}`", c.unit)))?;
+                let knots: Vec<f64> = c.knots.iter().map(|t| t * pos_factor).collect();
+                let coef: Vec<f64> = c.coefficients.iter().map(|v| v * vf).collect();
+                let spline = BSpline::new(c.degree, knots, coef, c.extrapolation)
+                    .map_err(|e| ctx(e.to_string()))?;
+                columns.push(ColumnSpline {
+                    component: c.component,
+                    name: c.name.to_uppercase(),
+                    spline,
+                });
+            }
+            axes.push(AxisErrors {
+                axis,
+                rotary: a.rotary,
+                columns,
+            });
+        }
+        for f in &doc.fixed {
+            if f.motion.iter().any(|v| !v.is_finite()) {
+                return Err(Error::input(
+                    locate(text, file, &f.name),
+                    format!("fixed error `{}`: motion values must be finite", f.name),
+                ));
+            }
+        }
+        Ok(ErrorModel {
+            axes,
+            fixed: doc.fixed,
+            meta: doc.meta,
+        })
+    }
+
+    /// Loads a model from a file: a model JSON (first non-blank character
+    /// `{`) or an error-table CSV, fitted on the fly with default options.
+    pub fn load(path: &Path) -> Result<ErrorModel> {
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(name.clone(), e))?;
+        Self::from_str_auto(&text, &name)
+    }
+
+    /// Like [`ErrorModel::load`], from text already read.
+    pub fn from_str_auto(text: &str, file: &str) -> Result<ErrorModel> {
+        let trimmed = text.trim_start_matches(['\u{feff}', ' ', '\t', '\r', '\n']);
+        if trimmed.starts_with('{') {
+            Self::from_json_str(text, file)
+        } else {
+            let tables = parse_tables(text, file)?;
+            Ok(Self::fit(&tables, &FitOptions::default())?.0)
+        }
+    }
+
+    /// Binds the model to a chain: every modelled axis must be a joint of the
+    /// chain, of the same kind (rotary axes on revolute joints).
+    pub fn bind<'a>(&'a self, chain: &Chain) -> Result<BoundErrors<'a>> {
+        let mut per_joint: Vec<Option<&'a AxisErrors>> = vec![None; chain.joints.len()];
+        let source = self
+            .meta
+            .source
+            .clone()
+            .unwrap_or_else(|| "<error model>".into());
+        for a in &self.axes {
+            let j = chain.joint_index(&a.axis).ok_or_else(|| {
+                Error::input(
+                    Location::new(source.clone(), 0, 0),
+                    format!(
+                        "the error model has errors for axis {}, which is not a joint of the machine (joints: {})",
+                        a.axis,
+                        joint_names(chain)
+                    ),
+                )
+            })?;
+            let revolute = chain.joints[j].kind == JointKind::Revolute;
+            if revolute != a.rotary {
+                return Err(Error::input(
+                    Location::new(source.clone(), 0, 0),
+                    format!(
+                        "axis {} is {} in the error model but {} in the machine",
+                        a.axis,
+                        if a.rotary {
+                            "rotary (positions in degrees)"
+                        } else {
+                            "linear"
+                        },
+                        if revolute { "revolute" } else { "prismatic" }
+                    ),
+                ));
+            }
+            if per_joint[j].is_some() {
+                return Err(Error::input(
+                    Location::new(source.clone(), 0, 0),
+                    format!("axis {} is given twice in the error model", a.axis),
+                ));
+            }
+            per_joint[j] = Some(a);
+        }
+        Ok(BoundErrors { per_joint })
+    }
+
+    /// Returns `chain` with every fixed error element inserted (in order).
+    pub fn apply_fixed(&self, chain: &Chain) -> Result<Chain> {
+        let mut c = chain.clone();
+        // Inserting in reverse keeps the listed order for elements that share
+        // an anchor.
+        for f in self.fixed.iter().rev() {
+            c = f.apply(&c)?;
+        }
+        Ok(c)
+    }
+}
+
+/// Location of the first occurrence of `needle` in `text` (line 0 if absent).
+fn locate(text: &str, file: &str, needle: &str) -> Location {
+    if needle.is_empty() {
+        return Location::new(file, 0, 0);
+    }
+    match text.find(needle) {
+        Some(off) => {
+            let before = &text[..off];
+            let line = before.matches('\n').count() + 1;
+            let col = off - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+            Location::new(file, line, col)
+        }
+        None => Location::new(file, 0, 0),
+    }
+}
+
+/// An [`ErrorModel`] bound to a chain's joint indices: the chain evaluator's
+/// error source, with analytic derivatives.
+#[derive(Debug, Clone)]
+pub struct BoundErrors<'a> {
+    per_joint: Vec<Option<&'a AxisErrors>>,
+}
+
+impl BoundErrors<'_> {
+    /// The modelled axis at joint index `joint`, if any.
+    pub fn axis_of(&self, joint: usize) -> Option<&AxisErrors> {
+        self.per_joint.get(joint).copied().flatten()
+    }
+}
+
+impl JointErrors for BoundErrors<'_> {
+    fn error(&self, joint: usize, q: f64) -> Option<ErrorMotion> {
+        self.error_and_derivative(joint, q).map(|(e, _)| e)
+    }
+
+    fn error_and_derivative(&self, joint: usize, q: f64) -> Option<(ErrorMotion, ErrorMotion)> {
+        let a = self.per_joint.get(joint).copied().flatten()?;
+        if a.rotary {
+            // The chain works in rad, the splines in degrees.
+            let (e, d) = a.error_at(q.to_degrees());
+            Some((e, d * (180.0 / std::f64::consts::PI)))
+        } else {
+            Some(a.error_at(q))
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.per_joint.iter().all(Option::is_none)
+    }
+}
+
+#[derive(Serialize, Deserialize)]
+struct ModelJson {
+    format: String,
+    version: u32,
+    #[serde(default)]
+    meta: ModelMeta,
+    #[serde(default)]
+    axes: Vec<AxisJson>,
+    #[serde(default)]
+    fixed: Vec<FixedError>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct AxisJson {
+    axis: String,
+    rotary: bool,
+    position_unit: String,
+    columns: Vec<ColumnJson>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct ColumnJson {
+    name: String,
+    component: Component,
+    unit: String,
+    degree: usize,
+    knots: Vec<f64>,
+    coefficients: Vec<f64>,
+    #[serde(default)]
+    extrapolation: Extrapolation,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wraps_angles_to_nearest_equivalent() {
+        assert_eq!(wrap_angle(10.0, (-90.0, 90.0)), 10.0);
+        assert_eq!(wrap_angle(370.0, (-90.0, 90.0)), 10.0);
+        assert_eq!(wrap_angle(-350.0, (-90.0, 90.0)), 10.0);
+        assert_eq!(wrap_angle(200.0, (-90.0, 90.0)), -160.0);
+        assert_eq!(wrap_angle(100.0, (-90.0, 90.0)), 100.0);
+        assert_eq!(wrap_angle(-10.0, (0.0, 360.0)), 350.0);
+    }
+
+    #[test]
+    fn locate_finds_line_and_column() {
+        let l = locate("{\n  \"a\": \"EXX\"\n}", "m.json", "\"EXX\"");
+        assert_eq!((l.line, l.col), (2, 8));
+    }
+}
