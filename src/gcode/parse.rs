@@ -120,13 +120,17 @@ fn number_text(i: In) -> PResult<In> {
 /// The value of a number's source text; `None` if it does not fit in an
 /// f64 (400 digits), so that an overflow never turns silently into `inf`.
 fn number_value(text: In) -> Option<f64> {
-    let mut s = String::with_capacity(text.len());
-    for &b in text {
-        if !is_blank(b) {
-            s.push(char::from(b));
-        }
-    }
-    let v: f64 = s.parse().ok()?;
+    let v: f64 = if text.iter().any(|&b| is_blank(b)) {
+        let s: String = text
+            .iter()
+            .filter(|&&b| !is_blank(b))
+            .map(|&b| char::from(b))
+            .collect();
+        s.parse().ok()?
+    } else {
+        // Sign, digits and point only: always ASCII.
+        std::str::from_utf8(text).ok()?.parse().ok()?
+    };
     v.is_finite().then_some(v)
 }
 

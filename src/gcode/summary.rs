@@ -61,11 +61,11 @@ impl Summary {
             match &item.kind {
                 ItemKind::Word(w) => {
                     words_here += 1;
-                    *self.addresses.entry(w.address.clone()).or_default() += 1;
+                    count(&mut self.addresses, &w.address);
                 }
                 ItemKind::Keyword(k) => {
                     self.keyword_items += 1;
-                    *self.keywords.entry(k.clone()).or_default() += 1;
+                    count(&mut self.keywords, k);
                 }
                 ItemKind::Comment => self.comments += 1,
                 ItemKind::Checksum(_) => self.checksums += 1,
@@ -94,6 +94,16 @@ impl Summary {
             self.non_utf8_lines += 1;
         }
         self.final_newline = ending.ends_with(b"\n");
+    }
+}
+
+/// Add one to `key`'s count (allocating the key only the first time).
+fn count(map: &mut BTreeMap<String, usize>, key: &str) {
+    match map.get_mut(key) {
+        Some(n) => *n += 1,
+        None => {
+            map.insert(key.to_string(), 1);
+        }
     }
 }
 
