@@ -478,3 +478,40 @@ fn summary_counts() {
         "{text}"
     );
 }
+
+#[test]
+fn tiling_check_detects_broken_trees() {
+    let good = parse(b"G1 X1\n");
+    assert!(good.is_tiled());
+    let mut gap = good.clone();
+    gap.items.remove(1);
+    assert!(!gap.is_tiled());
+    let mut overlap = good.clone();
+    overlap.items[1].start = 1;
+    assert!(!overlap.is_tiled());
+    let mut short = good.clone();
+    short.items.pop();
+    assert!(!short.is_tiled());
+    let mut empty = good.clone();
+    empty.items.insert(
+        0,
+        Item {
+            start: 0,
+            end: 0,
+            kind: ItemKind::Space,
+        },
+    );
+    assert!(!empty.is_tiled());
+    let mut bad_value = good.clone();
+    if let ItemKind::Word(w) = &mut bad_value.items[0].kind {
+        w.value_end = 5;
+    }
+    assert!(!bad_value.is_tiled());
+    // Out-of-range items never panic.
+    let stray = Item {
+        start: 10,
+        end: 20,
+        kind: ItemKind::Opaque,
+    };
+    assert_eq!(good.item_bytes(&stray), b"");
+}
