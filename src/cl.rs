@@ -1,1 +1,825 @@
-//! APT CL data (GOTO/...) reader.
+//! APT CL data (NX CLSF, APT source): a streaming statement reader.
+//!
+//! A CL file is a sequence of statements, one per line, `MAJOR/args` or a
+//! bare `MAJOR`; a line ending in `$` continues on the next line, and `$$`
+//! starts a comment that runs to the end of the line. The accepted syntax is
+//! written down in `grammar/apt-cl.ebnf`.
+//!
+//! Statements the converter needs (`GOTO`, `FEDRAT`, `RAPID`, `TLAXIS`,
+//! `MULTAX`, `LOADTL`, `SPINDL`, `COOLNT`, `UNITS`, `FINI`/`END`) are
+//! interpreted; every other statement is kept as [`ClStatement::Other`].
+//! A statement that moves the tool or sets units or the tool and cannot be
+//! read (`GOTO/1,2`, `GOTO/1,2,nan`, `UNITS/FEET`) is an error naming the
+//! file, line and column, and showing the text.
+//!
+//! ```
+//! use kinpost::cl::{ClReader, ClStatement};
+//!
+//! let text = "MULTAX/ON\nGOTO/1.0,2.0,3.0,$\n 0.0,0.0,1.0\n";
+//! let records: Vec<_> = ClReader::new(text.as_bytes(), "op.cls")
+//!     .collect::<Result<_, _>>()
+//!     .unwrap();
+//! assert_eq!(records[1].line, 2);
+//! assert_eq!(
+//!     records[1].statement,
+//!     ClStatement::Goto { tip: [1.0, 2.0, 3.0], axis: Some([0.0, 0.0, 1.0]) }
+//! );
+//! ```
+
+use std::io::BufRead;
+
+use nom::{
+    IResult, Parser,
+    branch::alt,
+    bytes::complete::{tag, take_while, take_while1},
+    character::complete::{char, digit0, digit1, one_of},
+    combinator::{all_consuming, opt, recognize},
+};
+
+use crate::error::{Error, Location};
+
+/// Feed rate units of `FEDRAT`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FeedUnit {
+    /// Millimetres per minute (`MMPM`).
+    Mmpm,
+    /// Inches per minute (`IPM`).
+    Ipm,
+    /// Millimetres per revolution (`MMPR`).
+    Mmpr,
+    /// Inches per revolution (`IPR`).
+    Ipr,
+    /// Not given: per minute, in the program's units.
+    Unspecified,
+}
+
+/// Spindle direction of `SPINDL`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SpindleDir {
+    /// Clockwise (`CLW`, M3).
+    Clockwise,
+    /// Counter-clockwise (`CCLW`, M4).
+    CounterClockwise,
+}
+
+/// Units of `UNITS/`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ClUnits {
+    /// `UNITS/MM`.
+    Mm,
+    /// `UNITS/INCHES` (or `INCH`).
+    Inches,
+}
+
+/// One CL statement, interpreted.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ClStatement {
+    /// `GOTO/x,y,z[,i,j,k]`: tool tip, and tool axis when given.
+    Goto {
+        /// Tool tip position.
+        tip: [f64; 3],
+        /// Tool axis direction (not normalised; never zero).
+        axis: Option<[f64; 3]>,
+    },
+    /// `FEDRAT/[unit,]f` or `FEDRAT/f[,unit]`.
+    Fedrat {
+        /// The feed rate (not negative).
+        value: f64,
+        /// Its unit.
+        unit: FeedUnit,
+    },
+    /// `RAPID`: the next motion is a rapid move.
+    Rapid,
+    /// `TLAXIS/i,j,k`: tool axis for the following motions (never zero).
+    TlAxis([f64; 3]),
+    /// `MULTAX`, `MULTAX/ON` (true) or `MULTAX/OFF` (false).
+    Multax(bool),
+    /// `LOADTL/n[,...]`: tool number.
+    LoadTl(u32),
+    /// `SPINDL/[RPM,]s[,CLW|CCLW]`, `SPINDL/ON`, `SPINDL/OFF`.
+    Spindle {
+        /// Speed in revolutions per minute, if given.
+        rpm: Option<f64>,
+        /// Direction, if given.
+        dir: Option<SpindleDir>,
+        /// `true` for `SPINDL/OFF`.
+        off: bool,
+    },
+    /// `COOLNT/ON|FLOOD|MIST|THRU|AIR|TAPKUL` (true) or `COOLNT/OFF` (false).
+    Coolant(bool),
+    /// `UNITS/MM` or `UNITS/INCHES`.
+    Units(ClUnits),
+    /// A `$$` comment line (the text after `$$`, trimmed).
+    Comment(String),
+    /// `FINI` or `END`: end of the program.
+    End,
+    /// Any other statement: `PARTNO`, `TOOL PATH`, `TLDATA`, `MSYS`, `PAINT`,
+    /// `END-OF-PATH`, `CUTTER`, ... and `SPINDL`/`COOLNT` forms not
+    /// interpreted above (`SPINDL/SFM,..`).
+    Other {
+        /// The major word, uppercased, inner blanks collapsed (`"TOOL PATH"`).
+        major: String,
+        /// The text after the `/` (or after the major word when there is
+        /// no `/`), trimmed, continuations joined, inline comment removed.
+        text: String,
+    },
+}
+
+/// A statement with where it came from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClRecord {
+    /// 1-based number of the statement's first physical line.
+    pub line: usize,
+    /// 1-based column where the statement starts on that line.
+    pub col: usize,
+    /// The original bytes of all the statement's physical lines, line
+    /// endings included.
+    pub text: Vec<u8>,
+    /// What the statement says.
+    pub statement: ClStatement,
+}
+
+/// Reads CL statements one at a time from any [`BufRead`].
+///
+/// An [`Iterator`] of `Result<ClRecord, Error>`. Blank lines are skipped.
+/// After a statement error the reader goes on with the next statement; after
+/// an I/O error it stops. Memory depends on the longest statement, not on
+/// the length of the file.
+#[derive(Debug)]
+pub struct ClReader<R: BufRead> {
+    reader: R,
+    file: String,
+    line: usize,
+    buf: Vec<u8>,
+    done: bool,
+}
+
+/// A piece of a logical statement that came from one physical line:
+/// `logical[offset..]` starts at `line`, `col`.
+#[derive(Debug, Clone, Copy)]
+struct Segment {
+    offset: usize,
+    line: usize,
+    col: usize,
+}
+
+/// A statement joined from its physical lines.
+struct Logical {
+    /// The statement text, continuations joined, `$$` comments and the
+    /// continuation `$` removed.
+    text: Vec<u8>,
+    segments: Vec<Segment>,
+}
+
+impl Logical {
+    /// Line and column of byte `offset` of the logical text.
+    fn position(&self, offset: usize) -> (usize, usize) {
+        let seg = self
+            .segments
+            .iter()
+            .rev()
+            .find(|s| s.offset <= offset)
+            .or(self.segments.first());
+        match seg {
+            Some(s) => (s.line, s.col + (offset - s.offset.min(offset))),
+            None => (0, 0),
+        }
+    }
+}
+
+impl<R: BufRead> ClReader<R> {
+    /// A reader of `reader`; `file` names it in error messages.
+    pub fn new(reader: R, file: impl Into<String>) -> Self {
+        ClReader {
+            reader,
+            file: file.into(),
+            line: 0,
+            buf: Vec::with_capacity(256),
+            done: false,
+        }
+    }
+
+    /// Read one physical line into `self.buf`; `Ok(false)` at end of file.
+    fn read_physical(&mut self) -> Result<bool, Error> {
+        self.buf.clear();
+        match self.reader.read_until(b'\n', &mut self.buf) {
+            Ok(0) => Ok(false),
+            Ok(_) => {
+                self.line += 1;
+                Ok(true)
+            }
+            Err(e) => Err(Error::io(self.file.clone(), e)),
+        }
+    }
+
+    fn error(&self, line: usize, col: usize, message: String, text: &[u8]) -> Error {
+        Error::input_with(
+            Location::new(self.file.clone(), line, col),
+            message,
+            String::from_utf8_lossy(text).into_owned(),
+        )
+    }
+
+    fn next_record(&mut self) -> Option<Result<ClRecord, Error>> {
+        // Skip blank lines; the first non-blank one starts a statement.
+        let (first, col) = loop {
+            match self.read_physical() {
+                Ok(true) => {}
+                Ok(false) => return None,
+                Err(e) => return Some(Err(e)),
+            }
+            if let Some(col) = first_non_blank(&self.buf) {
+                break (self.line, col);
+            }
+        };
+        let mut text = self.buf.clone();
+
+        // A whole-line `$$` comment.
+        let start = &self.buf[col - 1..];
+        if start.starts_with(b"$$") {
+            let comment = String::from_utf8_lossy(strip_eol(&start[2..]));
+            return Some(Ok(ClRecord {
+                line: first,
+                col,
+                text,
+                statement: ClStatement::Comment(comment.trim().to_string()),
+            }));
+        }
+
+        let mut logical = Logical {
+            text: Vec::new(),
+            segments: Vec::new(),
+        };
+        let mut seg_col = col;
+        let mut content = start.to_vec();
+        loop {
+            let (piece, continued) = statement_piece(&content);
+            logical.segments.push(Segment {
+                offset: logical.text.len(),
+                line: self.line,
+                col: seg_col,
+            });
+            logical.text.extend_from_slice(piece);
+            if !continued {
+                break;
+            }
+            match self.read_physical() {
+                Ok(true) => {}
+                Ok(false) => {
+                    return Some(Err(self.error(
+                        first,
+                        col,
+                        "statement continued with `$` but the file ends; expected a continuation line".into(),
+                        &text,
+                    )));
+                }
+                Err(e) => return Some(Err(e)),
+            }
+            text.extend_from_slice(&self.buf);
+            seg_col = first_non_blank(&self.buf).unwrap_or(1);
+            content = self.buf[seg_col - 1..].to_vec();
+            if strip_eol(&content).is_empty() {
+                content.clear();
+            }
+        }
+
+        let statement = match parse_statement(&logical.text) {
+            Ok(s) => s,
+            Err(e) => {
+                let (line, col) = logical.position(e.offset);
+                let snippet = physical_line(&text, line.saturating_sub(first));
+                return Some(Err(self.error(line, col, e.message, snippet)));
+            }
+        };
+        Some(Ok(ClRecord {
+            line: first,
+            col,
+            text,
+            statement,
+        }))
+    }
+}
+
+impl<R: BufRead> Iterator for ClReader<R> {
+    type Item = Result<ClRecord, Error>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if self.done {
+            return None;
+        }
+        let r = self.next_record();
+        match &r {
+            None | Some(Err(Error::Io { .. })) => self.done = true,
+            _ => {}
+        }
+        r
+    }
+}
+
+fn is_blank(b: u8) -> bool {
+    b == b' ' || b == b'\t'
+}
+
+/// The line without its line ending.
+fn strip_eol(line: &[u8]) -> &[u8] {
+    let mut n = line.len();
+    while n > 0 && matches!(line[n - 1], b'\n' | b'\r') {
+        n -= 1;
+    }
+    &line[..n]
+}
+
+/// The `k`-th (0-based) physical line of a statement's text, without its
+/// line ending.
+fn physical_line(text: &[u8], k: usize) -> &[u8] {
+    let line = text.split_inclusive(|&b| b == b'\n').nth(k).unwrap_or(text);
+    strip_eol(line)
+}
+
+/// 1-based column of the first byte that is not a blank or line ending.
+fn first_non_blank(line: &[u8]) -> Option<usize> {
+    strip_eol(line)
+        .iter()
+        .position(|&b| !is_blank(b))
+        .map(|p| p + 1)
+}
+
+/// The statement part of one physical line (from the statement's start):
+/// without line ending, `$$` comment and trailing blanks; and whether it is
+/// continued (ends in a single `$`, which is removed).
+fn statement_piece(content: &[u8]) -> (&[u8], bool) {
+    let mut s = strip_eol(content);
+    if let Some(p) = s.windows(2).position(|w| w == b"$$") {
+        s = &s[..p];
+    }
+    while let Some((&last, init)) = s.split_last() {
+        if is_blank(last) {
+            s = init;
+        } else {
+            break;
+        }
+    }
+    match s.split_last() {
+        Some((b'$', init)) => (init, true),
+        _ => (s, false),
+    }
+}
+
+/// A statement error at a byte offset of the logical text.
+#[derive(Debug)]
+struct StatementError {
+    offset: usize,
+    message: String,
+}
+
+type In<'a> = &'a [u8];
+type PResult<'a, O> = IResult<In<'a>, O, ()>;
+
+/// `major = letter, { letter | digit | "-" | "_" }`
+fn major_word(i: In) -> PResult<In> {
+    recognize((
+        one_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz"),
+        take_while(|b: u8| b.is_ascii_alphanumeric() || b == b'-' || b == b'_'),
+    ))
+    .parse_complete(i)
+}
+
+/// `major_words = major, { blank, major }` (`TOOL PATH`).
+fn major_words(i: In) -> PResult<In> {
+    recognize((
+        major_word,
+        nom::multi::many0((take_while1(is_blank), major_word)),
+    ))
+    .parse_complete(i)
+}
+
+/// `number = [ sign ], ( digits, [ ".", { digit } ] | ".", digits ),
+///  [ ( "e" | "E" ), [ sign ], digits ]`
+fn number_text(i: In) -> PResult<In> {
+    recognize((
+        opt(one_of("+-")),
+        alt((
+            recognize((digit1, opt((char('.'), digit0)))),
+            recognize((char('.'), digit1)),
+        )),
+        opt((one_of("eE"), opt(one_of("+-")), digit1)),
+    ))
+    .parse_complete(i)
+}
+
+/// An argument: its text (trimmed) and its offset in the logical text.
+#[derive(Debug, Clone, Copy)]
+struct Arg<'a> {
+    text: &'a [u8],
+    offset: usize,
+}
+
+impl Arg<'_> {
+    fn upper(&self) -> String {
+        String::from_utf8_lossy(self.text).to_ascii_uppercase()
+    }
+
+    fn is(&self, word: &str) -> bool {
+        self.text.eq_ignore_ascii_case(word.as_bytes())
+    }
+
+    /// The argument as a finite number.
+    fn number(&self) -> Option<f64> {
+        let (_, text) = all_consuming(number_text).parse_complete(self.text).ok()?;
+        let v: f64 = std::str::from_utf8(text).ok()?.parse().ok()?;
+        v.is_finite().then_some(v)
+    }
+
+    fn err(&self, message: impl Into<String>) -> StatementError {
+        StatementError {
+            offset: self.offset,
+            message: message.into(),
+        }
+    }
+
+    fn expect_number(&self, what: &str) -> Result<f64, StatementError> {
+        self.number().ok_or_else(|| {
+            self.err(format!(
+                "expected {what} (a finite number), found `{}`",
+                String::from_utf8_lossy(self.text)
+            ))
+        })
+    }
+}
+
+/// Split `args` (starting at `offset` of the logical text) at commas.
+fn split_args(args: &[u8], offset: usize) -> Vec<Arg<'_>> {
+    let mut out = Vec::new();
+    if args.iter().all(|&b| is_blank(b)) {
+        return out;
+    }
+    let mut start = 0;
+    for piece in args.split(|&b| b == b',') {
+        let lead = piece.iter().take_while(|&&b| is_blank(b)).count();
+        let trail = piece[lead..]
+            .iter()
+            .rev()
+            .take_while(|&&b| is_blank(b))
+            .count();
+        out.push(Arg {
+            text: &piece[lead..piece.len() - trail],
+            offset: offset + start + lead,
+        });
+        start += piece.len() + 1;
+    }
+    out
+}
+
+fn trim(s: &[u8]) -> &[u8] {
+    let lead = s.iter().take_while(|&&b| is_blank(b)).count();
+    let trail = s[lead..].iter().rev().take_while(|&&b| is_blank(b)).count();
+    &s[lead..s.len() - trail]
+}
+
+/// Three finite numbers and nothing else, as a vector that is not zero.
+fn vector(args: &[Arg], what: &str) -> Result<[f64; 3], StatementError> {
+    let mut v = [0.0; 3];
+    for (k, slot) in v.iter_mut().enumerate() {
+        *slot = args[k].expect_number(what)?;
+    }
+    Ok(v)
+}
+
+fn non_zero(v: [f64; 3], at: &Arg, what: &str) -> Result<[f64; 3], StatementError> {
+    if v.iter().map(|x| x * x).sum::<f64>() > 1e-24 {
+        Ok(v)
+    } else {
+        Err(at.err(format!("{what} has zero length; expected a direction")))
+    }
+}
+
+/// Majors whose text after the major word is free text, not `/args`.
+const TEXT_MAJORS: &[&str] = &["PARTNO", "PPRINT", "INSERT", "REMARK"];
+
+/// Majors that are interpreted only with `/args`.
+const NEEDS_ARGS: &[&str] = &[
+    "GOTO", "TLAXIS", "FEDRAT", "LOADTL", "UNITS", "SPINDL", "COOLNT",
+];
+
+/// Interpret one logical statement (starts at its first non-blank byte).
+fn parse_statement(text: &[u8]) -> Result<ClStatement, StatementError> {
+    let Ok((rest, major_raw)) = major_words(text) else {
+        return Err(StatementError {
+            offset: 0,
+            message: "expected an APT statement (`MAJOR/args` or `MAJOR`)".into(),
+        });
+    };
+    let major_all = collapse_upper(major_raw);
+    // The first word alone, for statements without `/`.
+    let first_raw = major_word(text).map(|(_, w)| w).unwrap_or_default();
+    let first_word = collapse_upper(first_raw);
+    let after_first = trim(&text[first_raw.len()..]);
+    if TEXT_MAJORS.contains(&first_word.as_str()) {
+        return Ok(ClStatement::Other {
+            major: first_word,
+            text: String::from_utf8_lossy(after_first).into_owned(),
+        });
+    }
+    let slash: PResult<In> = (take_while(is_blank), tag(&b"/"[..]))
+        .parse_complete(rest)
+        .map(|(r, _)| (r, r));
+    let Ok((args_text, _)) = slash else {
+        // No slash: a bare major word, possibly followed by free text.
+        if NEEDS_ARGS.contains(&first_word.as_str()) {
+            return Err(StatementError {
+                offset: first_raw.len(),
+                message: format!("expected `/` and arguments after {first_word}"),
+            });
+        }
+        return Ok(bare(first_word, after_first));
+    };
+    let major = major_all;
+    let args_offset = text.len() - args_text.len();
+    let args = split_args(args_text, args_offset);
+    let at_major = Arg {
+        text: &text[..major_raw.len()],
+        offset: 0,
+    };
+    let other = || ClStatement::Other {
+        major: major.clone(),
+        text: String::from_utf8_lossy(trim(args_text)).into_owned(),
+    };
+    let count_err = |want: &str| {
+        at_major.err(format!(
+            "{major} expects {want}, found {} argument{}",
+            args.len(),
+            if args.len() == 1 { "" } else { "s" }
+        ))
+    };
+    match major.as_str() {
+        "GOTO" => {
+            if args.len() != 3 && args.len() != 6 {
+                return Err(count_err("3 numbers (x,y,z) or 6 (x,y,z,i,j,k)"));
+            }
+            let tip = vector(&args[..3], "a coordinate")?;
+            let axis = if args.len() == 6 {
+                let v = vector(&args[3..], "a tool axis component")?;
+                Some(non_zero(v, &args[3], "the tool axis")?)
+            } else {
+                None
+            };
+            Ok(ClStatement::Goto { tip, axis })
+        }
+        "TLAXIS" => {
+            if args.len() != 3 {
+                return Err(count_err("3 numbers (i,j,k)"));
+            }
+            let v = vector(&args, "a tool axis component")?;
+            Ok(ClStatement::TlAxis(non_zero(v, &args[0], "the tool axis")?))
+        }
+        "FEDRAT" => fedrat(&args).ok_or_else(|| {
+            count_err("a feed rate, optionally with a unit: `FEDRAT/[MMPM|IPM|MMPR|IPR,]f`")
+        })?,
+        "LOADTL" => {
+            let Some(first) = args.first() else {
+                return Err(count_err("a tool number"));
+            };
+            match first.number() {
+                Some(n) if n >= 0.0 && n.fract() == 0.0 && n <= f64::from(u32::MAX) => {
+                    Ok(ClStatement::LoadTl(n as u32))
+                }
+                _ => Err(first.err(format!(
+                    "expected a tool number (a whole number), found `{}`",
+                    String::from_utf8_lossy(first.text)
+                ))),
+            }
+        }
+        "MULTAX" => match args.as_slice() {
+            [] => Ok(ClStatement::Multax(true)),
+            [a] if a.is("ON") => Ok(ClStatement::Multax(true)),
+            [a] if a.is("OFF") => Ok(ClStatement::Multax(false)),
+            [a, ..] => Err(a.err(format!(
+                "expected MULTAX/ON or MULTAX/OFF, found `{}`",
+                a.upper()
+            ))),
+        },
+        "UNITS" => match args.as_slice() {
+            [a] if a.is("MM") => Ok(ClStatement::Units(ClUnits::Mm)),
+            [a] if a.is("INCHES") || a.is("INCH") => Ok(ClStatement::Units(ClUnits::Inches)),
+            [a, ..] => Err(a.err(format!(
+                "expected UNITS/MM or UNITS/INCHES, found `{}`",
+                a.upper()
+            ))),
+            [] => Err(count_err("MM or INCHES")),
+        },
+        "COOLNT" => match args.as_slice() {
+            [a, ..] if a.is("OFF") => Ok(ClStatement::Coolant(false)),
+            [a, ..]
+                if ["ON", "FLOOD", "MIST", "THRU", "AIR", "TAPKUL"]
+                    .iter()
+                    .any(|w| a.is(w)) =>
+            {
+                Ok(ClStatement::Coolant(true))
+            }
+            _ => Ok(other()),
+        },
+        "SPINDL" => spindle(&args).map(|s| s.unwrap_or_else(other)),
+        "RAPID" => Ok(ClStatement::Rapid),
+        "FINI" | "END" => Ok(ClStatement::End),
+        _ => Ok(other()),
+    }
+}
+
+/// A bare statement (no `/`).
+fn bare(major: String, after: &[u8]) -> ClStatement {
+    match (major.as_str(), after.is_empty()) {
+        ("RAPID", true) => ClStatement::Rapid,
+        ("FINI" | "END", true) => ClStatement::End,
+        ("MULTAX", true) => ClStatement::Multax(true),
+        _ => ClStatement::Other {
+            major,
+            text: String::from_utf8_lossy(after).into_owned(),
+        },
+    }
+}
+
+/// Uppercase, blanks collapsed to one space.
+fn collapse_upper(s: &[u8]) -> String {
+    String::from_utf8_lossy(s)
+        .split([' ', '\t'])
+        .filter(|w| !w.is_empty())
+        .collect::<Vec<_>>()
+        .join(" ")
+        .to_ascii_uppercase()
+}
+
+fn feed_unit(a: &Arg) -> Option<FeedUnit> {
+    [
+        ("MMPM", FeedUnit::Mmpm),
+        ("IPM", FeedUnit::Ipm),
+        ("MMPR", FeedUnit::Mmpr),
+        ("IPR", FeedUnit::Ipr),
+    ]
+    .into_iter()
+    .find(|(w, _)| a.is(w))
+    .map(|(_, u)| u)
+}
+
+/// `FEDRAT/f`, `FEDRAT/unit,f` or `FEDRAT/f,unit`; `None` if malformed.
+fn fedrat(args: &[Arg]) -> Option<Result<ClStatement, StatementError>> {
+    let (value_arg, unit) = match args {
+        [f] if feed_unit(f).is_none() => (f, FeedUnit::Unspecified),
+        [u, f] if feed_unit(u).is_some() => (f, feed_unit(u)?),
+        [f, u] if feed_unit(u).is_some() => (f, feed_unit(u)?),
+        _ => return None,
+    };
+    Some(match value_arg.expect_number("a feed rate") {
+        Ok(v) if v >= 0.0 => Ok(ClStatement::Fedrat { value: v, unit }),
+        Ok(_) => Err(value_arg.err("expected a feed rate that is not negative")),
+        Err(e) => Err(e),
+    })
+}
+
+/// `SPINDL/OFF`, `SPINDL/ON`, `SPINDL/[RPM,]s[,CLW|CCLW][,RANGE,n|MAXRPM,n]`.
+/// `Ok(None)`: a form not interpreted (surface speed, unknown words).
+fn spindle(args: &[Arg]) -> Result<Option<ClStatement>, StatementError> {
+    let mut rpm = None;
+    let mut dir = None;
+    let mut k = 0;
+    while let Some(a) = args.get(k) {
+        if a.is("OFF") && args.len() == 1 {
+            return Ok(Some(ClStatement::Spindle {
+                rpm: None,
+                dir: None,
+                off: true,
+            }));
+        } else if a.is("RPM") {
+            let Some(v) = args.get(k + 1) else {
+                return Err(a.err("expected a speed after RPM"));
+            };
+            rpm = Some(v.expect_number("a spindle speed")?);
+            k += 1;
+        } else if a.is("RANGE") || a.is("MAXRPM") {
+            let Some(v) = args.get(k + 1) else {
+                return Err(a.err(format!("expected a number after {}", a.upper())));
+            };
+            v.expect_number("a number")?;
+            k += 1;
+        } else if a.is("CLW") {
+            dir = Some(SpindleDir::Clockwise);
+        } else if a.is("CCLW") {
+            dir = Some(SpindleDir::CounterClockwise);
+        } else if a.is("ON") {
+        } else if k == 0 && a.number().is_some() {
+            rpm = a.number();
+        } else {
+            return Ok(None);
+        }
+        k += 1;
+    }
+    if args.is_empty() {
+        return Ok(None);
+    }
+    if rpm.is_some_and(|v| v < 0.0) {
+        return Err(args[0].err("expected a spindle speed that is not negative"));
+    }
+    Ok(Some(ClStatement::Spindle {
+        rpm,
+        dir,
+        off: false,
+    }))
+}
+
+/// Statement majors that mark CL data at the start of a line.
+const CL_MARKERS: &[&str] = &[
+    "GOTO/",
+    "TOOL PATH/",
+    "PARTNO",
+    "FEDRAT/",
+    "TLDATA/",
+    "MSYS/",
+    "LOADTL/",
+    "PAINT/",
+    "UNITS/",
+    "MULTAX",
+    "SPINDL/",
+    "TLAXIS/",
+    "COOLNT/",
+    "CUTTER/",
+    "PPRINT",
+    "END-OF-PATH",
+    "FINI",
+];
+
+/// `true` if the start of a file looks like APT CL data rather than G-code:
+/// a CL statement (`GOTO/`, `TOOL PATH/`, `$$`, `PARTNO`, `FEDRAT/`, ...)
+/// starts a line before any line that holds a G-code word.
+pub fn looks_like_cl(first_bytes: &[u8]) -> bool {
+    for (k, raw) in first_bytes.split(|&b| b == b'\n').enumerate() {
+        let line = trim(strip_eol(raw));
+        if line.is_empty() {
+            continue;
+        }
+        if line.starts_with(b"$$") {
+            return true;
+        }
+        let upper = line.to_ascii_uppercase();
+        if CL_MARKERS.iter().any(|m| upper.starts_with(m.as_bytes())) || upper == b"RAPID" {
+            return true;
+        }
+        if crate::gcode::parse_line(raw, k + 1)
+            .words()
+            .next()
+            .is_some()
+        {
+            return false;
+        }
+    }
+    false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pieces() {
+        assert_eq!(
+            statement_piece(b"GOTO/1,2,$\r\n"),
+            (&b"GOTO/1,2,"[..], true)
+        );
+        assert_eq!(
+            statement_piece(b"GOTO/1,2,3 $$ x $\n"),
+            (&b"GOTO/1,2,3"[..], false)
+        );
+        assert_eq!(
+            statement_piece(b"GOTO/1,2,$  $$ more\n"),
+            (&b"GOTO/1,2,"[..], true)
+        );
+        assert_eq!(statement_piece(b""), (&b""[..], false));
+    }
+
+    #[test]
+    fn args_offsets() {
+        let a = split_args(b" 1, 22 ,3", 5);
+        let got: Vec<_> = a.iter().map(|a| (a.text, a.offset)).collect();
+        assert_eq!(got, [(&b"1"[..], 6), (&b"22"[..], 9), (&b"3"[..], 13)]);
+        assert!(split_args(b"  ", 0).is_empty());
+    }
+
+    #[test]
+    fn numbers() {
+        let n = |s: &str| {
+            Arg {
+                text: s.as_bytes(),
+                offset: 0,
+            }
+            .number()
+        };
+        assert_eq!(n("1"), Some(1.0));
+        assert_eq!(n("-1.5"), Some(-1.5));
+        assert_eq!(n(".5"), Some(0.5));
+        assert_eq!(n("5."), Some(5.0));
+        assert_eq!(n("1.0E+02"), Some(100.0));
+        assert_eq!(n("1e999"), None);
+        assert_eq!(n("nan"), None);
+        assert_eq!(n("inf"), None);
+        assert_eq!(n("1.2.3"), None);
+        assert_eq!(n(""), None);
+    }
+}
