@@ -156,7 +156,9 @@ pub fn run(cli: Cli) -> Result<()> {
 
 fn post(a: PostArgs) -> Result<()> {
     if !(a.axis_tolerance_urad >= 0.0) {
-        return Err(Error::Usage("--axis-tolerance-urad must be a number ≥ 0".into()));
+        return Err(Error::Usage(
+            "--axis-tolerance-urad must be a number ≥ 0".into(),
+        ));
     }
     let machine = a.machine.load()?;
     let mut solver = IkSolver::new(&machine);
@@ -184,9 +186,13 @@ fn post(a: PostArgs) -> Result<()> {
     let mut progress = FilterProgress::new(inp.size);
     let stats = write_atomically(a.output.as_deref(), |out| {
         if kind == InputKind::Cl {
-            post_cl(&machine, &mut solver, &mut inp.reader, out, &opts, |n| progress.update(n))
+            post_cl(&machine, &mut solver, &mut inp.reader, out, &opts, |n| {
+                progress.update(n)
+            })
         } else {
-            post_gcode(&machine, &mut solver, &mut inp.reader, out, &opts, |n| progress.update(n))
+            post_gcode(&machine, &mut solver, &mut inp.reader, out, &opts, |n| {
+                progress.update(n)
+            })
         }
     })?;
     if !a.quiet {

@@ -20,7 +20,11 @@ use std::io::{BufRead, Write};
 /// wraps it with Newton refinement on the error-aware chain.
 pub trait PoseSolver {
     /// Joint values for `pose`, continuing from `previous`.
-    fn solve(&mut self, pose: &Pose, previous: Option<&[f64]>) -> std::result::Result<SolvedPose, String>;
+    fn solve(
+        &mut self,
+        pose: &Pose,
+        previous: Option<&[f64]>,
+    ) -> std::result::Result<SolvedPose, String>;
 }
 
 /// The joint values found for one pose.
@@ -34,7 +38,11 @@ pub struct SolvedPose {
 }
 
 impl PoseSolver for IkSolver {
-    fn solve(&mut self, pose: &Pose, previous: Option<&[f64]>) -> std::result::Result<SolvedPose, String> {
+    fn solve(
+        &mut self,
+        pose: &Pose,
+        previous: Option<&[f64]>,
+    ) -> std::result::Result<SolvedPose, String> {
         IkSolver::solve(self, pose, previous)
             .map(|s| SolvedPose {
                 q: s.q,
@@ -108,7 +116,14 @@ impl<'m> AxisWriter<'m> {
 
     /// Axis words for joint values `q` (chain order, internal units), written
     /// in program `units`, absolute or incremental, separated by `sep`.
-    fn words(&mut self, q: &[f64], units: Units, absolute: bool, modal: bool, sep: &str) -> std::result::Result<String, String> {
+    fn words(
+        &mut self,
+        q: &[f64],
+        units: Units,
+        absolute: bool,
+        modal: bool,
+        sep: &str,
+    ) -> std::result::Result<String, String> {
         let mut values = Vec::with_capacity(self.machine.axes.len());
         for axis in &self.machine.axes {
             let v = crate::machine::output_value(axis, q[axis.joint]);
@@ -195,7 +210,9 @@ pub fn post_gcode<R: BufRead, W: Write>(
             Error::input_with(loc(e.item), e.message, String::from_utf8_lossy(&line.bytes))
         })?;
         for w in &meaning.warnings {
-            stats.warnings.push(format!("{}: {w}", loc(meaning.pose_items.first().copied())));
+            stats
+                .warnings
+                .push(format!("{}: {w}", loc(meaning.pose_items.first().copied())));
         }
         if let Some(i) = opaque_in_pose_block(&line, modal.pose_mode, meaning.pose.is_some()) {
             return Err(Error::input_with(
@@ -209,15 +226,26 @@ pub fn post_gcode<R: BufRead, W: Write>(
                 line.write_to(out).map_err(|e| Error::io("<output>", e))?;
             } else {
                 buf.clear();
-                rewrite(&line, &[], "", &meaning.tcp_codes, &meaning.tcp_offset_items, &mut buf);
+                rewrite(
+                    &line,
+                    &[],
+                    "",
+                    &meaning.tcp_codes,
+                    &meaning.tcp_offset_items,
+                    &mut buf,
+                );
                 out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
             }
             continue;
         };
         let pose = Pose::new(tip, axis);
-        let solved = solver
-            .solve(&pose, previous.as_deref())
-            .map_err(|m| Error::input_with(loc(meaning.pose_items.first().copied()), m, String::from_utf8_lossy(&line.bytes)))?;
+        let solved = solver.solve(&pose, previous.as_deref()).map_err(|m| {
+            Error::input_with(
+                loc(meaning.pose_items.first().copied()),
+                m,
+                String::from_utf8_lossy(&line.bytes),
+            )
+        })?;
         if solved.axis_miss_rad > opts.axis_tolerance_rad {
             return Err(Error::input_with(
                 loc(meaning.pose_items.first().copied()),
@@ -235,10 +263,23 @@ pub fn post_gcode<R: BufRead, W: Write>(
         stats.poses += 1;
         let sep = separator(&line);
         let words_text = writer
-            .words(&solved.q, meaning.units, meaning.absolute, opts.modal_axes, sep)
+            .words(
+                &solved.q,
+                meaning.units,
+                meaning.absolute,
+                opts.modal_axes,
+                sep,
+            )
             .map_err(|m| Error::input(loc(meaning.pose_items.first().copied()), m))?;
         buf.clear();
-        rewrite(&line, &meaning.pose_items, &words_text, &meaning.tcp_codes, &meaning.tcp_offset_items, &mut buf);
+        rewrite(
+            &line,
+            &meaning.pose_items,
+            &words_text,
+            &meaning.tcp_codes,
+            &meaning.tcp_offset_items,
+            &mut buf,
+        );
         out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
         previous = Some(solved.q);
     }
@@ -254,10 +295,12 @@ fn opaque_in_pose_block(line: &Line, pose_mode: bool, is_pose: bool) -> Option<u
     line.items.iter().position(|it| {
         matches!(it.kind, ItemKind::Opaque)
             && (is_pose
-                || line
-                    .item_bytes(it)
-                    .iter()
-                    .any(|b| matches!(b.to_ascii_uppercase(), b'X' | b'Y' | b'Z' | b'I' | b'J' | b'K')))
+                || line.item_bytes(it).iter().any(|b| {
+                    matches!(
+                        b.to_ascii_uppercase(),
+                        b'X' | b'Y' | b'Z' | b'I' | b'J' | b'K'
+                    )
+                }))
     })
 }
 
@@ -269,7 +312,11 @@ fn separator(line: &Line) -> &'static str {
         .iter()
         .filter(|i| !matches!(i.kind, ItemKind::Space | ItemKind::EndOfLine))
         .count();
-    let spaces = line.items.iter().filter(|i| matches!(i.kind, ItemKind::Space)).count();
+    let spaces = line
+        .items
+        .iter()
+        .filter(|i| matches!(i.kind, ItemKind::Space))
+        .count();
     if words > 1 && spaces == 0 { "" } else { " " }
 }
 
@@ -277,7 +324,14 @@ fn separator(line: &Line) -> &'static str {
 /// `words` is written where the first of them stood; TCP-on codes become
 /// their machine-coordinate equivalent (`G49`, `TRAFOOF`) and the tool length
 /// offset words that went with them are dropped. All other bytes are kept.
-pub fn rewrite(line: &Line, replace: &[usize], words: &str, tcp: &[TcpCode], drop: &[usize], out: &mut Vec<u8>) {
+pub fn rewrite(
+    line: &Line,
+    replace: &[usize],
+    words: &str,
+    tcp: &[TcpCode],
+    drop: &[usize],
+    out: &mut Vec<u8>,
+) {
     let mut pending_space: Option<&[u8]> = None;
     let mut inserted = false;
     for (i, item) in line.items.iter().enumerate() {
@@ -309,10 +363,17 @@ pub fn rewrite(line: &Line, replace: &[usize], words: &str, tcp: &[TcpCode], dro
         if let Some(p) = pending_space.take() {
             out.extend_from_slice(p);
         }
-        match tcp.iter().find(|c| matches!(c, TcpCode::FanucOn(k) | TcpCode::SiemensOn(k) if *k == i)) {
+        match tcp
+            .iter()
+            .find(|c| matches!(c, TcpCode::FanucOn(k) | TcpCode::SiemensOn(k) if *k == i))
+        {
             Some(TcpCode::FanucOn(_)) => {
                 // Keep the letter's case as written.
-                let g = if bytes.first() == Some(&b'g') { b"g49" } else { b"G49" };
+                let g = if bytes.first() == Some(&b'g') {
+                    b"g49"
+                } else {
+                    b"G49"
+                };
                 out.extend_from_slice(g);
             }
             Some(TcpCode::SiemensOn(_)) => out.extend_from_slice(b"TRAFOOF"),
@@ -373,7 +434,9 @@ pub fn post_cl<R: BufRead, W: Write>(
                     axis = Vector3::new(a[0], a[1], a[2]);
                 }
                 let norm = axis.norm();
-                if !(norm > 1e-12) || (norm - 1.0).abs() > crate::program::modal::TOOL_VECTOR_TOLERANCE {
+                if !(norm > 1e-12)
+                    || (norm - 1.0).abs() > crate::program::modal::TOOL_VECTOR_TOLERANCE
+                {
                     return Err(Error::input_with(
                         loc,
                         format!("tool axis of length {norm:.6}: expected a unit vector"),
@@ -438,12 +501,15 @@ pub fn post_cl<R: BufRead, W: Write>(
                         _ => "M3",
                     };
                     match rpm {
-                        Some(s) => writeln!(out, "S{} {m}", crate::program::format::fixed(*s, 0)).map_err(io)?,
+                        Some(s) => writeln!(out, "S{} {m}", crate::program::format::fixed(*s, 0))
+                            .map_err(io)?,
                         None => writeln!(out, "{m}").map_err(io)?,
                     }
                 }
             }
-            ClStatement::Coolant(on) => writeln!(out, "{}", if *on { "M8" } else { "M9" }).map_err(io)?,
+            ClStatement::Coolant(on) => {
+                writeln!(out, "{}", if *on { "M8" } else { "M9" }).map_err(io)?
+            }
             ClStatement::Units(u) => {
                 units = match u {
                     crate::cl::ClUnits::Inches => Units::Inch,
@@ -451,12 +517,16 @@ pub fn post_cl<R: BufRead, W: Write>(
                 };
                 writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?;
             }
-            ClStatement::Comment(c) => writeln!(out, "({})", sanitize_comment(c.trim())).map_err(io)?,
+            ClStatement::Comment(c) => {
+                writeln!(out, "({})", sanitize_comment(c.trim())).map_err(io)?
+            }
             ClStatement::End => {
                 let t = text.to_ascii_uppercase();
                 writeln!(out, "{}", if t.starts_with("FINI") { "M30" } else { "M2" }).map_err(io)?
             }
-            ClStatement::Other { .. } => writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?,
+            ClStatement::Other { .. } => {
+                writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?
+            }
         }
     }
     Ok(stats)
