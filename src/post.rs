@@ -482,10 +482,11 @@ pub fn post_cl<R: BufRead, W: Write>(
             }
             ClStatement::Fedrat { value, unit } => {
                 feed = Some(match unit {
-                    FeedUnit::InchPerMinute => value * 25.4,
+                    FeedUnit::Ipm => value * 25.4,
+                    FeedUnit::Unspecified => value * units.mm_per_unit(),
                     _ => *value,
                 });
-                if matches!(unit, FeedUnit::MmPerRev | FeedUnit::InchPerRev) {
+                if matches!(unit, FeedUnit::Mmpr | FeedUnit::Ipr) {
                     writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?;
                 }
             }
@@ -497,7 +498,7 @@ pub fn post_cl<R: BufRead, W: Write>(
                     writeln!(out, "M5").map_err(io)?;
                 } else {
                     let m = match dir {
-                        Some(SpindleDir::Ccw) => "M4",
+                        Some(SpindleDir::CounterClockwise) => "M4",
                         _ => "M3",
                     };
                     match rpm {
@@ -524,7 +525,7 @@ pub fn post_cl<R: BufRead, W: Write>(
                 let t = text.to_ascii_uppercase();
                 writeln!(out, "{}", if t.starts_with("FINI") { "M30" } else { "M2" }).map_err(io)?
             }
-            ClStatement::Other { .. } => {
+            ClStatement::Multax(_) | ClStatement::Other { .. } => {
                 writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?
             }
         }
