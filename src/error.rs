@@ -92,7 +92,11 @@ impl Error {
     }
 
     /// An input error at `loc` showing the offending text.
-    pub fn input_with(loc: Location, message: impl Into<String>, snippet: impl Into<String>) -> Self {
+    pub fn input_with(
+        loc: Location,
+        message: impl Into<String>,
+        snippet: impl Into<String>,
+    ) -> Self {
         Error::Input {
             loc,
             message: message.into(),

@@ -198,7 +198,8 @@ pub fn rotation3(u: &Unit<Vector3<f64>>, theta: f64) -> Matrix3<f64> {
 /// Homogeneous rotation by `theta` (rad) about unit axis `u` through the origin.
 pub fn rotation(u: &Unit<Vector3<f64>>, theta: f64) -> Matrix4<f64> {
     let mut m = Matrix4::identity();
-    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&rotation3(u, theta));
+    m.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&rotation3(u, theta));
     m
 }
 
@@ -446,7 +447,9 @@ mod tests {
         let c = zhao();
         let b: f64 = 0.3;
         let p = c.pose(&[0.0, 10.0, 5.0, b], &NoErrors);
-        assert!((p.tip - Vector3::new(10.0 - 20.0 * b.sin(), 0.0, 5.0 - 20.0 * b.cos())).norm() < 1e-12);
+        assert!(
+            (p.tip - Vector3::new(10.0 - 20.0 * b.sin(), 0.0, 5.0 - 20.0 * b.cos())).norm() < 1e-12
+        );
         assert!((p.axis - Vector3::new(b.sin(), 0.0, b.cos())).norm() < 1e-15);
         // A positive C command turns the part by +C about +z, so a point fixed
         // in the machine appears turned by −C in the workpiece frame.
@@ -474,7 +477,10 @@ mod tests {
                 let da = (pp.axis - pm.axis) / (2.0 * h);
                 for r in 0..3 {
                     assert!((jac[(r, k)] - dt[r]).abs() < 1e-6, "tip row {r} col {k}");
-                    assert!((jac[(r + 3, k)] - da[r]).abs() < 1e-8, "axis row {r} col {k}");
+                    assert!(
+                        (jac[(r + 3, k)] - da[r]).abs() < 1e-8,
+                        "axis row {r} col {k}"
+                    );
                 }
             }
         }
