@@ -1,5 +1,19 @@
 //! Machines: the kinematic chain, machine files, inverse kinematics and rotary handling.
+//!
+//! - [`chain`]: the one chain evaluator (forward kinematics, Jacobian).
+//! - [`file`]: machine files (JSON) and the [`Machine`] type.
+//! - [`ik`]: analytic inverse kinematics per family, branch choice, limits.
+//! - [`newton_ik`]: the damped-Newton fallback for other chains.
+//! - [`rotary`]: limited, continuous and modulo rotary axes; unwinding.
 
 pub mod chain;
+pub mod file;
+pub mod ik;
+mod jsonpos;
+pub mod newton_ik;
+pub mod rotary;
 
 pub use chain::{Chain, ErrorMotion, JointErrors, JointKind, NoErrors, Pose};
+pub use file::{AxisSpec, Machine};
+pub use ik::{Family, IkError, IkOptions, IkSolution, IkSolver};
+pub use rotary::{RotaryMode, output_value};

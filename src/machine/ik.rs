@@ -1,0 +1,885 @@
+//! Inverse kinematics: tool pose → joint values, on the theoretical chain.
+//!
+//! The solver is chosen from the chain's *structure* (joint kinds, axis
+//! directions, offsets), never from joint names:
+//!
+//! | [`Family`] | structure | method |
+//! | --- | --- | --- |
+//! | [`Family::FiveAxis2R3T`] | 2 revolute + 3 prismatic (independent), any order | orientation by Paden–Kahan subproblem 2 (≤ 2 branches), then a 3×3 linear solve |
+//! | [`Family::FourAxis1R3T`] | 1 revolute + 3 prismatic | rotary by subproblem 1 (closest tool axis), linear solve |
+//! | [`Family::FourAxisRTTR`] | revolute first, then 2 prismatic + 1 revolute moving the tool in a plane that holds the first axis | first rotary from the tip azimuth (2 branches), second from the projected tool axis, 2 linear axes by least squares |
+//! | [`Family::ThreeAxis`] | 3 prismatic | linear solve |
+//! | [`Family::Generic`] | anything else | damped Newton ([`super::newton_ik`]) |
+//!
+//! The tool axis depends only on the rotations (prismatic joints do not
+//! turn anything), so every analytic family solves the rotary joints from the
+//! tool axis first; with the rotations fixed the tool tip is affine in the
+//! prismatic joints, and those come from one linear solve whose matrix is
+//! the prismatic columns of [`Chain::pose_and_jacobian`].
+//!
+//! Policy (see `docs/machines.md`): every branch is enumerated; rotary values
+//! are unwound towards the previous block ([`super::rotary::choose_turn`]);
+//! among the branches within the axis limits, the one nearest the previous
+//! block in a weighted joint distance (rotary travel dominates) is chosen.
+//! At a singular pose the free rotary keeps its previous value. Machines that
+//! cannot reach every tool axis (four-axis machines) meet the tip exactly and
+//! report how far the reachable axis misses the programmed one
+//! ([`IkSolution::axis_miss_rad`]); the caller decides whether that is an error.
+
+use super::chain::{Chain, Element, JointKind, NoErrors, Pose, rotation3};
+use super::file::{AxisSpec, Machine};
+use super::newton_ik::{self, NewtonOptions};
+use super::rotary::{RotaryMode, angle_diff, choose_turn, within_limits};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix4, Unit, Vector3};
+use std::f64::consts::PI;
+
+/// Default largest tool-axis miss a caller should accept silently, rad.
+pub const DEFAULT_AXIS_TOLERANCE_RAD: f64 = 1e-6;
+
+/// Default angle (rad) between the tool axis and a rotary axis below which the
+/// pose counts as singular and the free rotary keeps its previous value.
+pub const DEFAULT_SINGULAR_TOL_RAD: f64 = 1e-9;
+
+/// Weight of a linear axis in the branch distance, per mm (rotary axes count
+/// 1 per rad): 1 rad of rotary travel weighs like 10 m of linear travel.
+const LINEAR_WEIGHT_PER_MM: f64 = 1e-4;
+
+/// Two branches whose tool-axis misses differ by less than this are equally
+/// good (rad).
+const MISS_TIE_RAD: f64 = 1e-9;
+
+/// Tolerance of the structural tests (unit directions, dimensionless).
+const STRUCT_TOL: f64 = 1e-9;
+
+/// The inverse-kinematics family of a chain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Family {
+    /// Two revolute and three independent prismatic joints, in any order
+    /// (table-table, head-head, head-table five-axis machines).
+    FiveAxis2R3T,
+    /// One revolute and three independent prismatic joints (XYZ + rotary table).
+    FourAxis1R3T,
+    /// Revolute, then two prismatic joints and a revolute that move the tool
+    /// in a plane holding the first revolute's axis (seed 000's XZBC lens machine).
+    FourAxisRTTR,
+    /// Three independent prismatic joints.
+    ThreeAxis,
+    /// Anything else: damped Newton.
+    Generic,
+}
+
+impl Family {
+    /// Short name: `2R3T`, `1R3T`, `RTTR`, `3T` or `generic`.
+    pub fn short_name(self) -> &'static str {
+        match self {
+            Family::FiveAxis2R3T => "2R3T",
+            Family::FourAxis1R3T => "1R3T",
+            Family::FourAxisRTTR => "RTTR",
+            Family::ThreeAxis => "3T",
+            Family::Generic => "generic",
+        }
+    }
+}
+
+impl std::fmt::Display for Family {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Family::FiveAxis2R3T => {
+                "five-axis 2R3T (analytic: Paden–Kahan subproblem 2, then linear solve)"
+            }
+            Family::FourAxis1R3T => {
+                "four-axis 1R3T (analytic: closest tool axis by subproblem 1, then linear solve)"
+            }
+            Family::FourAxisRTTR => {
+                "four-axis RTTR (analytic: rotary from tip azimuth, rotary from projected tool axis, planar linear solve)"
+            }
+            Family::ThreeAxis => "three-axis (linear solve)",
+            Family::Generic => "generic (damped Newton on the chain)",
+        })
+    }
+}
+
+/// One solution of the inverse kinematics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct IkSolution {
+    /// Joint values, chain order, mm and rad (rotaries unwound towards the
+    /// previous block; modulo axes in `[0, 2π)`).
+    pub q: Vec<f64>,
+    /// Angle between the tool axis the machine reaches with `q` and the
+    /// programmed one, rad (≈ 0 for five-axis machines; the cone miss of a
+    /// four-axis machine).
+    pub axis_miss_rad: f64,
+    /// True when a rotary was free at this pose and kept its previous value.
+    pub singular: bool,
+    /// Which branch of the family's enumeration this is (0 or 1; see
+    /// `docs/machines.md`).
+    pub branch: u8,
+}
+
+/// Why a pose has no acceptable solution.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum IkError {
+    /// No joint values produce the pose (or the pose is malformed).
+    #[error("pose unreachable: {reason}")]
+    Unreachable {
+        /// What makes it unreachable.
+        reason: String,
+    },
+    /// Every branch needs an axis beyond its travel; the nearest branch's
+    /// first violation is reported (file units).
+    #[error(
+        "axis {axis} would have to move to {value:.6} {unit}, outside its limits {min} … {max} {unit} (no solution branch stays within the limits)"
+    )]
+    Limit {
+        /// Axis name.
+        axis: String,
+        /// The value needed, mm or degrees.
+        value: f64,
+        /// Lower limit, mm or degrees (−∞ if none).
+        min: f64,
+        /// Upper limit, mm or degrees (+∞ if none).
+        max: f64,
+        /// `"mm"` or `"deg"`.
+        unit: &'static str,
+    },
+    /// The damped-Newton fallback did not meet the tool tip.
+    #[error(
+        "inverse kinematics did not converge after {iterations} iterations: tool tip off by {tip_residual_mm:.3e} mm, tool axis by {:.3} µrad",
+        axis_residual_rad * 1e6
+    )]
+    NotConverged {
+        /// Iterations used.
+        iterations: usize,
+        /// Remaining tip distance, mm.
+        tip_residual_mm: f64,
+        /// Remaining axis angle, rad.
+        axis_residual_rad: f64,
+    },
+}
+
+/// Settings of the inverse kinematics.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IkOptions {
+    /// Angle (rad) between the tool axis and a rotary axis below which the
+    /// rotary is free (singular pose) and keeps its previous value.
+    pub singular_tol_rad: f64,
+    /// Four-axis RTTR machines: weight of the tool axis against the tool tip
+    /// when choosing the first rotary, mm per rad. The rotary comes from the
+    /// tip azimuth, except within about this distance of its axis, where the
+    /// azimuth is lost in the noise of the data and the tool axis decides.
+    pub rttr_axis_weight_mm: f64,
+    /// Tip distance (mm) from the first rotary axis of an RTTR machine below
+    /// which the tip counts as on the axis.
+    pub on_axis_tol_mm: f64,
+    /// Settings of the damped-Newton fallback.
+    pub newton: NewtonOptions,
+}
+
+impl Default for IkOptions {
+    fn default() -> Self {
+        IkOptions {
+            singular_tol_rad: DEFAULT_SINGULAR_TOL_RAD,
+            rttr_axis_weight_mm: 1e-6,
+            on_axis_tol_mm: 1e-9,
+            newton: NewtonOptions::default(),
+        }
+    }
+}
+
+/// Frame data of an RTTR machine.
+#[derive(Debug, Clone)]
+struct RttrFrame {
+    /// Inverse of the fixed transform before the first revolute.
+    pre_inv: Matrix4<f64>,
+    /// Normal of the plane the tool moves in (frame after the first revolute).
+    n: Vector3<f64>,
+    /// In-plane direction perpendicular to the first revolute's axis
+    /// (`u1 × d = n`).
+    d: Vector3<f64>,
+}
+
+/// The inverse-kinematics solver of one machine.
+#[derive(Debug, Clone)]
+pub struct IkSolver {
+    chain: Chain,
+    /// Axis settings by chain joint index.
+    axes: Vec<AxisSpec>,
+    /// Axis settings in output order (for messages).
+    output_order: Vec<usize>,
+    family: Family,
+    revolutes: Vec<usize>,
+    prismatics: Vec<usize>,
+    /// Products of the fixed rotations between revolutes: `segs[0]` before
+    /// the first, …, `segs[r]` after the last (length = revolutes + 1).
+    segs: Vec<Matrix3<f64>>,
+    rttr: Option<RttrFrame>,
+    options: IkOptions,
+}
+
+/// A branch before unwinding and the linear solve.
+struct Raw {
+    q: Vec<f64>,
+    singular: bool,
+    branch: u8,
+}
+
+/// Subproblem 1: the angle θ that turns `p` about unit `k` closest to `q`
+/// (exactly onto it when reachable). `None` when `p` or `q` lies along `k`
+/// (within `tol`), where every θ is as good.
+fn subproblem1(k: &Vector3<f64>, p: &Vector3<f64>, q: &Vector3<f64>, tol: f64) -> Option<f64> {
+    let pp = p - k * k.dot(p);
+    let qq = q - k * k.dot(q);
+    if pp.norm() <= tol || qq.norm() <= tol {
+        return None;
+    }
+    Some(k.dot(&pp.cross(&qq)).atan2(pp.dot(&qq)))
+}
+
+/// Subproblem 2: the pairs (θ1, θ2) with `Rot(k1, θ1) Rot(k2, θ2) p = q`
+/// (unit `k1`, `k2` not parallel). Two pairs in general, one when the
+/// orientation is at the edge of the reachable set. When it is not
+/// reachable, the pair through the intersection point with γ = 0 (the
+/// nearest the circles come) is returned, and the caller measures the miss.
+fn subproblem2(
+    k1: &Vector3<f64>,
+    k2: &Vector3<f64>,
+    p: &Vector3<f64>,
+    q: &Vector3<f64>,
+) -> Vec<(f64, f64)> {
+    let c12 = k1.dot(k2);
+    let denom = c12 * c12 - 1.0;
+    let alpha = (c12 * k2.dot(p) - k1.dot(q)) / denom;
+    let beta = (c12 * k1.dot(q) - k2.dot(p)) / denom;
+    let cross = k1.cross(k2);
+    let g2 = (p.norm_squared() - alpha * alpha - beta * beta - 2.0 * alpha * beta * c12)
+        / cross.norm_squared();
+    let gammas: Vec<f64> = if g2 > 1e-24 {
+        let g = g2.sqrt();
+        vec![g, -g]
+    } else {
+        vec![0.0]
+    };
+    gammas
+        .into_iter()
+        .map(|g| {
+            let c = k1 * alpha + k2 * beta + cross * g;
+            let t2 = subproblem1(k2, p, &c, 0.0).unwrap_or(0.0);
+            let t1 = subproblem1(k1, &c, q, 0.0).unwrap_or(0.0);
+            (t1, t2)
+        })
+        .collect()
+}
+
+fn rot3(m: &Matrix4<f64>) -> Matrix3<f64> {
+    m.fixed_view::<3, 3>(0, 0).into_owned()
+}
+
+impl IkSolver {
+    /// The solver for `machine` with default options.
+    pub fn new(machine: &Machine) -> Self {
+        IkSolver::with_options(machine, IkOptions::default())
+    }
+
+    /// The solver for `machine` with `options`.
+    pub fn with_options(machine: &Machine, options: IkOptions) -> Self {
+        let chain = machine.chain.clone();
+        let n = chain.dof();
+        let axes: Vec<AxisSpec> = (0..n)
+            .map(|j| {
+                machine
+                    .axis_of_joint(j)
+                    .cloned()
+                    .unwrap_or_else(|| AxisSpec {
+                        name: chain.joints[j].name.clone(),
+                        joint: j,
+                        kind: chain.joints[j].kind,
+                        min: None,
+                        max: None,
+                        rotary: if chain.joints[j].kind == JointKind::Revolute {
+                            RotaryMode::Continuous
+                        } else {
+                            RotaryMode::Limited
+                        },
+                        decimals: 4,
+                    })
+            })
+            .collect();
+        let mut output_order: Vec<usize> = machine
+            .axes
+            .iter()
+            .map(|a| a.joint)
+            .filter(|&j| j < n)
+            .collect();
+        for j in 0..n {
+            if !output_order.contains(&j) {
+                output_order.push(j);
+            }
+        }
+        let revolutes: Vec<usize> = (0..n)
+            .filter(|&j| chain.joints[j].kind == JointKind::Revolute)
+            .collect();
+        let prismatics: Vec<usize> = (0..n)
+            .filter(|&j| chain.joints[j].kind == JointKind::Prismatic)
+            .collect();
+        let mut segs = Vec::with_capacity(revolutes.len() + 1);
+        let mut cur = Matrix3::identity();
+        for el in &chain.elements {
+            match el {
+                Element::Fixed(m) => cur *= rot3(m),
+                Element::Joint(j) if chain.joints[*j].kind == JointKind::Revolute => {
+                    segs.push(cur);
+                    cur = Matrix3::identity();
+                }
+                Element::Joint(_) => {}
+            }
+        }
+        segs.push(cur);
+        let mut solver = IkSolver {
+            chain,
+            axes,
+            output_order,
+            family: Family::Generic,
+            revolutes,
+            prismatics,
+            segs,
+            rttr: None,
+            options,
+        };
+        solver.family = solver.detect();
+        solver
+    }
+
+    /// The family recognised for this machine.
+    pub fn family(&self) -> Family {
+        self.family
+    }
+
+    /// The options in use.
+    pub fn options(&self) -> &IkOptions {
+        &self.options
+    }
+
+    fn u(&self, j: usize) -> Vector3<f64> {
+        self.chain.joints[j].axis.into_inner()
+    }
+
+    /// Prismatic directions in the workpiece frame at joint values `q`.
+    fn prismatic_columns(&self, q: &[f64]) -> Vec<Vector3<f64>> {
+        let (_, jac) = self.chain.pose_and_jacobian(q, &NoErrors);
+        self.prismatics
+            .iter()
+            .map(|&j| Vector3::new(jac[(0, j)], jac[(1, j)], jac[(2, j)]))
+            .collect()
+    }
+
+    fn independent(cols: &[Vector3<f64>]) -> bool {
+        match cols.len() {
+            3 => cols[0].cross(&cols[1]).dot(&cols[2]).abs() > STRUCT_TOL,
+            2 => cols[0].cross(&cols[1]).norm() > STRUCT_TOL,
+            1 => cols[0].norm() > STRUCT_TOL,
+            _ => false,
+        }
+    }
+
+    fn detect(&mut self) -> Family {
+        let n = self.chain.dof();
+        let (nr, np) = (self.revolutes.len(), self.prismatics.len());
+        if n == 0 || n > super::chain::MAX_JOINTS {
+            return Family::Generic;
+        }
+        let zero = vec![0.0; n];
+        let cols = self.prismatic_columns(&zero);
+        let z = Vector3::z();
+        match (nr, np) {
+            (0, 3) if Self::independent(&cols) => Family::ThreeAxis,
+            (1, 3) if Self::independent(&cols) => {
+                let p = self.segs[1] * z;
+                if self.u(self.revolutes[0]).cross(&p).norm() > STRUCT_TOL {
+                    Family::FourAxis1R3T
+                } else {
+                    Family::Generic
+                }
+            }
+            (2, 3) if Self::independent(&cols) => {
+                let k1 = self.u(self.revolutes[0]);
+                let k2 = self.segs[1] * self.u(self.revolutes[1]);
+                let p = self.segs[1] * self.segs[2] * z;
+                if k1.cross(&k2).norm() > STRUCT_TOL && k2.cross(&p).norm() > STRUCT_TOL {
+                    Family::FiveAxis2R3T
+                } else {
+                    Family::Generic
+                }
+            }
+            (2, 2) if self.revolutes[0] == 0 && Self::independent(&cols) => {
+                match self.rttr_frame(&cols) {
+                    Some(f) => {
+                        self.rttr = Some(f);
+                        Family::FourAxisRTTR
+                    }
+                    None => Family::Generic,
+                }
+            }
+            _ => Family::Generic,
+        }
+    }
+
+    /// Checks the RTTR structure (see the module docs) and returns its frame.
+    fn rttr_frame(&self, cols: &[Vector3<f64>]) -> Option<RttrFrame> {
+        let first = self.chain.joints[0].element;
+        let mut pre = Matrix4::identity();
+        for el in &self.chain.elements[..first] {
+            if let Element::Fixed(m) = el {
+                pre *= m;
+            }
+        }
+        let pre_inv = pre.try_inverse()?;
+        let pre_rot_t = rot3(&pre).transpose();
+        // Everything below in the frame just after the first revolute (at 0).
+        let d1 = pre_rot_t * cols[0];
+        let d2 = pre_rot_t * cols[1];
+        let n = d1.cross(&d2).try_normalize(STRUCT_TOL)?;
+        let u1 = self.u(self.revolutes[0]);
+        if u1.dot(&n).abs() > STRUCT_TOL {
+            return None;
+        }
+        let k2 = self.segs[1] * self.u(self.revolutes[1]);
+        if k2.cross(&n).norm() > STRUCT_TOL {
+            return None;
+        }
+        let pose0 = self.chain.pose(&vec![0.0; self.chain.dof()], &NoErrors);
+        let axis_f = pre_rot_t * pose0.axis;
+        if axis_f.dot(&n).abs() > STRUCT_TOL {
+            return None;
+        }
+        let tip_f = (pre_inv * pose0.tip.push(1.0)).xyz();
+        if tip_f.dot(&n).abs() > STRUCT_TOL * (1.0 + tip_f.norm()) {
+            return None;
+        }
+        let d = n.cross(&u1).normalize();
+        Some(RttrFrame { pre_inv, n, d })
+    }
+
+    /// Every solution branch of `pose` (chain order, internal units), with
+    /// rotaries unwound towards `previous` (or towards 0 without one). Limits
+    /// are not applied here (see [`IkSolver::check_limits`]); an empty list
+    /// means no branch could be computed (see [`IkSolver::solve`] for why).
+    pub fn branches(&self, pose: &Pose, previous: Option<&[f64]>) -> Vec<IkSolution> {
+        self.candidates(pose, previous).unwrap_or_default()
+    }
+
+    /// The solution for `pose` nearest the previous block's joint values
+    /// `previous` (chain order, internal units), within the axis limits.
+    pub fn solve(&self, pose: &Pose, previous: Option<&[f64]>) -> Result<IkSolution, IkError> {
+        let cands = self.candidates(pose, previous)?;
+        let reference = self.reference(previous);
+        let valid: Vec<&IkSolution> = cands
+            .iter()
+            .filter(|s| self.check_limits(&s.q).is_ok())
+            .collect();
+        let pick = |set: &[&IkSolution]| -> Option<IkSolution> {
+            let best_miss = set
+                .iter()
+                .map(|s| s.axis_miss_rad)
+                .fold(f64::INFINITY, f64::min);
+            set.iter()
+                .filter(|s| s.axis_miss_rad <= best_miss + MISS_TIE_RAD)
+                .min_by(|a, b| {
+                    self.distance(&a.q, &reference)
+                        .total_cmp(&self.distance(&b.q, &reference))
+                        .then(a.branch.cmp(&b.branch))
+                })
+                .map(|s| (*s).clone())
+        };
+        if let Some(s) = pick(&valid) {
+            return Ok(s);
+        }
+        let all: Vec<&IkSolution> = cands.iter().collect();
+        match pick(&all) {
+            Some(nearest) => {
+                Err(self
+                    .check_limits(&nearest.q)
+                    .err()
+                    .unwrap_or(IkError::Unreachable {
+                        reason: "no solution branch".into(),
+                    }))
+            }
+            None => Err(IkError::Unreachable {
+                reason: "no solution branch".into(),
+            }),
+        }
+    }
+
+    /// `Ok` when every joint of `q` (chain order, internal units) is within
+    /// its axis limits; otherwise the first violation in output order.
+    pub fn check_limits(&self, q: &[f64]) -> Result<(), IkError> {
+        for &j in &self.output_order {
+            let axis = &self.axes[j];
+            let v = q.get(j).copied().unwrap_or(f64::NAN);
+            if !within_limits(axis, v) {
+                let file = match axis.kind {
+                    JointKind::Prismatic => v,
+                    JointKind::Revolute => v.to_degrees(),
+                };
+                return Err(IkError::Limit {
+                    axis: axis.name.clone(),
+                    value: file,
+                    min: axis.min.unwrap_or(f64::NEG_INFINITY),
+                    max: axis.max.unwrap_or(f64::INFINITY),
+                    unit: axis.unit(),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Weighted joint distance used to choose between branches: rotary
+    /// travel in rad (shortest way for modulo axes), linear travel scaled by
+    /// `LINEAR_WEIGHT_PER_MM`; squared sum.
+    pub fn distance(&self, q: &[f64], reference: &[f64]) -> f64 {
+        q.iter()
+            .zip(reference)
+            .enumerate()
+            .map(|(j, (a, b))| {
+                let d = match self.axes[j].kind {
+                    JointKind::Prismatic => (a - b) * LINEAR_WEIGHT_PER_MM,
+                    JointKind::Revolute if self.axes[j].rotary == RotaryMode::Modulo => {
+                        angle_diff(*a, *b)
+                    }
+                    JointKind::Revolute => a - b,
+                };
+                d * d
+            })
+            .sum()
+    }
+
+    /// The reference branches are compared with: the previous block, or the
+    /// neutral position (all joints 0) for the first block.
+    fn reference(&self, previous: Option<&[f64]>) -> Vec<f64> {
+        match previous {
+            Some(p) if p.len() == self.chain.dof() && p.iter().all(|v| v.is_finite()) => p.to_vec(),
+            _ => vec![0.0; self.chain.dof()],
+        }
+    }
+
+    fn candidates(
+        &self,
+        pose: &Pose,
+        previous: Option<&[f64]>,
+    ) -> Result<Vec<IkSolution>, IkError> {
+        let axis_norm = pose.axis.norm();
+        if !pose.tip.iter().all(|v| v.is_finite())
+            || axis_norm.is_nan()
+            || axis_norm <= 1e-12
+            || !axis_norm.is_finite()
+        {
+            return Err(IkError::Unreachable {
+                reason: "the pose is not finite or its tool axis is a zero vector".into(),
+            });
+        }
+        let target = Pose::new(pose.tip, pose.axis);
+        let reference = self.reference(previous);
+        if self.family == Family::Generic {
+            let start: Vec<f64> = match previous {
+                Some(p) if p.len() == self.chain.dof() && p.iter().all(|v| v.is_finite()) => {
+                    p.to_vec()
+                }
+                _ => self.neutral(),
+            };
+            let r = newton_ik::solve(
+                &self.chain,
+                &target,
+                &start,
+                &self.bounds(),
+                &self.options.newton,
+            )?;
+            let mut q = r.q;
+            self.unwind(&mut q, &reference);
+            return Ok(vec![IkSolution {
+                q,
+                axis_miss_rad: r.axis_residual_rad,
+                singular: false,
+                branch: 0,
+            }]);
+        }
+        let raws = match self.family {
+            Family::ThreeAxis => vec![Raw {
+                q: vec![0.0; self.chain.dof()],
+                singular: false,
+                branch: 0,
+            }],
+            Family::FourAxis1R3T => self.orient_1r(&target, &reference),
+            Family::FiveAxis2R3T => self.orient_2r(&target, &reference),
+            Family::FourAxisRTTR => self.orient_rttr(&target, &reference),
+            Family::Generic => Vec::new(),
+        };
+        let mut out = Vec::with_capacity(raws.len());
+        let mut last_err = None;
+        for raw in raws {
+            let mut q = raw.q;
+            self.unwind(&mut q, &reference);
+            match self.solve_prismatics(&mut q, &target) {
+                Ok(()) => {}
+                Err(e) => {
+                    last_err = Some(e);
+                    continue;
+                }
+            }
+            let reached = self.chain.pose(&q, &NoErrors);
+            out.push(IkSolution {
+                q,
+                axis_miss_rad: reached.axis_angle(&target),
+                singular: raw.singular,
+                branch: raw.branch,
+            });
+        }
+        match (out.is_empty(), last_err) {
+            (true, Some(e)) => Err(e),
+            _ => Ok(out),
+        }
+    }
+
+    /// Start of the Newton fallback without a previous block: 0, moved into
+    /// the limits where 0 is outside them.
+    fn neutral(&self) -> Vec<f64> {
+        self.axes
+            .iter()
+            .map(|a| {
+                let (lo, hi) = (
+                    a.min.unwrap_or(f64::NEG_INFINITY),
+                    a.max.unwrap_or(f64::INFINITY),
+                );
+                let v = if a.rotary == RotaryMode::Modulo {
+                    0.0
+                } else {
+                    0f64.clamp(lo, hi.max(lo))
+                };
+                match a.kind {
+                    JointKind::Prismatic => v,
+                    JointKind::Revolute => v.to_radians(),
+                }
+            })
+            .collect()
+    }
+
+    /// Joint limits in internal units (infinite where there are none).
+    fn bounds(&self) -> Vec<(f64, f64)> {
+        self.axes
+            .iter()
+            .map(|a| {
+                let limited = a.rotary == RotaryMode::Limited;
+                let lo = a.min.filter(|_| limited).unwrap_or(f64::NEG_INFINITY);
+                let hi = a.max.filter(|_| limited).unwrap_or(f64::INFINITY);
+                match a.kind {
+                    JointKind::Prismatic => (lo, hi),
+                    JointKind::Revolute => (lo.to_radians(), hi.to_radians()),
+                }
+            })
+            .collect()
+    }
+
+    fn unwind(&self, q: &mut [f64], reference: &[f64]) {
+        for &j in &self.revolutes {
+            q[j] = choose_turn(&self.axes[j], q[j], reference[j]);
+        }
+    }
+
+    /// With the rotary joints of `q` fixed, sets its prismatic joints so that
+    /// the tip meets `target` (least squares when there are fewer than 3).
+    fn solve_prismatics(&self, q: &mut [f64], target: &Pose) -> Result<(), IkError> {
+        for &j in &self.prismatics {
+            q[j] = 0.0;
+        }
+        let (p0, jac) = self.chain.pose_and_jacobian(q, &NoErrors);
+        let m = self.prismatics.len();
+        let a = DMatrix::from_fn(3, m, |r, c| jac[(r, self.prismatics[c])]);
+        let b = DVector::from_column_slice((target.tip - p0.tip).as_slice());
+        let svd = a.svd(true, true);
+        let smax = svd.singular_values.max();
+        let smin = svd.singular_values.min();
+        if smin.is_nan() || smin <= 1e-9 * smax.max(1.0) {
+            return Err(IkError::Unreachable {
+                reason: "the linear axes are dependent at these rotary positions".into(),
+            });
+        }
+        let x = svd.solve(&b, 0.0).map_err(|e| IkError::Unreachable {
+            reason: format!("linear solve failed: {e}"),
+        })?;
+        for (c, &j) in self.prismatics.iter().enumerate() {
+            q[j] = x[c];
+        }
+        Ok(())
+    }
+
+    /// Rotary kept at a singular pose: the reference value.
+    fn kept(&self, j: usize, reference: &[f64]) -> f64 {
+        reference[j]
+    }
+
+    fn orient_1r(&self, target: &Pose, reference: &[f64]) -> Vec<Raw> {
+        let j1 = self.revolutes[0];
+        let k = self.u(j1);
+        let p = self.segs[1] * Vector3::z();
+        let qt = self.segs[0].transpose() * target.axis;
+        let mut q = vec![0.0; self.chain.dof()];
+        let (t, singular) = match subproblem1(&k, &p, &qt, self.options.singular_tol_rad) {
+            Some(t) => (t, false),
+            None => (self.kept(j1, reference), true),
+        };
+        q[j1] = t;
+        vec![Raw {
+            q,
+            singular,
+            branch: 0,
+        }]
+    }
+
+    fn orient_2r(&self, target: &Pose, reference: &[f64]) -> Vec<Raw> {
+        let (j1, j2) = (self.revolutes[0], self.revolutes[1]);
+        let k1 = self.u(j1);
+        let k2 = self.segs[1] * self.u(j2);
+        let p = self.segs[1] * self.segs[2] * Vector3::z();
+        let qt = self.segs[0].transpose() * target.axis;
+        let n = self.chain.dof();
+        if k1.cross(&qt).norm() <= self.options.singular_tol_rad {
+            // Tool axis along the first rotary: it is free; keep it and turn
+            // the second rotary onto the axis.
+            let t1 = self.kept(j1, reference);
+            let back = rotation3(&Unit::new_unchecked(k1), -t1) * qt;
+            let t2 = subproblem1(&k2, &p, &back, 0.0).unwrap_or_else(|| self.kept(j2, reference));
+            let mut q = vec![0.0; n];
+            q[j1] = t1;
+            q[j2] = t2;
+            return vec![Raw {
+                q,
+                singular: true,
+                branch: 0,
+            }];
+        }
+        subproblem2(&k1, &k2, &p, &qt)
+            .into_iter()
+            .enumerate()
+            .map(|(b, (t1, t2))| {
+                let mut q = vec![0.0; n];
+                q[j1] = t1;
+                q[j2] = t2;
+                Raw {
+                    q,
+                    singular: false,
+                    branch: b as u8,
+                }
+            })
+            .collect()
+    }
+
+    fn orient_rttr(&self, target: &Pose, reference: &[f64]) -> Vec<Raw> {
+        let Some(f) = &self.rttr else {
+            return Vec::new();
+        };
+        let (j1, j2) = (self.revolutes[0], self.revolutes[1]);
+        let u1 = self.u(j1);
+        let u2 = self.u(j2);
+        let n = self.chain.dof();
+        // Tip and axis in the frame just before the first revolute.
+        let p = (f.pre_inv * target.tip.push(1.0)).xyz();
+        let o = self.segs[0].transpose() * target.axis;
+        // The first rotary must bring both into the plane ⟂ n: the tip
+        // azimuth (weighted strongly) and the axis azimuth, combined in
+        // doubled angles because each is only defined modulo π.
+        let (pa, pb) = (p.dot(&f.d), p.dot(&f.n));
+        let (oa, ob) = (o.dot(&f.d), o.dot(&f.n));
+        let w2 = self.options.rttr_axis_weight_mm.powi(2);
+        let zr = pa * pa - pb * pb + w2 * (oa * oa - ob * ob);
+        let zi = 2.0 * pa * pb + w2 * 2.0 * oa * ob;
+        let rho = pa.hypot(pb);
+        let h = oa.hypot(ob);
+        let (t1s, singular) = if (rho <= self.options.on_axis_tol_mm
+            && h <= self.options.singular_tol_rad)
+            || (zr == 0.0 && zi == 0.0)
+        {
+            (vec![self.kept(j1, reference)], true)
+        } else {
+            let t = 0.5 * zi.atan2(zr);
+            (vec![t, t + PI], false)
+        };
+        let mut out = Vec::with_capacity(2);
+        for (b, t1) in t1s.into_iter().enumerate() {
+            // Tool axis in the frame before the second revolute.
+            let back = self.segs[1].transpose() * (rotation3(&Unit::new_unchecked(u1), -t1) * o);
+            let pz = self.segs[2] * Vector3::z();
+            let (t2, s2) = match subproblem1(&u2, &pz, &back, self.options.singular_tol_rad) {
+                Some(t2) => (t2, false),
+                None => (self.kept(j2, reference), true),
+            };
+            let mut q = vec![0.0; n];
+            q[j1] = t1;
+            q[j2] = t2;
+            out.push(Raw {
+                q,
+                singular: singular || s2,
+                branch: b as u8,
+            });
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn solver(name: &str) -> (Machine, IkSolver) {
+        let m = Machine::embedded(name).unwrap();
+        let s = IkSolver::new(&m);
+        (m, s)
+    }
+
+    #[test]
+    fn families_are_recognised_from_structure() {
+        for (name, fam) in [
+            ("zhao2022-xzbc", Family::FourAxisRTTR),
+            ("wang2023-xyzab", Family::FiveAxis2R3T),
+            ("xyzac-trt", Family::FiveAxis2R3T),
+            ("xyzbc-trt", Family::FiveAxis2R3T),
+            ("xyzac-head", Family::FiveAxis2R3T),
+            ("xyzbc-nutating", Family::FiveAxis2R3T),
+            ("xyza-4axis", Family::FourAxis1R3T),
+            ("xyz-3axis", Family::ThreeAxis),
+        ] {
+            assert_eq!(solver(name).1.family(), fam, "{name}");
+        }
+    }
+
+    #[test]
+    fn subproblem2_solves_orthogonal_axes() {
+        let k1 = Vector3::new(0.0, 0.0, -1.0);
+        let k2 = Vector3::new(-1.0, 0.0, 0.0);
+        let p = Vector3::z();
+        let (a, c) = (0.4f64, 1.1f64);
+        let q = rotation3(&Unit::new_unchecked(k1), c) * rotation3(&Unit::new_unchecked(k2), a) * p;
+        let sols = subproblem2(&k1, &k2, &p, &q);
+        assert_eq!(sols.len(), 2);
+        for (t1, t2) in sols {
+            let r = rotation3(&Unit::new_unchecked(k1), t1)
+                * rotation3(&Unit::new_unchecked(k2), t2)
+                * p;
+            assert!((r - q).norm() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn zhao_round_trip_and_both_branches() {
+        let (m, s) = solver("zhao2022-xzbc");
+        let q = m.to_internal(&[30.0, -12.0, 25.0, 40.0]);
+        let pose = m.chain.pose(&q, &NoErrors);
+        let sol = s.solve(&pose, Some(&q)).unwrap();
+        for (a, b) in sol.q.iter().zip(&q) {
+            assert!((a - b).abs() < 1e-12, "{:?} vs {:?}", sol.q, q);
+        }
+        let br = s.branches(&pose, Some(&q));
+        assert_eq!(br.len(), 2);
+        for b in &br {
+            let p = m.chain.pose(&b.q, &NoErrors);
+            assert!(p.tip_distance(&pose) < 1e-12 && p.axis_angle(&pose) < 1e-12);
+        }
+    }
+}

@@ -1,0 +1,206 @@
+//! Rotary axis behaviour: limited, continuous (unwound) and modulo axes,
+//! unwinding to the value nearest a reference, and output conversion.
+//!
+//! Internally every rotary value is in radians; machine files and NC
+//! programs use degrees. A rotary joint's angle is only defined modulo 2π by
+//! the pose, so every value the inverse kinematics returns is a choice among
+//! `θ + 2πk`; the functions here make that choice.
+
+use super::chain::JointKind;
+use super::file::AxisSpec;
+use std::f64::consts::{PI, TAU};
+
+/// How a rotary axis behaves when it turns past a full revolution.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RotaryMode {
+    /// Travel limited by `min`/`max` (required for rotary axes). Linear axes
+    /// are always `Limited` (with optional limits).
+    Limited,
+    /// Unlimited travel; the output is unwound: the value nearest the
+    /// previous block, which may exceed ±360°.
+    Continuous,
+    /// Output wrapped to `[0, 360)`; the controller takes the shortest way.
+    Modulo,
+}
+
+impl RotaryMode {
+    /// The name used in machine files.
+    pub fn name(self) -> &'static str {
+        match self {
+            RotaryMode::Limited => "limited",
+            RotaryMode::Continuous => "continuous",
+            RotaryMode::Modulo => "modulo",
+        }
+    }
+}
+
+impl std::fmt::Display for RotaryMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Slack allowed when comparing a value with an axis limit, in file units
+/// (mm or degrees): values computed exactly at a limit may land a few ulps
+/// outside it.
+pub const LIMIT_SLACK: f64 = 1e-9;
+
+/// `angle` (rad) moved by a multiple of 2π to lie within π of `reference`
+/// (ties resolve towards the lower value).
+pub fn unwind_near(angle: f64, reference: f64) -> f64 {
+    if !angle.is_finite() || !reference.is_finite() {
+        return angle;
+    }
+    let k = ((reference - angle) / TAU).round();
+    let v = angle + k * TAU;
+    // Guard against rounding at exactly ±π.
+    if v - reference > PI {
+        v - TAU
+    } else if reference - v > PI {
+        v + TAU
+    } else {
+        v
+    }
+}
+
+/// `angle` (rad) wrapped into `[0, 2π)`.
+pub fn wrap_positive(angle: f64) -> f64 {
+    let v = angle.rem_euclid(TAU);
+    // rem_euclid can return exactly TAU for tiny negative inputs.
+    if v >= TAU { 0.0 } else { v }
+}
+
+/// `degrees` wrapped into `[0, 360)`.
+pub fn wrap_degrees(degrees: f64) -> f64 {
+    let v = degrees.rem_euclid(360.0);
+    if v >= 360.0 { 0.0 } else { v }
+}
+
+/// The value an axis is written with: mm for linear axes, degrees for rotary
+/// axes, wrapped to `[0, 360)` for modulo axes.
+pub fn output_value(axis: &AxisSpec, q_internal: f64) -> f64 {
+    match axis.kind {
+        JointKind::Prismatic => q_internal,
+        JointKind::Revolute => {
+            let d = q_internal.to_degrees();
+            if axis.rotary == RotaryMode::Modulo {
+                wrap_degrees(d)
+            } else {
+                d
+            }
+        }
+    }
+}
+
+/// Converts a value in file units (mm or degrees) to internal units.
+pub fn input_value(axis: &AxisSpec, file_value: f64) -> f64 {
+    match axis.kind {
+        JointKind::Prismatic => file_value,
+        JointKind::Revolute => file_value.to_radians(),
+    }
+}
+
+/// Whether `q_internal` lies within the axis limits (with [`LIMIT_SLACK`]).
+/// Axes without limits (and modulo axes) always do.
+pub fn within_limits(axis: &AxisSpec, q_internal: f64) -> bool {
+    let v = match axis.kind {
+        JointKind::Prismatic => q_internal,
+        JointKind::Revolute => q_internal.to_degrees(),
+    };
+    if !v.is_finite() {
+        return false;
+    }
+    if axis.rotary == RotaryMode::Modulo {
+        return true;
+    }
+    let lo_ok = axis.min.is_none_or(|m| v >= m - LIMIT_SLACK);
+    let hi_ok = axis.max.is_none_or(|m| v <= m + LIMIT_SLACK);
+    lo_ok && hi_ok
+}
+
+/// Chooses the representative `angle + 2πk` of a rotary axis value.
+///
+/// - modulo axes: wrapped into `[0, 2π)` (the controller takes the shortest way);
+/// - other axes: the representative nearest `reference`; when the axis has
+///   limits, the nearest one *within* the limits if there is one (a limited
+///   axis with more than one turn of travel keeps to the side nearest the
+///   previous block), otherwise the nearest one (which then fails the limit
+///   check).
+pub fn choose_turn(axis: &AxisSpec, angle: f64, reference: f64) -> f64 {
+    if axis.rotary == RotaryMode::Modulo {
+        return wrap_positive(angle);
+    }
+    let nearest = unwind_near(angle, reference);
+    if axis.min.is_none() && axis.max.is_none() {
+        return nearest;
+    }
+    if within_limits(axis, nearest) {
+        return nearest;
+    }
+    // Look a few turns either side for a representative within the limits.
+    let mut best: Option<f64> = None;
+    for k in -4i32..=4 {
+        let v = nearest + f64::from(k) * TAU;
+        if within_limits(axis, v)
+            && best.is_none_or(|b| (v - reference).abs() < (b - reference).abs())
+        {
+            best = Some(v);
+        }
+    }
+    best.unwrap_or(nearest)
+}
+
+/// Signed smallest difference `a − b` between two angles (rad), in `(−π, π]`.
+pub fn angle_diff(a: f64, b: f64) -> f64 {
+    unwind_near(a, b) - b
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rot(mode: RotaryMode, min: Option<f64>, max: Option<f64>) -> AxisSpec {
+        AxisSpec {
+            name: "C".into(),
+            joint: 0,
+            kind: JointKind::Revolute,
+            min,
+            max,
+            rotary: mode,
+            decimals: 4,
+        }
+    }
+
+    #[test]
+    fn unwind_comes_nearest_the_reference() {
+        let r = 350f64.to_radians();
+        let v = unwind_near(5f64.to_radians(), r);
+        assert!((v.to_degrees() - 365.0).abs() < 1e-9);
+        let v = unwind_near(
+            -170f64.to_radians(),
+            720f64.to_radians() + 175f64.to_radians(),
+        );
+        assert!((v.to_degrees() - (720.0 + 190.0)).abs() < 1e-9);
+        assert_eq!(unwind_near(0.3, 0.3), 0.3);
+    }
+
+    #[test]
+    fn modulo_wraps_and_limited_picks_a_turn_within_limits() {
+        let m = rot(RotaryMode::Modulo, None, None);
+        assert!((output_value(&m, (-10f64).to_radians()) - 350.0).abs() < 1e-9);
+        assert!((output_value(&m, 725f64.to_radians()) - 5.0).abs() < 1e-9);
+        assert_eq!(wrap_degrees(-1e-18), 0.0);
+        let l = rot(RotaryMode::Limited, Some(-30.0), Some(400.0));
+        // Nearest to 0 is −20°, inside the limits.
+        let v = choose_turn(&l, (-20f64).to_radians(), 0.0);
+        assert!((v.to_degrees() + 20.0).abs() < 1e-9);
+        // Nearest to 0 is −40°, outside: the turn within limits is 320°.
+        let v = choose_turn(&l, (-40f64).to_radians(), 0.0);
+        assert!((v.to_degrees() - 320.0).abs() < 1e-9);
+        // Nothing fits: the nearest is returned (and fails the limit check).
+        let b = rot(RotaryMode::Limited, Some(-90.0), Some(90.0));
+        let v = choose_turn(&b, 120f64.to_radians(), 0.0);
+        assert!(!within_limits(&b, v));
+    }
+}
