@@ -225,7 +225,7 @@ fn parse(a: ParseArgs) -> Result<()> {
     let text = if a.json {
         serde_json::to_string_pretty(&summary).unwrap_or_default()
     } else {
-        summary.to_text(&name)
+        format!("{name}\n{summary}")
     };
     writeln!(out, "{text}").map_err(|e| Error::io("<stdout>", e))
 }

@@ -170,7 +170,7 @@ impl<'m> AxisWriter<'m> {
 }
 
 /// Converts a G-code pose program, writing the machine program to `out`.
-pub fn post_gcode<R: BufRead, W: Write>(
+pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
     solver: &mut dyn PoseSolver,
     input: R,
@@ -223,7 +223,8 @@ pub fn post_gcode<R: BufRead, W: Write>(
         }
         let Some((tip, axis)) = meaning.pose else {
             if meaning.tcp_codes.is_empty() {
-                line.write_to(out).map_err(|e| Error::io("<output>", e))?;
+                line.write_to(&mut &mut *out)
+                    .map_err(|e| Error::io("<output>", e))?;
             } else {
                 buf.clear();
                 rewrite(
@@ -261,7 +262,7 @@ pub fn post_gcode<R: BufRead, W: Write>(
         }
         stats.max_axis_miss_rad = stats.max_axis_miss_rad.max(solved.axis_miss_rad);
         stats.poses += 1;
-        let sep = separator(&line);
+        let sep = separator(&line, &meaning.pose_items);
         let words_text = writer
             .words(
                 &solved.q,
@@ -304,20 +305,13 @@ fn opaque_in_pose_block(line: &Line, pose_mode: bool, is_pose: bool) -> Option<u
     })
 }
 
-/// The separator between words in this line's style: a space, or nothing
-/// when the block is written without spaces (`G1X1Y2`).
-fn separator(line: &Line) -> &'static str {
-    let words = line
-        .items
-        .iter()
-        .filter(|i| !matches!(i.kind, ItemKind::Space | ItemKind::EndOfLine))
-        .count();
-    let spaces = line
-        .items
-        .iter()
-        .filter(|i| matches!(i.kind, ItemKind::Space))
-        .count();
-    if words > 1 && spaces == 0 { "" } else { " " }
+/// The separator between words in this line's style: nothing when the first
+/// replaced word is glued to the item before it (`G1X1Y2`), else a space.
+fn separator(line: &Line, replace: &[usize]) -> &'static str {
+    match replace.first() {
+        Some(&i) if i > 0 && !matches!(line.items[i - 1].kind, ItemKind::Space) => "",
+        _ => " ",
+    }
 }
 
 /// Rewrites `line` into `out`: the items in `replace` (sorted) are removed and
@@ -392,7 +386,7 @@ pub fn rewrite(
 /// `SPINDL` → `S.. M3/M4/M5`, `COOLNT` → `M7/M8/M9`, `FINI` → `M30`,
 /// `END` → `M2`, `$$` and `PARTNO` → comments; any other statement is kept
 /// as a comment so nothing is lost.
-pub fn post_cl<R: BufRead, W: Write>(
+pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
     solver: &mut dyn PoseSolver,
     input: R,

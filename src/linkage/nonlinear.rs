@@ -50,7 +50,7 @@ pub fn nonlinear_error(
 ) -> NonlinearError {
     let n = qa.len();
     let mut q = vec![0.0; n];
-    let mut eval_q = |t: f64, q: &mut Vec<f64>| {
+    let eval_q = |t: f64, q: &mut Vec<f64>| {
         for k in 0..n {
             q[k] = qa[k] + t * (qb[k] - qa[k]);
         }
