@@ -155,7 +155,7 @@ pub fn run(cli: Cli) -> Result<()> {
 }
 
 fn post(a: PostArgs) -> Result<()> {
-    if !(a.axis_tolerance_urad >= 0.0) {
+    if a.axis_tolerance_urad.is_nan() || a.axis_tolerance_urad < 0.0 {
         return Err(Error::Usage(
             "--axis-tolerance-urad must be a number ≥ 0".into(),
         ));

@@ -428,7 +428,8 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                     axis = Vector3::new(a[0], a[1], a[2]);
                 }
                 let norm = axis.norm();
-                if !(norm > 1e-12)
+                if norm.is_nan()
+                    || norm <= 1e-12
                     || (norm - 1.0).abs() > crate::program::modal::TOOL_VECTOR_TOLERANCE
                 {
                     return Err(Error::input_with(
