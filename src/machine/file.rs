@@ -113,9 +113,14 @@ impl Machine {
     pub fn from_json_str(text: &str, file: &str) -> Result<Machine> {
         let value: Value = serde_json::from_str(text).map_err(|e| {
             let line = e.line();
+            // serde_json appends " at line L column C"; the location says it already.
+            let what = e.to_string();
+            let what = what
+                .rsplit_once(" at line ")
+                .map_or(what.as_str(), |(w, _)| w);
             Error::input_with(
                 Location::new(file, line, e.column()),
-                format!("machine file is not valid JSON: {e}"),
+                format!("machine file is not valid JSON: {what}"),
                 line_text(text, line),
             )
         })?;
