@@ -902,6 +902,33 @@ mod tests {
     }
 
     #[test]
+    fn summaries_name_the_family_and_the_axes() {
+        let m = Machine::embedded("wang2023-xyzab").unwrap();
+        let s = crate::machine::IkSolver::new(&m);
+        let text = m.summary_text(&s);
+        assert!(text.starts_with("machine wang2023-xyzab"));
+        assert!(text.contains("five-axis 2R3T"));
+        assert!(text.contains("translate [0, 0, 265]"));
+        assert!(text.contains("A: no limits, continuous, 3 decimals"));
+        let json = m.summary_json(&s);
+        assert_eq!(
+            json["output_order"],
+            serde_json::json!(["X", "Y", "Z", "B", "A"])
+        );
+        assert_eq!(json["axes"][3]["min"], serde_json::json!(-90.0));
+        let r = Machine::from_json_str(
+            r#"{"chain": [{"rotate": {"axis": [0, 0, 1], "angle": 90}}, {"prismatic": {"name": "X", "axis": [1, 0, 0]}}]}"#,
+            "dir/plain.json",
+        )
+        .unwrap();
+        assert_eq!(r.name, "plain");
+        assert!(
+            r.summary_text(&crate::machine::IkSolver::new(&r))
+                .contains("rotate axis [0, 0, 1] angle 90")
+        );
+    }
+
+    #[test]
     fn both_element_spellings_build_the_same_chain() {
         let a = r#"{"name": "t", "chain": [
             {"revolute": {"name": "C", "axis": [0, 0, -1]}},

@@ -576,6 +576,15 @@ impl IkSolver {
                 reason: "the pose is not finite or its tool axis is a zero vector".into(),
             });
         }
+        let n = self.chain.dof();
+        if n == 0 || n > super::chain::MAX_JOINTS {
+            return Err(IkError::Unreachable {
+                reason: format!(
+                    "the chain has {n} joints; the evaluator handles 1 to {}",
+                    super::chain::MAX_JOINTS
+                ),
+            });
+        }
         let target = Pose::new(pose.tip, pose.axis);
         let reference = self.reference(previous);
         if self.family == Family::Generic {
