@@ -300,11 +300,6 @@ struct Parser<'a> {
     file: &'a str,
 }
 
-/// A joint read from the chain, with where its name is written.
-struct JointSrc {
-    name_path: Vec<Seg>,
-}
-
 impl Parser<'_> {
     fn err(&self, at: &[Seg], target: Target, msg: impl Into<String>) -> Error {
         let offset = locate(self.text, at, target);
@@ -448,7 +443,8 @@ impl Parser<'_> {
             ));
         }
         let mut chain = Chain::new();
-        let mut joints: Vec<JointSrc> = Vec::new();
+        // Where each joint's name is written, for messages about the joint.
+        let mut joints: Vec<Vec<Seg>> = Vec::new();
         for (i, el) in elements.iter().enumerate() {
             self.element(el, &path(&chain_at, Seg::Index(i)), &mut chain, &mut joints)?;
         }
@@ -474,7 +470,7 @@ impl Parser<'_> {
         v: &Value,
         at: &[Seg],
         chain: &mut Chain,
-        joints: &mut Vec<JointSrc>,
+        joints: &mut Vec<Vec<Seg>>,
     ) -> Result<()> {
         const KINDS: [&str; 4] = ["revolute", "prismatic", "translate", "rotate"];
         let obj = self.object(
@@ -579,7 +575,7 @@ impl Parser<'_> {
                     JointKind::Prismatic
                 };
                 chain.joint(name, jk, axis);
-                joints.push(JointSrc { name_path: name_at });
+                joints.push(name_at);
             }
             "translate" => {
                 let (vv, vat) = if tagged {
@@ -627,7 +623,7 @@ impl Parser<'_> {
         &self,
         top: &Map<String, Value>,
         chain: &Chain,
-        joints: &[JointSrc],
+        joints: &[Vec<Seg>],
     ) -> Result<Vec<AxisSpec>> {
         let n = chain.dof();
         let mut specs: Vec<Option<AxisSpec>> = vec![None; n];
@@ -666,7 +662,7 @@ impl Parser<'_> {
                 let joint = &chain.joints[j];
                 if joint.kind == JointKind::Revolute {
                     return Err(self.err(
-                        &joints[j].name_path,
+                        &joints[j],
                         Target::Value,
                         format!(
                             "rotary axis \"{}\" has no entry in \"axes\"; expected limits (\"min\", \"max\" in degrees) or \"rotary\": \"continuous\" or \"modulo\"",
