@@ -113,9 +113,14 @@ impl Machine {
     pub fn from_json_str(text: &str, file: &str) -> Result<Machine> {
         let value: Value = serde_json::from_str(text).map_err(|e| {
             let line = e.line();
+            // serde_json appends " at line L column C"; the location says it already.
+            let what = e.to_string();
+            let what = what
+                .rsplit_once(" at line ")
+                .map_or(what.as_str(), |(w, _)| w);
             Error::input_with(
                 Location::new(file, line, e.column()),
-                format!("machine file is not valid JSON: {e}"),
+                format!("machine file is not valid JSON: {what}"),
                 line_text(text, line),
             )
         })?;
@@ -295,11 +300,6 @@ struct Parser<'a> {
     file: &'a str,
 }
 
-/// A joint read from the chain, with where its name is written.
-struct JointSrc {
-    name_path: Vec<Seg>,
-}
-
 impl Parser<'_> {
     fn err(&self, at: &[Seg], target: Target, msg: impl Into<String>) -> Error {
         let offset = locate(self.text, at, target);
@@ -443,7 +443,8 @@ impl Parser<'_> {
             ));
         }
         let mut chain = Chain::new();
-        let mut joints: Vec<JointSrc> = Vec::new();
+        // Where each joint's name is written, for messages about the joint.
+        let mut joints: Vec<Vec<Seg>> = Vec::new();
         for (i, el) in elements.iter().enumerate() {
             self.element(el, &path(&chain_at, Seg::Index(i)), &mut chain, &mut joints)?;
         }
@@ -469,7 +470,7 @@ impl Parser<'_> {
         v: &Value,
         at: &[Seg],
         chain: &mut Chain,
-        joints: &mut Vec<JointSrc>,
+        joints: &mut Vec<Vec<Seg>>,
     ) -> Result<()> {
         const KINDS: [&str; 4] = ["revolute", "prismatic", "translate", "rotate"];
         let obj = self.object(
@@ -574,7 +575,7 @@ impl Parser<'_> {
                     JointKind::Prismatic
                 };
                 chain.joint(name, jk, axis);
-                joints.push(JointSrc { name_path: name_at });
+                joints.push(name_at);
             }
             "translate" => {
                 let (vv, vat) = if tagged {
@@ -622,7 +623,7 @@ impl Parser<'_> {
         &self,
         top: &Map<String, Value>,
         chain: &Chain,
-        joints: &[JointSrc],
+        joints: &[Vec<Seg>],
     ) -> Result<Vec<AxisSpec>> {
         let n = chain.dof();
         let mut specs: Vec<Option<AxisSpec>> = vec![None; n];
@@ -661,7 +662,7 @@ impl Parser<'_> {
                 let joint = &chain.joints[j];
                 if joint.kind == JointKind::Revolute {
                     return Err(self.err(
-                        &joints[j].name_path,
+                        &joints[j],
                         Target::Value,
                         format!(
                             "rotary axis \"{}\" has no entry in \"axes\"; expected limits (\"min\", \"max\" in degrees) or \"rotary\": \"continuous\" or \"modulo\"",
@@ -894,6 +895,33 @@ mod tests {
         assert!((p.tip - Vector3::new(0.0, -r, 5.0 - 20.0 * b.cos())).norm() < 1e-12);
         let back = m.to_external(&q);
         assert!((back[3] - 90.0).abs() < 1e-12 && (back[2] - 30.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn summaries_name_the_family_and_the_axes() {
+        let m = Machine::embedded("wang2023-xyzab").unwrap();
+        let s = crate::machine::IkSolver::new(&m);
+        let text = m.summary_text(&s);
+        assert!(text.starts_with("machine wang2023-xyzab"));
+        assert!(text.contains("five-axis 2R3T"));
+        assert!(text.contains("translate [0, 0, 265]"));
+        assert!(text.contains("A: no limits, continuous, 3 decimals"));
+        let json = m.summary_json(&s);
+        assert_eq!(
+            json["output_order"],
+            serde_json::json!(["X", "Y", "Z", "B", "A"])
+        );
+        assert_eq!(json["axes"][3]["min"], serde_json::json!(-90.0));
+        let r = Machine::from_json_str(
+            r#"{"chain": [{"rotate": {"axis": [0, 0, 1], "angle": 90}}, {"prismatic": {"name": "X", "axis": [1, 0, 0]}}]}"#,
+            "dir/plain.json",
+        )
+        .unwrap();
+        assert_eq!(r.name, "plain");
+        assert!(
+            r.summary_text(&crate::machine::IkSolver::new(&r))
+                .contains("rotate axis [0, 0, 1] angle 90")
+        );
     }
 
     #[test]

@@ -576,6 +576,15 @@ impl IkSolver {
                 reason: "the pose is not finite or its tool axis is a zero vector".into(),
             });
         }
+        let n = self.chain.dof();
+        if n == 0 || n > super::chain::MAX_JOINTS {
+            return Err(IkError::Unreachable {
+                reason: format!(
+                    "the chain has {n} joints; the evaluator handles 1 to {}",
+                    super::chain::MAX_JOINTS
+                ),
+            });
+        }
         let target = Pose::new(pose.tip, pose.axis);
         let reference = self.reference(previous);
         if self.family == Family::Generic {
@@ -710,11 +719,6 @@ impl IkSolver {
         Ok(())
     }
 
-    /// Rotary kept at a singular pose: the reference value.
-    fn kept(&self, j: usize, reference: &[f64]) -> f64 {
-        reference[j]
-    }
-
     fn orient_1r(&self, target: &Pose, reference: &[f64]) -> Vec<Raw> {
         let j1 = self.revolutes[0];
         let k = self.u(j1);
@@ -723,7 +727,7 @@ impl IkSolver {
         let mut q = vec![0.0; self.chain.dof()];
         let (t, singular) = match subproblem1(&k, &p, &qt, self.options.singular_tol_rad) {
             Some(t) => (t, false),
-            None => (self.kept(j1, reference), true),
+            None => (reference[j1], true),
         };
         q[j1] = t;
         vec![Raw {
@@ -743,9 +747,9 @@ impl IkSolver {
         if k1.cross(&qt).norm() <= self.options.singular_tol_rad {
             // Tool axis along the first rotary: it is free; keep it and turn
             // the second rotary onto the axis.
-            let t1 = self.kept(j1, reference);
+            let t1 = reference[j1];
             let back = rotation3(&Unit::new_unchecked(k1), -t1) * qt;
-            let t2 = subproblem1(&k2, &p, &back, 0.0).unwrap_or_else(|| self.kept(j2, reference));
+            let t2 = subproblem1(&k2, &p, &back, 0.0).unwrap_or_else(|| reference[j2]);
             let mut q = vec![0.0; n];
             q[j1] = t1;
             q[j2] = t2;
@@ -796,7 +800,7 @@ impl IkSolver {
             && h <= self.options.singular_tol_rad)
             || (zr == 0.0 && zi == 0.0)
         {
-            (vec![self.kept(j1, reference)], true)
+            (vec![reference[j1]], true)
         } else {
             let t = 0.5 * zi.atan2(zr);
             (vec![t, t + PI], false)
@@ -808,7 +812,7 @@ impl IkSolver {
             let pz = self.segs[2] * Vector3::z();
             let (t2, s2) = match subproblem1(&u2, &pz, &back, self.options.singular_tol_rad) {
                 Some(t2) => (t2, false),
-                None => (self.kept(j2, reference), true),
+                None => (reference[j2], true),
             };
             let mut q = vec![0.0; n];
             q[j1] = t1;

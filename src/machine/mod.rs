@@ -1,7 +1,7 @@
 //! Machines: the kinematic chain, machine files, inverse kinematics and rotary handling.
 //!
 //! - [`chain`]: the one chain evaluator (forward kinematics, Jacobian).
-//! - [`file`]: machine files (JSON) and the [`Machine`] type.
+//! - [`mod@file`]: machine files (JSON) and the [`Machine`] type.
 //! - [`ik`]: analytic inverse kinematics per family, branch choice, limits.
 //! - [`newton_ik`]: the damped-Newton fallback for other chains.
 //! - [`rotary`]: limited, continuous and modulo rotary axes; unwinding.

@@ -77,6 +77,15 @@ fn residual(chain: &Chain, q: &[f64], target: &Pose, w: f64) -> (DVector<f64>, D
     (r, jw)
 }
 
+/// Clamps every joint of `q` into its bounds.
+fn project(q: &mut DVector<f64>, bounds: &[(f64, f64)]) {
+    for (v, (lo, hi)) in q.iter_mut().zip(bounds) {
+        if lo <= hi {
+            *v = v.clamp(*lo, *hi);
+        }
+    }
+}
+
 /// Minimum-norm Newton steps on the tip alone (at most 10): brings the tip
 /// onto the target with the smallest joint motion, within `bounds`.
 fn restore_tip(
@@ -100,11 +109,7 @@ fn restore_tip(
             break;
         };
         let mut q_new = &q + &step;
-        for (k, (lo, hi)) in bounds.iter().enumerate().take(n) {
-            if lo <= hi {
-                q_new[k] = q_new[k].clamp(*lo, *hi);
-            }
-        }
+        project(&mut q_new, bounds);
         let p_new = chain.pose(q_new.as_slice(), &NoErrors);
         if (target.tip - p_new.tip).norm() >= rt.norm() {
             break;
@@ -178,13 +183,6 @@ pub fn solve(
     opts: &NewtonOptions,
 ) -> Result<NewtonResult, IkError> {
     let n = chain.dof();
-    let project = |q: &mut DVector<f64>| {
-        for (k, (lo, hi)) in bounds.iter().enumerate().take(n) {
-            if lo <= hi {
-                q[k] = q[k].clamp(*lo, *hi);
-            }
-        }
-    };
     if start.len() != n || start.iter().any(|v| !v.is_finite()) {
         return Err(IkError::Unreachable {
             reason: format!("Newton start must have {n} finite joint values"),
@@ -194,7 +192,7 @@ pub fn solve(
     let w = opts.axis_weight_mm;
     let mut iterations = 0;
     let mut q = DVector::from_column_slice(start);
-    project(&mut q);
+    project(&mut q, bounds);
     let mut q = restore_tip(chain, &target, q, bounds, &mut iterations);
     let (mut r, mut jw) = residual(chain, q.as_slice(), &target, w);
     let mut cost = r.norm_squared();
@@ -214,7 +212,7 @@ pub fn solve(
             break;
         };
         let mut trial = &q + &step;
-        project(&mut trial);
+        project(&mut trial, bounds);
         let trial = restore_tip(chain, &target, trial, bounds, &mut iterations);
         let (r_new, jw_new) = residual(chain, trial.as_slice(), &target, w);
         let cost_new = r_new.norm_squared();
