@@ -166,6 +166,240 @@ pub fn refine(
     }
 }
 
+/// Per-block record of a compensation run.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct BlockRecord {
+    /// 1-based line of the block.
+    pub line: usize,
+    /// Newton iterations.
+    pub iterations: usize,
+    /// Tool-tip error before compensation (theoretical axes on the actual machine), mm.
+    pub tip_error_before_mm: f64,
+    /// Remaining tool-tip error after compensation, mm.
+    pub tip_residual_mm: f64,
+    /// Orientation error before compensation, µrad.
+    pub orientation_error_before_urad: f64,
+    /// Remaining orientation error after compensation, µrad.
+    pub orientation_residual_urad: f64,
+    /// Compensation per axis (compensated − theoretical), output order, mm / deg.
+    pub compensation: Vec<f64>,
+}
+
+/// What to do with a block that does not converge or breaks a limit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OnFail {
+    /// Stop with an error naming the line (default).
+    Error,
+    /// Keep the theoretical axes for that block and warn.
+    Theoretical,
+}
+
+/// A [`crate::post::PoseSolver`] that starts from the analytic IK and refines
+/// on the error-aware chain.
+pub struct CompensatingSolver<'a> {
+    /// The machine (theoretical chain, axes, limits).
+    pub machine: &'a crate::machine::Machine,
+    /// The actual chain (fixed error elements inserted).
+    pub actual_chain: Chain,
+    /// Position-dependent errors.
+    pub errors: &'a dyn JointErrors,
+    /// Analytic IK of the theoretical machine.
+    pub ik: crate::machine::IkSolver,
+    /// Refinement options.
+    pub options: Options,
+    /// Policy for failing blocks.
+    pub on_fail: OnFail,
+    /// Tip tolerance that counts as converged for the policy, mm.
+    pub accept_tip_mm: f64,
+    /// Records, one per block.
+    pub records: Vec<BlockRecord>,
+    /// Warnings.
+    pub warnings: Vec<String>,
+}
+
+impl crate::post::PoseSolver for CompensatingSolver<'_> {
+    fn solve(
+        &mut self,
+        pose: &Pose,
+        previous: Option<&[f64]>,
+        line: usize,
+    ) -> Result<crate::post::SolvedPose, String> {
+        let th = self.ik.solve(pose, previous).map_err(|e| e.to_string())?;
+        let before = self.actual_chain.pose(&th.q, self.errors);
+        let r = refine(&self.actual_chain, self.errors, pose, &th.q, &self.options);
+        let failure = if !r.converged || r.tip_residual_mm > self.accept_tip_mm {
+            Some(format!(
+                "compensation did not converge: tool-tip residual {:.3e} mm after {} iterations (accepted: {:.1e} mm)",
+                r.tip_residual_mm, r.iterations, self.accept_tip_mm
+            ))
+        } else {
+            self.ik
+                .check_limits(&r.q)
+                .err()
+                .map(|e| format!("compensated axes break a limit: {e}"))
+        };
+        let q = match failure {
+            None => r.q.clone(),
+            Some(msg) => match self.on_fail {
+                OnFail::Error => return Err(msg),
+                OnFail::Theoretical => {
+                    self.warnings
+                        .push(format!("line {line}: {msg}; theoretical axes kept"));
+                    th.q.clone()
+                }
+            },
+        };
+        let ext_c = self.machine.to_external(&q);
+        let ext_t = self.machine.to_external(&th.q);
+        let after = self.actual_chain.pose(&q, self.errors);
+        self.records.push(BlockRecord {
+            line,
+            iterations: r.iterations,
+            tip_error_before_mm: before.tip_distance(pose),
+            tip_residual_mm: after.tip_distance(pose),
+            orientation_error_before_urad: before.axis_angle(pose) * 1e6,
+            orientation_residual_urad: after.axis_angle(pose) * 1e6,
+            compensation: ext_c
+                .iter()
+                .zip(&ext_t)
+                .zip(&self.machine.axes)
+                .map(|((c, t), a)| {
+                    let d = c - t;
+                    if a.rotary == crate::machine::RotaryMode::Modulo {
+                        (d + 180.0).rem_euclid(360.0) - 180.0
+                    } else {
+                        d
+                    }
+                })
+                .collect(),
+        });
+        Ok(crate::post::SolvedPose {
+            axis_miss_rad: 0.0,
+            q,
+        })
+    }
+}
+
+/// Summary of a compensation run.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct RunSummary {
+    /// Machine name.
+    pub machine: String,
+    /// Step method.
+    pub method: Method,
+    /// Poses compensated.
+    pub poses: usize,
+    /// Largest tool-tip error before compensation, mm.
+    pub tip_error_before_max_mm: f64,
+    /// Largest tool-tip residual after compensation, mm.
+    pub tip_residual_max_mm: f64,
+    /// Largest orientation error before, µrad.
+    pub orientation_error_before_max_urad: f64,
+    /// Largest orientation residual after, µrad.
+    pub orientation_residual_max_urad: f64,
+    /// Blocks whose orientation error got worse (by more than 1e-9 µrad).
+    pub orientation_worse_blocks: usize,
+    /// Largest iteration count.
+    pub iterations_max: usize,
+    /// Mean iteration count.
+    pub iterations_mean: f64,
+    /// Per-axis compensation range [min, max], output order, mm / deg.
+    pub compensation_range: Vec<[f64; 2]>,
+    /// Axis names in output order.
+    pub axes: Vec<String>,
+}
+
+impl RunSummary {
+    /// Summarises per-block records.
+    pub fn new(machine: &crate::machine::Machine, method: Method, records: &[BlockRecord]) -> Self {
+        let n = machine.axes.len();
+        let mut s = RunSummary {
+            machine: machine.name.clone(),
+            method,
+            poses: records.len(),
+            tip_error_before_max_mm: 0.0,
+            tip_residual_max_mm: 0.0,
+            orientation_error_before_max_urad: 0.0,
+            orientation_residual_max_urad: 0.0,
+            orientation_worse_blocks: 0,
+            iterations_max: 0,
+            iterations_mean: 0.0,
+            compensation_range: vec![[f64::INFINITY, f64::NEG_INFINITY]; n],
+            axes: machine.axes.iter().map(|a| a.name.clone()).collect(),
+        };
+        for r in records {
+            s.tip_error_before_max_mm = s.tip_error_before_max_mm.max(r.tip_error_before_mm);
+            s.tip_residual_max_mm = s.tip_residual_max_mm.max(r.tip_residual_mm);
+            s.orientation_error_before_max_urad = s
+                .orientation_error_before_max_urad
+                .max(r.orientation_error_before_urad);
+            s.orientation_residual_max_urad = s
+                .orientation_residual_max_urad
+                .max(r.orientation_residual_urad);
+            if r.orientation_residual_urad > r.orientation_error_before_urad + 1e-9 {
+                s.orientation_worse_blocks += 1;
+            }
+            s.iterations_max = s.iterations_max.max(r.iterations);
+            s.iterations_mean += r.iterations as f64;
+            for (k, c) in r.compensation.iter().enumerate() {
+                s.compensation_range[k][0] = s.compensation_range[k][0].min(*c);
+                s.compensation_range[k][1] = s.compensation_range[k][1].max(*c);
+            }
+        }
+        if !records.is_empty() {
+            s.iterations_mean /= records.len() as f64;
+        } else {
+            s.compensation_range = vec![[0.0, 0.0]; n];
+        }
+        s
+    }
+
+    /// A report a person can read.
+    pub fn to_text(&self) -> String {
+        use std::fmt::Write;
+        let mut t = String::new();
+        let _ = writeln!(
+            t,
+            "kinpost compensate — machine {}, {} poses, method {:?}",
+            self.machine, self.poses, self.method
+        );
+        let _ = writeln!(
+            t,
+            "  tool-tip error:    before max {:.4} µm  →  after max {:.3e} mm",
+            self.tip_error_before_max_mm * 1e3,
+            self.tip_residual_max_mm
+        );
+        let _ = writeln!(
+            t,
+            "  orientation error: before max {:.4} µrad ({:.4} arcsec)  →  after max {:.4} µrad ({:.4} arcsec); {} blocks worse",
+            self.orientation_error_before_max_urad,
+            self.orientation_error_before_max_urad * 1e-6 * crate::analyze::ARCSEC_PER_RAD,
+            self.orientation_residual_max_urad,
+            self.orientation_residual_max_urad * 1e-6 * crate::analyze::ARCSEC_PER_RAD,
+            self.orientation_worse_blocks
+        );
+        let _ = writeln!(
+            t,
+            "  Newton iterations: max {}, mean {:.2}",
+            self.iterations_max, self.iterations_mean
+        );
+        for (name, r) in self.axes.iter().zip(&self.compensation_range) {
+            let (unit, f) = if ["A", "B", "C"].contains(&name.as_str()) {
+                ("µrad", 1e6 * std::f64::consts::PI / 180.0)
+            } else {
+                ("µm", 1e3)
+            };
+            let _ = writeln!(
+                t,
+                "  compensation {name}: {:.4} … {:.4} {unit}",
+                r[0] * f,
+                r[1] * f
+            );
+        }
+        t
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

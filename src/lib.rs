@@ -4,6 +4,7 @@
 //! particular machine needs, through one kinematic chain evaluator, with the
 //! machine's measured geometric errors taken into account.
 
+pub mod analyze;
 pub mod cl;
 pub mod cli;
 pub mod compensate;
@@ -15,6 +16,7 @@ pub mod input;
 pub mod linkage;
 pub mod machine;
 pub mod output;
+pub mod plot;
 pub mod post;
 pub mod program;
 

@@ -19,11 +19,12 @@ use std::io::{BufRead, Write};
 /// The theoretical machine uses the analytic IK ([`IkSolver`]); compensation
 /// wraps it with Newton refinement on the error-aware chain.
 pub trait PoseSolver {
-    /// Joint values for `pose`, continuing from `previous`.
+    /// Joint values for `pose` (programmed at `line`), continuing from `previous`.
     fn solve(
         &mut self,
         pose: &Pose,
         previous: Option<&[f64]>,
+        line: usize,
     ) -> std::result::Result<SolvedPose, String>;
 }
 
@@ -42,6 +43,7 @@ impl PoseSolver for IkSolver {
         &mut self,
         pose: &Pose,
         previous: Option<&[f64]>,
+        _line: usize,
     ) -> std::result::Result<SolvedPose, String> {
         IkSolver::solve(self, pose, previous)
             .map(|s| SolvedPose {
@@ -240,13 +242,15 @@ pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
             continue;
         };
         let pose = Pose::new(tip, axis);
-        let solved = solver.solve(&pose, previous.as_deref()).map_err(|m| {
-            Error::input_with(
-                loc(meaning.pose_items.first().copied()),
-                m,
-                String::from_utf8_lossy(&line.bytes),
-            )
-        })?;
+        let solved = solver
+            .solve(&pose, previous.as_deref(), line.number)
+            .map_err(|m| {
+                Error::input_with(
+                    loc(meaning.pose_items.first().copied()),
+                    m,
+                    String::from_utf8_lossy(&line.bytes),
+                )
+            })?;
         if solved.axis_miss_rad > opts.axis_tolerance_rad {
             return Err(Error::input_with(
                 loc(meaning.pose_items.first().copied()),
@@ -440,7 +444,7 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                 }
                 let pose = Pose::new(tip, axis / norm);
                 let solved = solver
-                    .solve(&pose, previous.as_deref())
+                    .solve(&pose, previous.as_deref(), record.line)
                     .map_err(|m| Error::input_with(loc.clone(), m, text.clone()))?;
                 if solved.axis_miss_rad > opts.axis_tolerance_rad {
                     return Err(Error::input_with(

@@ -266,7 +266,7 @@ pub fn zhao2022_tables(seed: u64) -> String {
             Column {
                 name: "EYX",
                 unit: FileUnit::Mm,
-                shape: shape([2.2, -0.3, 0.8, 0.0], 0.2, 2.5, 0.0, 0.05),
+                shape: shape([-0.06, 0.0, 0.18, 0.0], 0.05, 2.5, 0.0, 0.03),
             },
             Column {
                 name: "EZX",
@@ -295,7 +295,7 @@ pub fn zhao2022_tables(seed: u64) -> String {
             Column {
                 name: "EZZ",
                 unit: FileUnit::Mm,
-                shape: positioning(shape([-2.3, 1.5, 0.5, 0.0], 0.3, 2.7, 0.3, 0.05), 0.3),
+                shape: positioning(shape([-4.1, 1.5, 0.5, 0.0], 0.3, 2.7, 0.3, 0.05), 0.3),
             },
             Column {
                 name: "EXZ",
@@ -305,7 +305,7 @@ pub fn zhao2022_tables(seed: u64) -> String {
             Column {
                 name: "EYZ",
                 unit: FileUnit::Mm,
-                shape: shape([0.8, -0.5, 0.3, 0.0], 0.15, 2.0, 2.0, 0.05),
+                shape: shape([-0.04, 0.0, 0.12, 0.0], 0.04, 2.0, 2.0, 0.03),
             },
             Column {
                 name: "EAZ",

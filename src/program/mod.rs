@@ -2,6 +2,7 @@
 
 pub mod format;
 pub mod modal;
+pub mod source;
 
 pub use modal::{
     BlockError, BlockMeaning, FeedMode, ModalState, Motion, PoseStart, TcpCode, Units, WordRef,

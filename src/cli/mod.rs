@@ -1,5 +1,7 @@
 //! The command line: clap definitions and dispatch into the library.
 
+pub mod errors;
+
 use crate::error::{Error, Result};
 use crate::input::{self, FilterProgress};
 use crate::machine::{IkSolver, Machine};
@@ -34,6 +36,16 @@ pub enum Command {
     Parse(ParseArgs),
     /// Show a machine: its chain, joints, limits, IK family and output format.
     Machine(MachineArgs),
+    /// Fit least-squares cubic B-splines to measured error tables (ISO 230-1
+    /// names) and report residuals and ISO 230-2 figures; write a model file.
+    Fit(errors::FitArgs),
+    /// How far the tool would miss each pose on the actual machine (tool-tip
+    /// error in µm, orientation error in µrad and arcsec), and which error
+    /// term is to blame; with --nonlinear, the exact nonlinear error per block.
+    Analyze(errors::AnalyzeArgs),
+    /// Like post, but the axes put the actual machine's tool on the pose:
+    /// Newton refinement on the error-aware chain (seed 000).
+    Compensate(errors::CompensateArgs),
 }
 
 /// Choosing a machine.
@@ -151,6 +163,9 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Post(a) => post(a),
         Command::Parse(a) => parse(a),
         Command::Machine(a) => machine(a),
+        Command::Fit(a) => errors::fit(a),
+        Command::Analyze(a) => errors::analyze(a),
+        Command::Compensate(a) => errors::compensate(a),
     }
 }
 
@@ -163,16 +178,7 @@ fn post(a: PostArgs) -> Result<()> {
     let machine = a.machine.load()?;
     let mut solver = IkSolver::new(&machine);
     let mut inp = input::open(a.input.as_deref())?;
-    let kind = match a.input_kind {
-        InputKind::Auto => {
-            if crate::cl::looks_like_cl(&input::peek(&mut *inp.reader)?) {
-                InputKind::Cl
-            } else {
-                InputKind::Gcode
-            }
-        }
-        k => k,
-    };
+    let kind = resolve_kind(a.input_kind, &mut *inp.reader)?;
     let opts = PostOptions {
         decimals: a.decimals,
         pose_start: match a.pose_start {
@@ -210,6 +216,20 @@ fn post(a: PostArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Resolves `--input-kind auto` from the start of the input.
+pub fn resolve_kind(kind: InputKind, reader: &mut dyn std::io::BufRead) -> Result<InputKind> {
+    Ok(match kind {
+        InputKind::Auto => {
+            if crate::cl::looks_like_cl(&input::peek(reader)?) {
+                InputKind::Cl
+            } else {
+                InputKind::Gcode
+            }
+        }
+        k => k,
+    })
 }
 
 fn parse(a: ParseArgs) -> Result<()> {

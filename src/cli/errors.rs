@@ -1,0 +1,467 @@
+//! `kinpost fit`, `kinpost analyze`, `kinpost compensate`: the geometric
+//! error model of seed 000.
+
+use super::{InputKind, MachineChoice, PoseStartArg};
+use crate::analyze::Analyzer;
+use crate::compensate::{CompensatingSolver, Method, OnFail, Options, RunSummary};
+use crate::error::{Error, Result};
+use crate::geometric::bspline::{Extrapolation, KnotChoice};
+use crate::geometric::model::{ErrorModel, FitOptions};
+use crate::geometric::table::read_tables;
+use crate::input::{self, FilterProgress};
+use crate::linkage::nonlinear_error;
+use crate::machine::{IkSolver, Machine, NoErrors};
+use crate::output::write_atomically;
+use crate::plot::{Panel, write_panels};
+use crate::post::{PostOptions, post_cl, post_gcode};
+use crate::program::PoseStart;
+use crate::program::source::{cl_poses, gcode_poses, looks_like_poses, machine_axis_blocks};
+use clap::{Args, ValueEnum};
+use std::io::Write;
+use std::path::PathBuf;
+
+/// Extrapolation outside the measured travel.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum ExtrapolateArg {
+    /// Hold the end value (derivative 0).
+    Hold,
+    /// Continue linearly with the end slope.
+    Linear,
+}
+
+/// `kinpost fit`.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Error table (CSV, formats.md §1): one block per axis, ISO 230-1 names.
+    #[arg(value_name = "TABLE.csv")]
+    pub table: PathBuf,
+    /// Interior knots per spline (default: chosen by cross-validation).
+    #[arg(long, value_name = "N")]
+    pub knots: Option<usize>,
+    /// Behaviour outside the measured travel.
+    #[arg(long, value_enum, default_value = "hold")]
+    pub extrapolate: ExtrapolateArg,
+    /// Write the fitted model (JSON, accepted by every --errors) here.
+    #[arg(long, short = 'o', value_name = "MODEL.json")]
+    pub output: Option<PathBuf>,
+    /// Print the fit report as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Loads an error model (model JSON, or an error table fitted on the fly).
+pub fn load_errors(path: &std::path::Path) -> Result<ErrorModel> {
+    ErrorModel::load(path)
+}
+
+/// Runs `kinpost fit`.
+pub fn fit(a: FitArgs) -> Result<()> {
+    let tables = read_tables(&a.table)?;
+    let mut opts = match a.knots {
+        Some(n) => FitOptions::fixed_knots(n),
+        None => FitOptions::default(),
+    };
+    opts.extrapolation = match a.extrapolate {
+        ExtrapolateArg::Hold => Extrapolation::Hold,
+        ExtrapolateArg::Linear => Extrapolation::Linear,
+    };
+    if a.knots.is_none() {
+        opts.knots = KnotChoice::default();
+    }
+    let (model, report) = ErrorModel::fit(&tables, &opts)?;
+    if let Some(out) = &a.output {
+        let text = serde_json::to_string_pretty(&model.to_json()).unwrap_or_default();
+        write_atomically(Some(out), |w| {
+            w.write_all(text.as_bytes())
+                .and_then(|_| w.write_all(b"\n"))
+                .map_err(|e| Error::io(out.display().to_string(), e))
+        })?;
+    }
+    let text = if a.json {
+        serde_json::to_string_pretty(&report).unwrap_or_default()
+    } else {
+        report.to_text()
+    };
+    let mut o = std::io::stdout().lock();
+    writeln!(o, "{text}").map_err(|e| Error::io("<stdout>", e))?;
+    if let (Some(out), false) = (&a.output, a.json) {
+        writeln!(o, "model written to {}", out.display()).map_err(|e| Error::io("<stdout>", e))?;
+    }
+    Ok(())
+}
+
+/// `kinpost analyze`.
+#[derive(Debug, Args)]
+pub struct AnalyzeArgs {
+    /// Program: tool poses (G-code or APT CL) or, with --nonlinear, machine axes.
+    #[arg(value_name = "PROGRAM")]
+    pub input: Option<PathBuf>,
+    #[command(flatten)]
+    pub machine: MachineChoice,
+    /// Error model: model JSON from `kinpost fit`, or an error table CSV
+    /// (fitted on the fly). Required unless --nonlinear.
+    #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
+    pub errors: Option<PathBuf>,
+    /// Report the exact nonlinear error of every block (largest distance of
+    /// the tool tip from the straight line while the axes interpolate linearly).
+    #[arg(long)]
+    pub nonlinear: bool,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// Plot the errors along the program (SVG).
+    #[arg(long, value_name = "FILE.svg")]
+    pub svg: Option<PathBuf>,
+    /// When pose mode starts (pose programs).
+    #[arg(long, value_enum, default_value = "on")]
+    pub pose_start: PoseStartArg,
+}
+
+/// Nonlinear error of one block.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct NonlinearBlock {
+    /// 1-based line of the block.
+    pub line: usize,
+    /// Exact largest deviation from the straight line, mm.
+    pub max_mm: f64,
+    /// Where along the block (0…1).
+    pub t_at_max: f64,
+    /// The r·Δθ²/8 estimate, mm.
+    pub estimate_mm: f64,
+}
+
+/// Runs `kinpost analyze`.
+pub fn analyze(a: AnalyzeArgs) -> Result<()> {
+    let machine = a.machine.load()?;
+    if a.errors.is_none() && !a.nonlinear {
+        return Err(Error::Usage(
+            "analyze needs --errors MODEL (or --nonlinear)".into(),
+        ));
+    }
+    let model = match &a.errors {
+        Some(p) => Some(load_errors(p)?),
+        None => None,
+    };
+    let bound = match &model {
+        Some(m) => Some(m.bind(&machine.chain)?),
+        None => None,
+    };
+    let mut inp = input::open(a.input.as_deref())?;
+    let head = input::peek(&mut *inp.reader)?;
+    let poses = looks_like_poses(&head);
+    let name = inp.name.clone();
+    let start = match a.pose_start {
+        PoseStartArg::On => PoseStart::On,
+        PoseStartArg::Tcp => PoseStart::Off,
+    };
+
+    // Joint values per block (theoretical IK for poses).
+    let mut analyzer = match (&model, &bound) {
+        (Some(m), Some(b)) => Some(Analyzer::new(&machine, m, b)?),
+        _ => None,
+    };
+    let mut nonlinear: Vec<NonlinearBlock> = Vec::new();
+    let mut prev_q: Option<Vec<f64>> = None;
+    let ik = IkSolver::new(&machine);
+    let nl_errors: &dyn crate::machine::JointErrors = &NoErrors;
+    let mut step = |line: usize, q: Vec<f64>| {
+        if a.nonlinear {
+            if let Some(p) = &prev_q {
+                let e = nonlinear_error(&machine.chain, nl_errors, p, &q);
+                nonlinear.push(NonlinearBlock {
+                    line,
+                    max_mm: e.max_mm,
+                    t_at_max: e.t_at_max,
+                    estimate_mm: e.estimate_mm,
+                });
+            }
+        }
+        prev_q = Some(q);
+    };
+    if poses {
+        let mut ik_prev: Option<Vec<f64>> = None;
+        let mut on_pose = |ev: crate::program::source::PoseEvent| -> Result<()> {
+            let loc = crate::error::Location::new(&name, ev.line, 0);
+            if let Some(an) = analyzer.as_mut() {
+                an.add(ev.line, &ev.pose)
+                    .map_err(|m| Error::input(loc.clone(), m))?;
+            }
+            let q = ik
+                .solve(&ev.pose, ik_prev.as_deref())
+                .map_err(|e| Error::input(loc, e.to_string()))?
+                .q;
+            ik_prev = Some(q.clone());
+            step(ev.line, q);
+            Ok(())
+        };
+        if crate::cl::looks_like_cl(&head) {
+            cl_poses(&mut inp.reader, &name, &mut on_pose)?;
+        } else {
+            gcode_poses(&mut inp.reader, &name, start, &mut on_pose)?;
+        }
+    } else {
+        if analyzer.is_some() {
+            return Err(Error::Usage(
+                "analyze --errors needs a program of tool poses; this one is in machine axes (use --nonlinear alone)".into(),
+            ));
+        }
+        machine_axis_blocks(&machine, &mut inp.reader, &name, |ev| {
+            step(ev.line, ev.q);
+            Ok(())
+        })?;
+    }
+    let analysis = analyzer.map(|an| an.finish());
+    let nl_max = nonlinear
+        .iter()
+        .cloned()
+        .max_by(|x, y| x.max_mm.total_cmp(&y.max_mm));
+
+    if let Some(svg) = &a.svg {
+        let mut panels = Vec::new();
+        if let Some(an) = &analysis {
+            panels.push(Panel {
+                y_label: "tool-tip error E [µm]",
+                series: vec![(
+                    "E",
+                    an.blocks
+                        .iter()
+                        .enumerate()
+                        .map(|(i, b)| (i as f64, b.tip_error_mm * 1e3))
+                        .collect(),
+                )],
+            });
+            panels.push(Panel {
+                y_label: "orientation error ε [µrad]",
+                series: vec![(
+                    "ε",
+                    an.blocks
+                        .iter()
+                        .enumerate()
+                        .map(|(i, b)| (i as f64, b.orientation_error_urad))
+                        .collect(),
+                )],
+            });
+        }
+        if a.nonlinear {
+            panels.push(Panel {
+                y_label: "nonlinear error [µm]",
+                series: vec![
+                    (
+                        "exact",
+                        nonlinear
+                            .iter()
+                            .enumerate()
+                            .map(|(i, b)| (i as f64 + 1.0, b.max_mm * 1e3))
+                            .collect(),
+                    ),
+                    (
+                        "r·Δθ²/8",
+                        nonlinear
+                            .iter()
+                            .enumerate()
+                            .map(|(i, b)| (i as f64 + 1.0, b.estimate_mm * 1e3))
+                            .collect(),
+                    ),
+                ],
+            });
+        }
+        write_panels(
+            svg,
+            &format!("kinpost analyze — {} — {}", machine.name, name),
+            "block (pose index)",
+            &panels,
+        )?;
+    }
+
+    let mut o = std::io::stdout().lock();
+    let io = |e| Error::io("<stdout>", e);
+    if a.json {
+        let mut v = match &analysis {
+            Some(an) => an.to_json(),
+            None => serde_json::json!({ "machine": machine.name }),
+        };
+        if a.nonlinear {
+            v["nonlinear"] = serde_json::json!({
+                "max_mm": nl_max.as_ref().map(|b| b.max_mm).unwrap_or(0.0),
+                "max_line": nl_max.as_ref().map(|b| b.line),
+                "estimate_at_max_mm": nl_max.as_ref().map(|b| b.estimate_mm).unwrap_or(0.0),
+                "blocks": nonlinear,
+            });
+        }
+        writeln!(
+            o,
+            "{}",
+            serde_json::to_string_pretty(&v).unwrap_or_default()
+        )
+        .map_err(io)?;
+    } else {
+        if let Some(an) = &analysis {
+            write!(o, "{}", an.to_text()).map_err(io)?;
+        }
+        if a.nonlinear {
+            writeln!(
+                o,
+                "nonlinear error (exact, from the chain; r·Δθ²/8 estimate beside it):"
+            )
+            .map_err(io)?;
+            match &nl_max {
+                Some(b) => writeln!(
+                    o,
+                    "  max {:.4} µm at line {} (t = {:.3}); estimate there {:.4} µm; {} blocks",
+                    b.max_mm * 1e3,
+                    b.line,
+                    b.t_at_max,
+                    b.estimate_mm * 1e3,
+                    nonlinear.len()
+                )
+                .map_err(io)?,
+                None => writeln!(o, "  no blocks").map_err(io)?,
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Newton step method.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum MethodArg {
+    /// Exact Jacobian of the error-aware chain, tip first (default: fewest iterations).
+    Exact,
+    /// Theoretical Jacobian, tip first.
+    Theoretical,
+    /// Seed 000 as printed: stacked theoretical Jacobian, unweighted pseudo-inverse.
+    Paper,
+}
+
+/// Failure policy.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum OnFailArg {
+    /// Stop with an error naming the line.
+    Error,
+    /// Keep the theoretical axes for that block, with a warning.
+    Theoretical,
+}
+
+/// `kinpost compensate`.
+#[derive(Debug, Args)]
+pub struct CompensateArgs {
+    /// Program of tool poses (G-code or APT CL; `-` or nothing: stdin).
+    #[arg(value_name = "PROGRAM")]
+    pub input: Option<PathBuf>,
+    #[command(flatten)]
+    pub machine: MachineChoice,
+    /// Error model: model JSON from `kinpost fit`, or an error table CSV.
+    #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
+    pub errors: PathBuf,
+    /// Write the output here (atomically). Default: standard output.
+    #[arg(long, short = 'o', value_name = "FILE")]
+    pub output: Option<PathBuf>,
+    /// Decimals of every axis word, overriding the machine file.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=12))]
+    pub decimals: Option<u32>,
+    /// Newton step.
+    #[arg(long, value_enum, default_value = "exact")]
+    pub method: MethodArg,
+    /// Weights of the tool-axis residual (x,y,z of the workpiece frame).
+    #[arg(long, value_name = "WX,WY,WZ", value_delimiter = ',', num_args = 3, default_values_t = [1.0, 1.0, 1.0])]
+    pub axis_weights: Vec<f64>,
+    /// Largest Newton iterations per pose.
+    #[arg(long, value_name = "N", default_value_t = 30)]
+    pub max_iterations: usize,
+    /// Largest accepted tool-tip residual, mm; beyond it a block has not converged.
+    #[arg(long, value_name = "MM", default_value_t = 1e-9)]
+    pub tip_tolerance_mm: f64,
+    /// What to do with a block that does not converge or breaks a limit.
+    #[arg(long, value_enum, default_value = "error")]
+    pub on_fail: OnFailArg,
+    /// Write a JSON report (per block: iterations, residuals, compensation).
+    #[arg(long, value_name = "FILE.json")]
+    pub report: Option<PathBuf>,
+    /// When pose mode starts.
+    #[arg(long, value_enum, default_value = "on")]
+    pub pose_start: PoseStartArg,
+    /// Input format.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub input_kind: InputKind,
+    /// Print no summary on standard error.
+    #[arg(long, short = 'q')]
+    pub quiet: bool,
+}
+
+/// Runs `kinpost compensate`.
+pub fn compensate(a: CompensateArgs) -> Result<()> {
+    if a.tip_tolerance_mm.is_nan() || a.tip_tolerance_mm <= 0.0 {
+        return Err(Error::Usage("--tip-tolerance-mm must be > 0".into()));
+    }
+    if a.axis_weights.iter().any(|w| !w.is_finite() || *w < 0.0) {
+        return Err(Error::Usage("--axis-weights must be finite and ≥ 0".into()));
+    }
+    let machine: Machine = a.machine.load()?;
+    let model = load_errors(&a.errors)?;
+    let bound = model.bind(&machine.chain)?;
+    let method = match a.method {
+        MethodArg::Exact => Method::Exact,
+        MethodArg::Theoretical => Method::Theoretical,
+        MethodArg::Paper => Method::Paper,
+    };
+    let mut solver = CompensatingSolver {
+        machine: &machine,
+        actual_chain: model.apply_fixed(&machine.chain)?,
+        errors: &bound,
+        ik: IkSolver::new(&machine),
+        options: Options {
+            method,
+            max_iterations: a.max_iterations,
+            tip_tolerance_mm: 1e-12,
+            axis_weights: [a.axis_weights[0], a.axis_weights[1], a.axis_weights[2]],
+        },
+        on_fail: match a.on_fail {
+            OnFailArg::Error => OnFail::Error,
+            OnFailArg::Theoretical => OnFail::Theoretical,
+        },
+        accept_tip_mm: a.tip_tolerance_mm,
+        records: Vec::new(),
+        warnings: Vec::new(),
+    };
+    let mut inp = input::open(a.input.as_deref())?;
+    let kind = super::resolve_kind(a.input_kind, &mut *inp.reader)?;
+    let opts = PostOptions {
+        decimals: a.decimals,
+        pose_start: match a.pose_start {
+            PoseStartArg::On => PoseStart::On,
+            PoseStartArg::Tcp => PoseStart::Off,
+        },
+        axis_tolerance_rad: f64::INFINITY,
+        modal_axes: false,
+        file_name: inp.name.clone(),
+    };
+    let mut progress = FilterProgress::new(inp.size);
+    write_atomically(a.output.as_deref(), |out| {
+        if kind == InputKind::Cl {
+            post_cl(&machine, &mut solver, &mut inp.reader, out, &opts, |n| {
+                progress.update(n)
+            })
+        } else {
+            post_gcode(&machine, &mut solver, &mut inp.reader, out, &opts, |n| {
+                progress.update(n)
+            })
+        }
+    })?;
+    let summary = RunSummary::new(&machine, method, &solver.records);
+    if let Some(r) = &a.report {
+        let v = serde_json::json!({ "summary": summary, "blocks": solver.records, "warnings": solver.warnings });
+        let text = serde_json::to_string_pretty(&v).unwrap_or_default();
+        write_atomically(Some(r), |w| {
+            w.write_all(text.as_bytes())
+                .map_err(|e| Error::io(r.display().to_string(), e))
+        })?;
+    }
+    if !a.quiet {
+        let mut e = std::io::stderr().lock();
+        for w in &solver.warnings {
+            let _ = writeln!(e, "warning: {w}");
+        }
+        let _ = write!(e, "{}", summary.to_text());
+    }
+    Ok(())
+}

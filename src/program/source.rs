@@ -1,0 +1,243 @@
+//! The tool poses of a program, whatever its format (G-code poses or APT CL),
+//! as one stream of events, for the commands that read poses without
+//! rewriting the program (analyze, linkage planning, simulation).
+
+use super::modal::{Motion, PoseStart, TOOL_VECTOR_TOLERANCE, WordRef};
+use super::{ModalState, Units};
+use crate::cl::{ClReader, ClStatement, FeedUnit};
+use crate::error::{Error, Location, Result};
+use crate::gcode::{ItemKind, LineReader};
+use crate::machine::Pose;
+use nalgebra::Vector3;
+use std::io::BufRead;
+
+/// One pose of a program.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseEvent {
+    /// 1-based line number of the block.
+    pub line: usize,
+    /// The block's N number, if it has one.
+    pub n: Option<f64>,
+    /// Tool tip (mm) and unit tool axis, workpiece frame.
+    pub pose: Pose,
+    /// Feed in force, mm/min (None in G93/G95 or when none was given).
+    pub feed_mm_min: Option<f64>,
+    /// Rapid move (G0 / RAPID).
+    pub rapid: bool,
+}
+
+/// Reads the poses of a G-code pose program.
+pub fn gcode_poses<R: BufRead>(
+    input: R,
+    file: &str,
+    start: PoseStart,
+    mut f: impl FnMut(PoseEvent) -> Result<()>,
+) -> Result<()> {
+    let mut modal = ModalState::new(start);
+    for line in LineReader::new(input) {
+        let line = line.map_err(|e| Error::io(file, e))?;
+        let mut words = Vec::new();
+        let mut keywords = Vec::new();
+        let mut n = None;
+        for (i, item) in line.items.iter().enumerate() {
+            match &item.kind {
+                ItemKind::Word(w) => {
+                    if w.address == "N" {
+                        n = Some(w.value);
+                    }
+                    words.push(WordRef {
+                        address: w.address.as_str(),
+                        value: w.value,
+                        item: i,
+                    })
+                }
+                ItemKind::Keyword(k) => keywords.push((i, k.as_str())),
+                _ => {}
+            }
+        }
+        let meaning = modal.apply(&words, &keywords).map_err(|e| {
+            let col = e.item.map(|i| line.items[i].start + 1).unwrap_or(0);
+            Error::input_with(
+                Location::new(file, line.number, col),
+                e.message,
+                line.text_lossy(),
+            )
+        })?;
+        if let Some((tip, axis)) = meaning.pose {
+            let feed_mm_min = match meaning.feed_mode {
+                super::FeedMode::PerMinute => meaning.feed.map(|f| f * meaning.units.mm_per_unit()),
+                _ => None,
+            };
+            f(PoseEvent {
+                line: line.number,
+                n,
+                pose: Pose::new(tip, axis),
+                feed_mm_min,
+                rapid: meaning.motion == Motion::Rapid,
+            })?;
+        }
+    }
+    Ok(())
+}
+
+/// Reads the poses of APT CL data.
+pub fn cl_poses<R: BufRead>(
+    input: R,
+    file: &str,
+    mut f: impl FnMut(PoseEvent) -> Result<()>,
+) -> Result<()> {
+    let mut axis = Vector3::z();
+    let mut units = Units::Mm;
+    let mut feed = None;
+    let mut rapid = false;
+    for record in ClReader::new(input, file) {
+        let record = record?;
+        match record.statement {
+            ClStatement::Goto { tip, axis: a } => {
+                if let Some(a) = a {
+                    axis = Vector3::from(a);
+                }
+                let norm = axis.norm();
+                if norm.is_nan() || norm <= 1e-12 || (norm - 1.0).abs() > TOOL_VECTOR_TOLERANCE {
+                    return Err(Error::input_with(
+                        Location::new(file, record.line, record.col),
+                        format!("tool axis of length {norm:.6}: expected a unit vector"),
+                        String::from_utf8_lossy(&record.text).trim().to_string(),
+                    ));
+                }
+                f(PoseEvent {
+                    line: record.line,
+                    n: None,
+                    pose: Pose::new(Vector3::from(tip) * units.mm_per_unit(), axis / norm),
+                    feed_mm_min: feed,
+                    rapid,
+                })?;
+                rapid = false;
+            }
+            ClStatement::TlAxis(a) => axis = Vector3::from(a),
+            ClStatement::Rapid => rapid = true,
+            ClStatement::Units(u) => {
+                units = match u {
+                    crate::cl::ClUnits::Inches => Units::Inch,
+                    crate::cl::ClUnits::Mm => Units::Mm,
+                }
+            }
+            ClStatement::Fedrat { value, unit } => {
+                feed = match unit {
+                    FeedUnit::Mmpm => Some(value),
+                    FeedUnit::Ipm => Some(value * 25.4),
+                    FeedUnit::Unspecified => Some(value * units.mm_per_unit()),
+                    FeedUnit::Mmpr | FeedUnit::Ipr => None,
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// One block of a program written in machine axes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisEvent {
+    /// 1-based line number of the block.
+    pub line: usize,
+    /// Joint values after the block, chain order, mm / rad.
+    pub q: Vec<f64>,
+    /// Feed in force, mm/min (G94) or None.
+    pub feed_mm_min: Option<f64>,
+    /// Inverse-time feed in force (G93), 1/min, or None.
+    pub inverse_time: Option<f64>,
+    /// Rapid move (G0).
+    pub rapid: bool,
+}
+
+/// Reads the axis positions of a program in machine axes (absolute or
+/// incremental, mm or inch). Axes not yet programmed start at 0 (mm / deg);
+/// blocks that carry none of the machine's axis words are skipped.
+pub fn machine_axis_blocks<R: BufRead>(
+    machine: &crate::machine::Machine,
+    input: R,
+    file: &str,
+    mut f: impl FnMut(AxisEvent) -> Result<()>,
+) -> Result<()> {
+    let mut modal = ModalState::new(PoseStart::Off);
+    let mut ext = vec![0.0; machine.axes.len()];
+    for line in LineReader::new(input) {
+        let line = line.map_err(|e| Error::io(file, e))?;
+        let mut words = Vec::new();
+        for (i, item) in line.items.iter().enumerate() {
+            if let ItemKind::Word(w) = &item.kind {
+                words.push(WordRef {
+                    address: w.address.as_str(),
+                    value: w.value,
+                    item: i,
+                });
+            }
+        }
+        // Only the modal groups matter here; machine words are not poses.
+        let g_only: Vec<WordRef> = words
+            .iter()
+            .copied()
+            .filter(|w| w.address == "G" || w.address == "F")
+            .collect();
+        let meaning = modal
+            .apply(&g_only, &[])
+            .map_err(|e| Error::input(Location::new(file, line.number, 0), e.message))?;
+        let mut moved = false;
+        for w in &words {
+            if let Some(k) = machine.axes.iter().position(|a| a.name == w.address) {
+                let scale = if machine.axes[k].kind == crate::machine::JointKind::Prismatic {
+                    meaning.units.mm_per_unit()
+                } else {
+                    1.0
+                };
+                let v = w.value * scale;
+                ext[k] = if meaning.absolute { v } else { ext[k] + v };
+                moved = true;
+            }
+        }
+        if moved && matches!(meaning.motion, Motion::Rapid | Motion::Linear) {
+            f(AxisEvent {
+                line: line.number,
+                q: machine.to_internal(&ext),
+                feed_mm_min: match meaning.feed_mode {
+                    super::FeedMode::PerMinute => {
+                        meaning.feed.map(|v| v * meaning.units.mm_per_unit())
+                    }
+                    _ => None,
+                },
+                inverse_time: match meaning.feed_mode {
+                    super::FeedMode::InverseTime => meaning.feed,
+                    _ => None,
+                },
+                rapid: meaning.motion == Motion::Rapid,
+            })?;
+        }
+    }
+    Ok(())
+}
+
+/// Whether the start of a program looks like a pose program (APT CL, or
+/// G-code carrying tool vectors `I J K` / `A3= B3= C3=` or a TCP code) rather
+/// than a program in machine axes.
+pub fn looks_like_poses(head: &[u8]) -> bool {
+    if crate::cl::looks_like_cl(head) {
+        return true;
+    }
+    for (n, raw) in head.split(|b| *b == b'\n').enumerate() {
+        let line = crate::gcode::parse_line(raw, n + 1);
+        for w in line.words() {
+            if matches!(w.address.as_str(), "I" | "J" | "K" | "A3" | "B3" | "C3") {
+                return true;
+            }
+            if w.address == "G" && ((w.value - 43.4).abs() < 1e-9 || (w.value - 43.5).abs() < 1e-9)
+            {
+                return true;
+            }
+        }
+        if line.keywords().any(|k| k == "TRAORI") {
+            return true;
+        }
+    }
+    false
+}
