@@ -263,7 +263,8 @@ fn paper_method_stalls_where_the_axis_cannot_follow() {
     // A tool-height error (the tool 2 µm off the C axis in Y, a constant EYX):
     // on an X Z B C machine only C can move the tip in Y, and turning C tilts
     // the tool axis. The paper's stacked least squares then trades tip for
-    // axis and stalls at tens of nanometres; tip-first meets the tip exactly.
+    // axis and stalls at tens of picometres (well above floating point);
+    // tip-first meets the tip to 1e-13 mm.
     let table = "X,EXX,EYX\n-100,0.0005,0.002\n0,0.0010,0.002\n100,0.0015,0.002\n";
     let tables = kinpost::geometric::table::parse_tables(table, "tool-height.csv").unwrap();
     let (model, _) = ErrorModel::fit(&tables, &Default::default()).unwrap();
@@ -284,8 +285,8 @@ fn paper_method_stalls_where_the_axis_cannot_follow() {
     // Meeting the tip costs orientation here: the physics of a four-axis machine.
     assert!(exact.orientation_residual_max_urad > exact.orientation_error_before_max_urad);
     eprintln!(
-        "tool-height case: paper stalls at {:.1} nm, tip-first {:.1e} mm; orientation {:.2} → {:.2} µrad",
-        paper.tip_residual_max_mm * 1e6,
+        "tool-height case: paper stalls at {:.1} pm, tip-first {:.1e} mm; orientation {:.2} → {:.2} µrad",
+        paper.tip_residual_max_mm * 1e9,
         exact.tip_residual_max_mm,
         exact.orientation_error_before_max_urad,
         exact.orientation_residual_max_urad

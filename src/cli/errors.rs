@@ -165,16 +165,14 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
     let ik = IkSolver::new(&machine);
     let nl_errors: &dyn crate::machine::JointErrors = &NoErrors;
     let mut step = |line: usize, q: Vec<f64>| {
-        if a.nonlinear {
-            if let Some(p) = &prev_q {
-                let e = nonlinear_error(&machine.chain, nl_errors, p, &q);
-                nonlinear.push(NonlinearBlock {
-                    line,
-                    max_mm: e.max_mm,
-                    t_at_max: e.t_at_max,
-                    estimate_mm: e.estimate_mm,
-                });
-            }
+        if let (true, Some(p)) = (a.nonlinear, &prev_q) {
+            let e = nonlinear_error(&machine.chain, nl_errors, p, &q);
+            nonlinear.push(NonlinearBlock {
+                line,
+                max_mm: e.max_mm,
+                t_at_max: e.t_at_max,
+                estimate_mm: e.estimate_mm,
+            });
         }
         prev_q = Some(q);
     };
