@@ -171,26 +171,51 @@ impl<'m> AxisWriter<'m> {
     }
 }
 
-/// Converts a G-code pose program, writing the machine program to `out`.
-pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
-    machine: &Machine,
-    solver: &mut dyn PoseSolver,
-    input: R,
-    out: &mut W,
-    opts: &PostOptions,
-    mut progress: impl FnMut(u64),
-) -> Result<PostStats> {
-    let mut stats = PostStats::default();
-    let mut modal = ModalState::new(opts.pose_start);
-    let mut writer = AxisWriter::new(machine, opts.decimals);
-    let mut previous: Option<Vec<f64>> = None;
-    let mut bytes_read = 0u64;
-    let mut buf = Vec::with_capacity(256);
-    for line in LineReader::new(input) {
-        let line = line.map_err(|e| Error::io(&opts.file_name, e))?;
-        stats.lines += 1;
-        bytes_read += line.bytes.len() as u64;
-        progress(bytes_read);
+/// A converted pose block.
+#[derive(Debug, Clone)]
+pub struct Converted {
+    /// Joint values (chain order, mm / rad).
+    pub q: Vec<f64>,
+    /// What the block meant (modal state, items).
+    pub meaning: crate::program::BlockMeaning,
+}
+
+/// Converts G-code line by line: the per-line core of `post` and
+/// `compensate`, reused by `linkage` on pose programs.
+pub struct GcodeConverter<'a> {
+    machine: &'a Machine,
+    solver: &'a mut dyn PoseSolver,
+    opts: &'a PostOptions,
+    modal: ModalState,
+    writer: AxisWriter<'a>,
+    previous: Option<Vec<f64>>,
+    /// What has been done so far.
+    pub stats: PostStats,
+}
+
+impl<'a> GcodeConverter<'a> {
+    /// A converter for `machine` using `solver`.
+    pub fn new(
+        machine: &'a Machine,
+        solver: &'a mut dyn PoseSolver,
+        opts: &'a PostOptions,
+    ) -> Self {
+        GcodeConverter {
+            machine,
+            solver,
+            opts,
+            modal: ModalState::new(opts.pose_start),
+            writer: AxisWriter::new(machine, opts.decimals),
+            previous: None,
+            stats: PostStats::default(),
+        }
+    }
+
+    /// Converts one line, appending the bytes to write to `out`; returns the
+    /// joint values when the line was a pose.
+    pub fn convert(&mut self, line: &Line, out: &mut Vec<u8>) -> Result<Option<Converted>> {
+        let opts = self.opts;
+        self.stats.lines += 1;
         let loc = |item: Option<usize>| {
             let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);
             Location::new(&opts.file_name, line.number, col)
@@ -208,15 +233,15 @@ pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
                 _ => {}
             }
         }
-        let meaning = modal.apply(&words, &keywords).map_err(|e| {
+        let meaning = self.modal.apply(&words, &keywords).map_err(|e| {
             Error::input_with(loc(e.item), e.message, String::from_utf8_lossy(&line.bytes))
         })?;
         for w in &meaning.warnings {
-            stats
+            self.stats
                 .warnings
                 .push(format!("{}: {w}", loc(meaning.pose_items.first().copied())));
         }
-        if let Some(i) = opaque_in_pose_block(&line, modal.pose_mode, meaning.pose.is_some()) {
+        if let Some(i) = opaque_in_pose_block(line, self.modal.pose_mode, meaning.pose.is_some()) {
             return Err(Error::input_with(
                 loc(Some(i)),
                 "this block must be converted but holds syntax kinpost does not evaluate (an expression, parameter or macro call); expected plain numeric words",
@@ -225,25 +250,23 @@ pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
         }
         let Some((tip, axis)) = meaning.pose else {
             if meaning.tcp_codes.is_empty() {
-                line.write_to(&mut &mut *out)
-                    .map_err(|e| Error::io("<output>", e))?;
+                out.extend_from_slice(&line.bytes);
             } else {
-                buf.clear();
                 rewrite(
-                    &line,
+                    line,
                     &[],
                     "",
                     &meaning.tcp_codes,
                     &meaning.tcp_offset_items,
-                    &mut buf,
+                    out,
                 );
-                out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
             }
-            continue;
+            return Ok(None);
         };
         let pose = Pose::new(tip, axis);
-        let solved = solver
-            .solve(&pose, previous.as_deref(), line.number)
+        let solved = self
+            .solver
+            .solve(&pose, self.previous.as_deref(), line.number)
             .map_err(|m| {
                 Error::input_with(
                     loc(meaning.pose_items.first().copied()),
@@ -256,7 +279,7 @@ pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
                 loc(meaning.pose_items.first().copied()),
                 format!(
                     "machine {} cannot reach this tool axis: the closest reachable axis misses it by {:.3} µrad ({:.6}°), more than the tolerance {:.3} µrad (--axis-tolerance-urad)",
-                    machine.name,
+                    self.machine.name,
                     solved.axis_miss_rad * 1e6,
                     solved.axis_miss_rad.to_degrees(),
                     opts.axis_tolerance_rad * 1e6
@@ -264,10 +287,11 @@ pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
                 String::from_utf8_lossy(&line.bytes),
             ));
         }
-        stats.max_axis_miss_rad = stats.max_axis_miss_rad.max(solved.axis_miss_rad);
-        stats.poses += 1;
-        let sep = separator(&line, &meaning.pose_items);
-        let words_text = writer
+        self.stats.max_axis_miss_rad = self.stats.max_axis_miss_rad.max(solved.axis_miss_rad);
+        self.stats.poses += 1;
+        let sep = separator(line, &meaning.pose_items);
+        let words_text = self
+            .writer
             .words(
                 &solved.q,
                 meaning.units,
@@ -276,19 +300,43 @@ pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
                 sep,
             )
             .map_err(|m| Error::input(loc(meaning.pose_items.first().copied()), m))?;
-        buf.clear();
         rewrite(
-            &line,
+            line,
             &meaning.pose_items,
             &words_text,
             &meaning.tcp_codes,
             &meaning.tcp_offset_items,
-            &mut buf,
+            out,
         );
-        out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
-        previous = Some(solved.q);
+        self.previous = Some(solved.q.clone());
+        Ok(Some(Converted {
+            q: solved.q,
+            meaning,
+        }))
     }
-    Ok(stats)
+}
+
+/// Converts a G-code pose program, writing the machine program to `out`.
+pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
+    machine: &Machine,
+    solver: &mut dyn PoseSolver,
+    input: R,
+    out: &mut W,
+    opts: &PostOptions,
+    mut progress: impl FnMut(u64),
+) -> Result<PostStats> {
+    let mut conv = GcodeConverter::new(machine, solver, opts);
+    let mut bytes_read = 0u64;
+    let mut buf = Vec::with_capacity(256);
+    for line in LineReader::new(input) {
+        let line = line.map_err(|e| Error::io(&opts.file_name, e))?;
+        bytes_read += line.bytes.len() as u64;
+        progress(bytes_read);
+        buf.clear();
+        conv.convert(&line, &mut buf)?;
+        out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
+    }
+    Ok(conv.stats)
 }
 
 /// The item index of an opaque item in a block that must be converted (or may

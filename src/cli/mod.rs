@@ -1,6 +1,7 @@
 //! The command line: clap definitions and dispatch into the library.
 
 pub mod errors;
+pub mod linkage;
 
 use crate::error::{Error, Result};
 use crate::input::{self, FilterProgress};
@@ -46,6 +47,9 @@ pub enum Command {
     /// Like post, but the axes put the actual machine's tool on the pose:
     /// Newton refinement on the error-aware chain (seed 000).
     Compensate(errors::CompensateArgs),
+    /// Rewrite a five-axis linkage program so that no block moves more than
+    /// four axes, with the exact nonlinear error of every segment bounded (seed 003).
+    Linkage(linkage::LinkageArgs),
 }
 
 /// Choosing a machine.
@@ -166,6 +170,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Fit(a) => errors::fit(a),
         Command::Analyze(a) => errors::analyze(a),
         Command::Compensate(a) => errors::compensate(a),
+        Command::Linkage(a) => linkage::linkage(a),
     }
 }
 

@@ -3,5 +3,6 @@
 
 pub mod nonlinear;
 pub mod plan;
+pub mod program;
 
 pub use nonlinear::{NonlinearError, nonlinear_error, point_segment_distance};

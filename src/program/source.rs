@@ -151,68 +151,119 @@ pub struct AxisEvent {
     pub rapid: bool,
 }
 
-/// Reads the axis positions of a program in machine axes (absolute or
-/// incremental, mm or inch). Axes not yet programmed start at 0 (mm / deg);
-/// blocks that carry none of the machine's axis words are skipped.
+/// A motion block of a program in machine axes.
+#[derive(Debug, Clone)]
+pub struct MachineBlock {
+    /// Joint values after the block, chain order, mm / rad.
+    pub q: Vec<f64>,
+    /// The modal state in force for the block.
+    pub meaning: super::BlockMeaning,
+    /// Items of the machine-axis words in the line.
+    pub axis_items: Vec<usize>,
+}
+
+/// Follows the axis positions and modal state of a program in machine axes
+/// (absolute or incremental, mm or inch). Axes not yet programmed are 0
+/// (mm / deg).
+#[derive(Debug, Clone)]
+pub struct MachineAxisTracker {
+    modal: ModalState,
+    ext: Vec<f64>,
+}
+
+impl MachineAxisTracker {
+    /// A tracker at program start for `machine`.
+    pub fn new(machine: &crate::machine::Machine) -> Self {
+        MachineAxisTracker {
+            modal: ModalState::new(PoseStart::Off),
+            ext: vec![0.0; machine.axes.len()],
+        }
+    }
+
+    /// Applies one line; returns the block when it carries machine-axis words.
+    pub fn line(
+        &mut self,
+        machine: &crate::machine::Machine,
+        line: &crate::gcode::Line,
+        file: &str,
+    ) -> Result<Option<MachineBlock>> {
+        let mut modal_words = Vec::new();
+        let mut axis_items = Vec::new();
+        for (i, item) in line.items.iter().enumerate() {
+            let ItemKind::Word(w) = &item.kind else {
+                continue;
+            };
+            if w.address == "G" || w.address == "F" {
+                modal_words.push(WordRef {
+                    address: w.address.as_str(),
+                    value: w.value,
+                    item: i,
+                });
+            } else if machine.axes.iter().any(|a| a.name == w.address) {
+                axis_items.push(i);
+            }
+        }
+        let meaning = self.modal.apply(&modal_words, &[]).map_err(|e| {
+            let col = e.item.map(|i| line.items[i].start + 1).unwrap_or(0);
+            Error::input(Location::new(file, line.number, col), e.message)
+        })?;
+        if axis_items.is_empty() {
+            return Ok(None);
+        }
+        for &i in &axis_items {
+            let ItemKind::Word(w) = &line.items[i].kind else {
+                continue;
+            };
+            let Some(k) = machine.axes.iter().position(|a| a.name == w.address) else {
+                continue;
+            };
+            let scale = if machine.axes[k].kind == crate::machine::JointKind::Prismatic {
+                meaning.units.mm_per_unit()
+            } else {
+                1.0
+            };
+            let v = w.value * scale;
+            self.ext[k] = if meaning.absolute { v } else { self.ext[k] + v };
+        }
+        Ok(Some(MachineBlock {
+            q: machine.to_internal(&self.ext),
+            meaning,
+            axis_items,
+        }))
+    }
+}
+
+/// Reads the axis positions of a program in machine axes; blocks that carry
+/// none of the machine's axis words, and moves other than G0/G1, are skipped.
 pub fn machine_axis_blocks<R: BufRead>(
     machine: &crate::machine::Machine,
     input: R,
     file: &str,
     mut f: impl FnMut(AxisEvent) -> Result<()>,
 ) -> Result<()> {
-    let mut modal = ModalState::new(PoseStart::Off);
-    let mut ext = vec![0.0; machine.axes.len()];
+    let mut tracker = MachineAxisTracker::new(machine);
     for line in LineReader::new(input) {
         let line = line.map_err(|e| Error::io(file, e))?;
-        let mut words = Vec::new();
-        for (i, item) in line.items.iter().enumerate() {
-            if let ItemKind::Word(w) = &item.kind {
-                words.push(WordRef {
-                    address: w.address.as_str(),
-                    value: w.value,
-                    item: i,
-                });
-            }
+        let Some(b) = tracker.line(machine, &line, file)? else {
+            continue;
+        };
+        let m = &b.meaning;
+        if !matches!(m.motion, Motion::Rapid | Motion::Linear) {
+            continue;
         }
-        // Only the modal groups matter here; machine words are not poses.
-        let g_only: Vec<WordRef> = words
-            .iter()
-            .copied()
-            .filter(|w| w.address == "G" || w.address == "F")
-            .collect();
-        let meaning = modal
-            .apply(&g_only, &[])
-            .map_err(|e| Error::input(Location::new(file, line.number, 0), e.message))?;
-        let mut moved = false;
-        for w in &words {
-            if let Some(k) = machine.axes.iter().position(|a| a.name == w.address) {
-                let scale = if machine.axes[k].kind == crate::machine::JointKind::Prismatic {
-                    meaning.units.mm_per_unit()
-                } else {
-                    1.0
-                };
-                let v = w.value * scale;
-                ext[k] = if meaning.absolute { v } else { ext[k] + v };
-                moved = true;
-            }
-        }
-        if moved && matches!(meaning.motion, Motion::Rapid | Motion::Linear) {
-            f(AxisEvent {
-                line: line.number,
-                q: machine.to_internal(&ext),
-                feed_mm_min: match meaning.feed_mode {
-                    super::FeedMode::PerMinute => {
-                        meaning.feed.map(|v| v * meaning.units.mm_per_unit())
-                    }
-                    _ => None,
-                },
-                inverse_time: match meaning.feed_mode {
-                    super::FeedMode::InverseTime => meaning.feed,
-                    _ => None,
-                },
-                rapid: meaning.motion == Motion::Rapid,
-            })?;
-        }
+        f(AxisEvent {
+            line: line.number,
+            feed_mm_min: match m.feed_mode {
+                super::FeedMode::PerMinute => m.feed.map(|v| v * m.units.mm_per_unit()),
+                _ => None,
+            },
+            inverse_time: match m.feed_mode {
+                super::FeedMode::InverseTime => m.feed,
+                _ => None,
+            },
+            rapid: m.motion == Motion::Rapid,
+            q: b.q,
+        })?;
     }
     Ok(())
 }

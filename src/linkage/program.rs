@@ -1,0 +1,617 @@
+//! `kinpost linkage`: rewrite a program so that no block moves more than
+//! `max_axes` axes, with the exact nonlinear error of every segment bounded.
+//!
+//! Input in machine axes passes through line by line; input in tool poses is
+//! converted first (the same converter as `post`). A `G1` block that moves
+//! more axes than allowed, or whose nonlinear error exceeds the tolerance, is
+//! preceded by inserted blocks (marked `(kinpost linkage i/n)`) and keeps its
+//! own line, N number and comments; its axis words are rewritten to the axes
+//! that still move.
+//!
+//! Feeds: in `G94` the feed carries over (the inserted blocks repeat an `F`
+//! the block sets); in `G93` every inserted block gets `F = n·F₀` so each of
+//! the `n` segments takes `1/n` of the original block's time and the original
+//! segment keeps its time (tool tips are evenly spaced along the line).
+
+use super::nonlinear::nonlinear_error;
+use super::plan::{Pattern, RotaryPair, insert_points, worst_segment};
+use crate::error::{Error, Location, Result};
+use crate::gcode::{ItemKind, Line, LineReader, parse_line};
+use crate::machine::{IkSolver, JointKind, Machine, NoErrors};
+use crate::post::{GcodeConverter, PostOptions, rewrite};
+use crate::program::format::push_fixed;
+use crate::program::source::MachineAxisTracker;
+use crate::program::{FeedMode, Motion, PoseStart, Units};
+use std::io::{BufRead, Write};
+
+/// How blocks are divided.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Mode {
+    /// Seed 003: a fixed number of inserted points (even; 2 is the paper's).
+    Insert(usize),
+    /// The fewest points such that every segment's exact nonlinear error is
+    /// within this many mm.
+    Tolerance(f64),
+}
+
+/// Options of `kinpost linkage`.
+#[derive(Debug, Clone)]
+pub struct LinkageOptions {
+    /// Division mode.
+    pub mode: Mode,
+    /// Largest number of axes a block may move (4: four-axis linkage; 5: plain linearisation).
+    pub max_axes: usize,
+    /// Decimals overriding the machine file.
+    pub decimals: Option<u32>,
+    /// Which rotary is split and which held (default: split the one nearer the workpiece).
+    pub pair: Option<RotaryPair>,
+    /// Input file name for messages.
+    pub file_name: String,
+    /// Pose input: when pose mode starts.
+    pub pose_start: PoseStart,
+    /// Pose input: accepted tool-axis miss, rad.
+    pub axis_tolerance_rad: f64,
+    /// Largest number of points inserted into one block before giving up.
+    pub max_points: usize,
+}
+
+impl Default for LinkageOptions {
+    fn default() -> Self {
+        LinkageOptions {
+            mode: Mode::Tolerance(0.001),
+            max_axes: 4,
+            decimals: None,
+            pair: None,
+            file_name: "<stdin>".into(),
+            pose_start: PoseStart::On,
+            axis_tolerance_rad: 1e-4,
+            max_points: 2000,
+        }
+    }
+}
+
+/// What `linkage` did.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct LinkageReport {
+    /// Machine name.
+    pub machine: String,
+    /// Lines read.
+    pub lines_in: usize,
+    /// Motion blocks read (blocks with axis positions).
+    pub blocks_in: usize,
+    /// Motion blocks written.
+    pub blocks_out: usize,
+    /// Blocks that were divided.
+    pub blocks_split: usize,
+    /// Points inserted.
+    pub points_inserted: usize,
+    /// Blocks moving more than `max_axes` axes, before.
+    pub over_axes_before: usize,
+    /// Blocks moving more than `max_axes` axes, after.
+    pub over_axes_after: usize,
+    /// Largest number of axes moved by one block, before.
+    pub max_axes_moved_before: usize,
+    /// Largest number of axes moved by one block, after.
+    pub max_axes_moved_after: usize,
+    /// Largest exact nonlinear error of the input's G1 blocks, mm.
+    pub nonlinear_max_before_mm: f64,
+    /// Line of that block.
+    pub nonlinear_max_before_line: usize,
+    /// Largest exact nonlinear error of the output's G1 segments, mm.
+    pub nonlinear_max_after_mm: f64,
+    /// Line of the original block of that segment.
+    pub nonlinear_max_after_line: usize,
+    /// Cycle time of the G1/G0 moves at the programmed feed, before, s.
+    pub cycle_time_before_s: f64,
+    /// Cycle time after, s.
+    pub cycle_time_after_s: f64,
+    /// Decimals written per axis (raised to honour --tolerance unless --decimals is given).
+    pub decimals: Vec<(String, u32)>,
+}
+
+impl LinkageReport {
+    /// A report a person can read.
+    pub fn to_text(&self) -> String {
+        format!(
+            "kinpost linkage — machine {}\n  blocks: {} in, {} out ({} split, {} points inserted)\n  blocks moving more axes than allowed: {} before, {} after (most axes in one block: {} → {})\n  nonlinear error (exact): max {:.4} µm (line {}) before → {:.4} µm (line {}) after\n  cycle time at the programmed feed: {:.3} s before → {:.3} s after ({:+.1} %)\n",
+            self.machine,
+            self.blocks_in,
+            self.blocks_out,
+            self.blocks_split,
+            self.points_inserted,
+            self.over_axes_before,
+            self.over_axes_after,
+            self.max_axes_moved_before,
+            self.max_axes_moved_after,
+            self.nonlinear_max_before_mm * 1e3,
+            self.nonlinear_max_before_line,
+            self.nonlinear_max_after_mm * 1e3,
+            self.nonlinear_max_after_line,
+            self.cycle_time_before_s,
+            self.cycle_time_after_s,
+            if self.cycle_time_before_s > 0.0 {
+                100.0 * (self.cycle_time_after_s / self.cycle_time_before_s - 1.0)
+            } else {
+                0.0
+            }
+        )
+    }
+}
+
+/// Formatting and counting of machine axis values.
+struct Axes<'m> {
+    machine: &'m Machine,
+    decimals: Vec<usize>,
+}
+
+/// Lever arm assumed when turning a rotary's rounding into a tool-tip
+/// error, mm (a generous machine size).
+const ROUNDING_LEVER_MM: f64 = 1000.0;
+
+/// Share of the tolerance that rounding one axis word may take.
+const ROUNDING_SHARE: f64 = 0.05;
+
+/// Share of the tolerance the planner aims for, leaving room for rounding
+/// the output (five axes at [`ROUNDING_SHARE`] each, root-sum-square).
+pub const PLANNING_SHARE: f64 = 0.85;
+
+/// Decimals needed so that rounding an axis word moves the tool tip by at
+/// most 5 % of `tol_mm` (rotaries: at a 1000 mm lever).
+pub fn decimals_for_tolerance(kind: JointKind, tol_mm: f64) -> u32 {
+    let step = match kind {
+        JointKind::Prismatic => 2.0 * tol_mm * ROUNDING_SHARE,
+        JointKind::Revolute => (2.0 * tol_mm * ROUNDING_SHARE / ROUNDING_LEVER_MM).to_degrees(),
+    };
+    (-step.log10()).ceil().clamp(0.0, 12.0) as u32
+}
+
+impl<'m> Axes<'m> {
+    fn new(machine: &'m Machine, decimals: Option<u32>, tolerance: Option<f64>) -> Self {
+        Axes {
+            machine,
+            decimals: machine
+                .axes
+                .iter()
+                .map(|a| {
+                    let d = decimals.unwrap_or(a.decimals);
+                    match (decimals, tolerance) {
+                        (None, Some(t)) => d.max(decimals_for_tolerance(a.kind, t)) as usize,
+                        _ => d as usize,
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    /// External values rounded to the written precision (output order).
+    fn rounded(&self, q: &[f64], units: Units) -> Vec<f64> {
+        let ext = self.machine.to_external(q);
+        ext.iter()
+            .zip(&self.machine.axes)
+            .zip(&self.decimals)
+            .map(|((v, a), d)| {
+                let v = if a.kind == JointKind::Prismatic {
+                    v / units.mm_per_unit()
+                } else {
+                    *v
+                };
+                let s = 10f64.powi(*d as i32);
+                (v * s).round() / s
+            })
+            .collect()
+    }
+
+    fn moved(&self, a: &[f64], b: &[f64]) -> usize {
+        let ra = self.rounded(a, Units::Mm);
+        let rb = self.rounded(b, Units::Mm);
+        ra.iter().zip(&rb).filter(|(x, y)| x != y).count()
+    }
+
+    /// Axis words for the axes that differ between `from` and `to`.
+    fn words(&self, from: &[f64], to: &[f64], units: Units, absolute: bool) -> String {
+        let rf = self.rounded(from, units);
+        let rt = self.rounded(to, units);
+        let mut s = String::new();
+        for (k, a) in self.machine.axes.iter().enumerate() {
+            if rf[k] == rt[k] {
+                continue;
+            }
+            if !s.is_empty() {
+                s.push(' ');
+            }
+            s.push_str(&a.name);
+            let v = if absolute { rt[k] } else { rt[k] - rf[k] };
+            push_fixed(&mut s, v, self.decimals[k]);
+        }
+        s
+    }
+}
+
+/// Time of one move at the programmed feed, min: `G94` F applies to the
+/// linear axes' path (to the rotary's degrees when only rotaries move);
+/// `G93` gives the time directly.
+fn move_minutes(machine: &Machine, qa: &[f64], qb: &[f64], feed: &FeedState) -> f64 {
+    match feed.mode {
+        FeedMode::InverseTime => feed.value.map(|f| 1.0 / f).unwrap_or(0.0),
+        FeedMode::PerRevolution => 0.0,
+        FeedMode::PerMinute => {
+            let ea = machine.to_external(qa);
+            let eb = machine.to_external(qb);
+            let (mut lin, mut rot) = (0.0f64, 0.0f64);
+            for (k, a) in machine.axes.iter().enumerate() {
+                let d = eb[k] - ea[k];
+                match a.kind {
+                    JointKind::Prismatic => lin += d * d,
+                    JointKind::Revolute => rot = rot.max(d.abs()),
+                }
+            }
+            let dist = if lin > 1e-18 { lin.sqrt() } else { rot };
+            match feed.value {
+                Some(f) if f > 0.0 => dist / f,
+                _ => 0.0,
+            }
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+struct FeedState {
+    mode: FeedMode,
+    value: Option<f64>,
+}
+
+/// One motion block as the linkage stage sees it.
+struct Block {
+    q: Vec<f64>,
+    motion: Motion,
+    units: Units,
+    absolute: bool,
+    feed: FeedState,
+    feed_item: Option<usize>,
+    /// Items of the machine-axis words in the (converted) line.
+    axis_items: Vec<usize>,
+}
+
+/// Items of machine-axis words in a line.
+fn axis_items(machine: &Machine, line: &Line) -> Vec<usize> {
+    line.items
+        .iter()
+        .enumerate()
+        .filter_map(|(i, it)| match &it.kind {
+            ItemKind::Word(w) if machine.axes.iter().any(|a| a.name == w.address) => Some(i),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Rewrites a program for `machine` (in machine axes, or in tool poses when
+/// `poses`), writing it to `out`.
+pub fn linkage<R: BufRead, W: Write + ?Sized>(
+    machine: &Machine,
+    input: R,
+    out: &mut W,
+    opts: &LinkageOptions,
+    poses: bool,
+) -> Result<LinkageReport> {
+    let io = |e: std::io::Error| Error::io("<output>", e);
+    let tolerance = match opts.mode {
+        Mode::Tolerance(t) => Some(t),
+        Mode::Insert(_) => None,
+    };
+    // The machine as written: decimals raised where the tolerance needs them.
+    let mut written = machine.clone();
+    let raised = Axes::new(machine, opts.decimals, tolerance).decimals;
+    for (a, d) in written.axes.iter_mut().zip(&raised) {
+        a.decimals = *d as u32;
+    }
+    let machine = &written;
+    let axes = Axes::new(machine, opts.decimals, None);
+    let pair = opts
+        .pair
+        .or_else(|| RotaryPair::default_for(&machine.chain));
+    let mut report = LinkageReport {
+        machine: machine.name.clone(),
+        ..Default::default()
+    };
+    report.decimals = machine
+        .axes
+        .iter()
+        .zip(&axes.decimals)
+        .map(|(a, d)| (a.name.clone(), *d as u32))
+        .collect();
+    let post_opts = PostOptions {
+        decimals: opts.decimals,
+        pose_start: opts.pose_start,
+        axis_tolerance_rad: opts.axis_tolerance_rad,
+        modal_axes: true,
+        file_name: opts.file_name.clone(),
+    };
+    let mut ik = IkSolver::new(machine);
+    let mut conv = poses.then(|| GcodeConverter::new(machine, &mut ik, &post_opts));
+    let mut tracker = MachineAxisTracker::new(machine);
+    let mut prev: Option<Vec<f64>> = None;
+    let mut buf = Vec::with_capacity(256);
+    let mut text = Vec::with_capacity(256);
+    for line in LineReader::new(input) {
+        let line = line.map_err(|e| Error::io(&opts.file_name, e))?;
+        report.lines_in += 1;
+        // The line in machine axes and its block, if it moves.
+        buf.clear();
+        let (mline, block) = match conv.as_mut() {
+            Some(c) => match c.convert(&line, &mut buf)? {
+                Some(cv) => {
+                    let ml = parse_line(&buf, line.number);
+                    let items = axis_items(machine, &ml);
+                    let feed_item = ml
+                        .items
+                        .iter()
+                        .position(|it| matches!(&it.kind, ItemKind::Word(w) if w.address == "F"));
+                    let b = Block {
+                        q: cv.q,
+                        motion: cv.meaning.motion,
+                        units: cv.meaning.units,
+                        absolute: cv.meaning.absolute,
+                        feed: FeedState {
+                            mode: cv.meaning.feed_mode,
+                            value: cv.meaning.feed,
+                        },
+                        feed_item,
+                        axis_items: items,
+                    };
+                    (ml, Some(b))
+                }
+                None => {
+                    out.write_all(&buf).map_err(io)?;
+                    continue;
+                }
+            },
+            None => {
+                let b = tracker
+                    .line(machine, &line, &opts.file_name)?
+                    .map(|mb| Block {
+                        q: mb.q,
+                        motion: mb.meaning.motion,
+                        units: mb.meaning.units,
+                        absolute: mb.meaning.absolute,
+                        feed: FeedState {
+                            mode: mb.meaning.feed_mode,
+                            value: mb.meaning.feed,
+                        },
+                        feed_item: mb.meaning.feed_item,
+                        axis_items: mb.axis_items,
+                    });
+                (line, b)
+            }
+        };
+        let Some(block) = block else {
+            mline.write_to(&mut &mut *out).map_err(io)?;
+            continue;
+        };
+        report.blocks_in += 1;
+        report.blocks_out += 1;
+        let Some(qa) = prev.replace(block.q.clone()) else {
+            mline.write_to(&mut &mut *out).map_err(io)?;
+            continue;
+        };
+        let qb = &block.q;
+        let moved = axes.moved(&qa, qb);
+        report.max_axes_moved_before = report.max_axes_moved_before.max(moved);
+        let time_before = move_minutes(machine, &qa, qb, &block.feed);
+        report.cycle_time_before_s += 60.0 * time_before;
+        if block.motion != Motion::Linear {
+            report.max_axes_moved_after = report.max_axes_moved_after.max(moved);
+            report.over_axes_before += usize::from(moved > opts.max_axes);
+            report.over_axes_after += usize::from(moved > opts.max_axes);
+            report.cycle_time_after_s += 60.0 * time_before;
+            mline.write_to(&mut &mut *out).map_err(io)?;
+            continue;
+        }
+        report.over_axes_before += usize::from(moved > opts.max_axes);
+        let before = nonlinear_error(&machine.chain, &NoErrors, &qa, qb);
+        if before.max_mm > report.nonlinear_max_before_mm {
+            report.nonlinear_max_before_mm = before.max_mm;
+            report.nonlinear_max_before_line = line_number(&mline);
+        }
+        let plan =
+            plan_block(machine, &axes, &qa, qb, moved, before.max_mm, opts, pair).map_err(|m| {
+                Error::input_with(
+                    Location::new(&opts.file_name, mline.number, 0),
+                    m,
+                    mline.text_lossy(),
+                )
+            })?;
+        let points = match plan {
+            None => {
+                report.max_axes_moved_after = report.max_axes_moved_after.max(moved);
+                report.over_axes_after += usize::from(moved > opts.max_axes);
+                note_after(&mut report, before.max_mm, &mline);
+                report.cycle_time_after_s += 60.0 * time_before;
+                mline.write_to(&mut &mut *out).map_err(io)?;
+                continue;
+            }
+            Some(p) => p,
+        };
+        // Divided: inserted blocks, then the original block's line.
+        let segments = points.len() + 1;
+        report.blocks_split += 1;
+        report.points_inserted += points.len();
+        report.blocks_out += points.len();
+        let worst = worst_segment(&machine.chain, &NoErrors, &qa, &points, qb);
+        note_after(&mut report, worst.max_mm, &mline);
+        let feed_text = |text: &mut String| {
+            if let (FeedMode::InverseTime, Some(f)) = (block.feed.mode, block.feed.value) {
+                text.push_str(" F");
+                push_fixed(text, f * segments as f64, 4);
+            }
+        };
+        let mut from = qa.clone();
+        for (i, p) in points.iter().enumerate() {
+            let mut s = String::from("G1 ");
+            s.push_str(&axes.words(&from, p, block.units, block.absolute));
+            if block.feed.mode == FeedMode::InverseTime {
+                feed_text(&mut s);
+            } else if let (0, Some(item)) = (i, block.feed_item) {
+                // The block sets a new feed: it applies from the first inserted block on.
+                s.push(' ');
+                s.push_str(&String::from_utf8_lossy(
+                    mline.item_bytes(&mline.items[item]),
+                ));
+            }
+            s.push_str(&format!(" (kinpost linkage {}/{})", i + 1, points.len()));
+            s.push_str(eol(&mline));
+            text.clear();
+            text.extend_from_slice(s.as_bytes());
+            out.write_all(&text).map_err(io)?;
+            let m = axes.moved(&from, p);
+            report.max_axes_moved_after = report.max_axes_moved_after.max(m);
+            report.over_axes_after += usize::from(m > opts.max_axes);
+            report.cycle_time_after_s += 60.0 * move_minutes(machine, &from, p, &block.feed);
+            from = p.clone();
+        }
+        let m = axes.moved(&from, qb);
+        report.max_axes_moved_after = report.max_axes_moved_after.max(m);
+        report.over_axes_after += usize::from(m > opts.max_axes);
+        report.cycle_time_after_s += 60.0 * move_minutes(machine, &from, qb, &block.feed);
+        let mut words = axes.words(&from, qb, block.units, block.absolute);
+        let mut replace = block.axis_items.clone();
+        if let (FeedMode::InverseTime, Some(item)) = (block.feed.mode, block.feed_item) {
+            replace.push(item);
+            replace.sort_unstable();
+            let mut f = String::new();
+            feed_text(&mut f);
+            words.push_str(&f);
+        }
+        text.clear();
+        rewrite(&mline, &replace, words.trim_start(), &[], &[], &mut text);
+        out.write_all(&text).map_err(io)?;
+    }
+    Ok(report)
+}
+
+fn line_number(line: &Line) -> usize {
+    line.number
+}
+
+fn note_after(report: &mut LinkageReport, e: f64, line: &Line) {
+    if e > report.nonlinear_max_after_mm {
+        report.nonlinear_max_after_mm = e;
+        report.nonlinear_max_after_line = line.number;
+    }
+}
+
+fn eol(line: &Line) -> &'static str {
+    if line.bytes.ends_with(b"\r\n") {
+        "\r\n"
+    } else {
+        "\n"
+    }
+}
+
+/// The inserted points for one block, or `None` when it stays as it is.
+#[allow(clippy::too_many_arguments)]
+fn plan_block(
+    machine: &Machine,
+    axes: &Axes<'_>,
+    qa: &[f64],
+    qb: &[f64],
+    moved: usize,
+    nonlinear: f64,
+    opts: &LinkageOptions,
+    pair: Option<RotaryPair>,
+) -> std::result::Result<Option<Vec<Vec<f64>>>, String> {
+    let chain = &machine.chain;
+    let too_many = moved > opts.max_axes;
+    let both_rotaries =
+        pair.is_some_and(|p| qa[p.split] != qb[p.split] && qa[p.held] != qb[p.held]);
+    if too_many && !both_rotaries {
+        return Err(format!(
+            "this block moves {moved} axes; only blocks that move both rotary axes can be divided into blocks of at most {} axes",
+            opts.max_axes
+        ));
+    }
+    let check = |pts: &[Vec<f64>]| -> std::result::Result<(), String> {
+        let mut from = qa;
+        for p in pts.iter().map(|v| v.as_slice()).chain(std::iter::once(qb)) {
+            let m = axes.moved(from, p);
+            if m > opts.max_axes {
+                return Err(format!("an inserted segment still moves {m} axes"));
+            }
+            from = p;
+        }
+        Ok(())
+    };
+    match opts.mode {
+        Mode::Insert(n) => {
+            if !too_many {
+                return Ok(None);
+            }
+            let pts = insert_points(
+                chain,
+                &NoErrors,
+                qa,
+                qb,
+                Pattern::Staggered { m: (n / 2).max(1) },
+                pair,
+            )?;
+            check(&pts)?;
+            Ok(Some(pts))
+        }
+        Mode::Tolerance(tol) => {
+            if !too_many && nonlinear <= tol {
+                return Ok(None);
+            }
+            let tol = tol * PLANNING_SHARE;
+            let pattern = |n: usize| {
+                if too_many {
+                    Pattern::Staggered { m: n }
+                } else {
+                    Pattern::Even { k: n + 1 }
+                }
+            };
+            let eval = |n: usize| -> std::result::Result<(Vec<Vec<f64>>, f64), String> {
+                let pts = insert_points(chain, &NoErrors, qa, qb, pattern(n), pair)?;
+                let w = worst_segment(chain, &NoErrors, qa, &pts, qb).max_mm;
+                Ok((pts, w))
+            };
+            let max_n = if too_many {
+                opts.max_points / 2
+            } else {
+                opts.max_points
+            };
+            let (mut failing, mut n) = (0usize, 1usize);
+            while n <= max_n {
+                let (pts, w) = eval(n)?;
+                if w <= tol {
+                    // Fewest points: bisect between the last failing and this count.
+                    let (mut lo, mut hi, mut best) = (failing, n, pts);
+                    while hi - lo > 1 {
+                        let mid = (lo + hi) / 2;
+                        let (p, w) = eval(mid)?;
+                        if w <= tol {
+                            hi = mid;
+                            best = p;
+                        } else {
+                            lo = mid;
+                        }
+                    }
+                    check(&best)?;
+                    return Ok(Some(best));
+                }
+                failing = n;
+                n = next_count(n, w, tol).min(max_n.max(n + 1));
+            }
+            Err(format!(
+                "more than {} inserted points would be needed to bring the nonlinear error within {} mm",
+                opts.max_points, tol
+            ))
+        }
+    }
+}
+
+/// The next count to try after a failing one: the error falls roughly with
+/// the square of the step, so jump to the predicted count (the bisection
+/// afterwards finds the fewest).
+fn next_count(n: usize, err: f64, tol: f64) -> usize {
+    let predicted = (n as f64 * (err / tol).sqrt() * 1.05).ceil() as usize;
+    predicted.max(n + 1)
+}
