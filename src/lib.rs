@@ -5,7 +5,6 @@
 //! machine's measured geometric errors taken into account.
 
 pub mod cl;
-pub mod cli;
 pub mod compensate;
 pub mod demo;
 pub mod error;
@@ -15,7 +14,6 @@ pub mod geometric;
 pub mod linkage;
 pub mod machine;
 pub mod output;
-pub mod post;
 pub mod program;
 
 pub use error::{Error, Location, Result};
