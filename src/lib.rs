@@ -7,6 +7,7 @@
 pub mod cl;
 pub mod compensate;
 pub mod demo;
+pub mod diagnose;
 pub mod error;
 pub mod gcode;
 pub mod input;
@@ -15,5 +16,6 @@ pub mod linkage;
 pub mod machine;
 pub mod output;
 pub mod program;
+pub mod report;
 
 pub use error::{Error, Location, Result};
