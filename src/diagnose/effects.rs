@@ -322,7 +322,7 @@ impl Effect {
             },
             EffectKind::ServoLag => Effect::ServoLag {
                 axis: one_axis()?,
-                tau_s: get(&["tau_s", "tau"])?,
+                tau_s: get(&["tau_s", "tau", "value"])?,
             },
             EffectKind::ThermalDrift => {
                 let tau_s = get(&["tau_s", "tau"])?;

@@ -272,16 +272,24 @@ pub fn design(prep: &Prepared, terms: &[Term]) -> Cols {
     d
 }
 
-/// Pseudo-inverse of a small symmetric matrix (eigen-decomposition with a
-/// relative cut-off).
+/// Pseudo-inverse of a small symmetric positive semi-definite matrix:
+/// scaled to unit diagonal first (columns of very different units), then
+/// inverted by eigen-decomposition with a relative cut-off.
 pub fn pinv_sym(m: &DMatrix<f64>) -> DMatrix<f64> {
     let n = m.nrows();
     if n == 0 {
         return DMatrix::zeros(0, 0);
     }
-    let e = m.clone().symmetric_eigen();
+    let d: Vec<f64> = (0..n)
+        .map(|k| {
+            let v = m[(k, k)];
+            if v > 0.0 && v.is_finite() { 1.0 / v.sqrt() } else { 0.0 }
+        })
+        .collect();
+    let scaled = DMatrix::from_fn(n, n, |a, b| m[(a, b)] * d[a] * d[b]);
+    let e = scaled.symmetric_eigen();
     let max = e.eigenvalues.iter().fold(0.0f64, |a, &b| a.max(b.abs()));
-    let cut = max * 1e-11;
+    let cut = max * 1e-10;
     let mut inv = DMatrix::zeros(n, n);
     for k in 0..n {
         let l = e.eigenvalues[k];
@@ -290,7 +298,7 @@ pub fn pinv_sym(m: &DMatrix<f64>) -> DMatrix<f64> {
             inv += (v * v.transpose()) / l;
         }
     }
-    inv
+    DMatrix::from_fn(n, n, |a, b| inv[(a, b)] * d[a] * d[b])
 }
 
 /// The currently selected design with its normal equations.
@@ -355,6 +363,9 @@ pub fn scan(
     let mut acc_cc = vec![0.0; kc * kc];
     let mut acc_cs = vec![0.0; kc * ks];
     let mut acc_cr = vec![0.0; kc];
+    let mut m_buf = vec![0.0; kc * ks];
+    let mut a_buf = vec![0.0; kc * kc];
+    let mut c_buf = vec![0.0; kc];
     let mut out = vec![0.0; onsets.len()];
     let mut p = onsets.len();
     let mut i = prep.n;
@@ -386,28 +397,90 @@ pub fn scan(
         if prep.n - target < min_after {
             continue;
         }
-        let cc = DMatrix::from_row_slice(kc, kc, &acc_cc);
-        let cs = DMatrix::from_row_slice(kc, ks, &acc_cs);
-        let cr = DVector::from_column_slice(&acc_cr);
-        let (a, c) = if ks > 0 {
-            let csg = &cs * &sel.ginv;
-            (&cc - &csg * cs.transpose(), &cr - &csg * &sel.h)
-        } else {
-            (cc, cr)
-        };
-        let (a, c) = match gamma {
-            None => (a, c),
+        // M = Acc_cs·G⁺ (kc × ks); A = Acc_cc − M·Acc_csᵀ; c = Acc_cr − M·h.
+        for u in 0..kc {
+            for w in 0..ks {
+                let mut v = 0.0;
+                for z in 0..ks {
+                    v += acc_cs[u * ks + z] * sel.ginv[(z, w)];
+                }
+                m_buf[u * ks + w] = v;
+            }
+        }
+        for u in 0..kc {
+            let mut cv = acc_cr[u];
+            for z in 0..ks {
+                cv -= m_buf[u * ks + z] * sel.h[z];
+            }
+            c_buf[u] = cv;
+            for w in 0..kc {
+                let mut av = acc_cc[u * kc + w];
+                for z in 0..ks {
+                    av -= m_buf[u * ks + z] * acc_cs[w * ks + z];
+                }
+                a_buf[u * kc + w] = av;
+            }
+        }
+        let d = match gamma {
             Some(gf) => {
-                let g = DVector::from_vec(gf(target));
-                let a1 = (g.transpose() * &a * &g)[(0, 0)];
-                let c1 = g.dot(&c);
-                (DMatrix::from_element(1, 1, a1), DVector::from_element(1, c1))
+                let g = gf(target);
+                let mut a1 = 0.0;
+                let mut c1 = 0.0;
+                for u in 0..kc {
+                    c1 += g[u] * c_buf[u];
+                    for w in 0..kc {
+                        a1 += g[u] * a_buf[u * kc + w] * g[w];
+                    }
+                }
+                quad_form_1(a1, c1, diag_scale(&acc_cc, kc, Some(&g)))
+            }
+            None if kc == 1 => quad_form_1(a_buf[0], c_buf[0], acc_cc[0]),
+            None if kc == 2 => quad_form_2(&a_buf[..4], &c_buf[..2], [acc_cc[0], acc_cc[3]]),
+            None => {
+                let a = DMatrix::from_row_slice(kc, kc, &a_buf);
+                let c = DVector::from_column_slice(&c_buf);
+                (c.transpose() * pinv_sym(&a) * &c)[(0, 0)]
             }
         };
-        let d = (c.transpose() * pinv_sym(&a) * &c)[(0, 0)];
         out[p] = if d.is_finite() { d.max(0.0) } else { 0.0 };
     }
     out
+}
+
+/// Scale of the candidate column's own sum of squares (for the
+/// degeneracy test): `gᵀ·Acc_cc·g` or the first diagonal element.
+fn diag_scale(acc_cc: &[f64], kc: usize, g: Option<&[f64]>) -> f64 {
+    match g {
+        None => acc_cc[0],
+        Some(g) => {
+            let mut s = 0.0;
+            for u in 0..kc {
+                for w in 0..kc {
+                    s += g[u] * acc_cc[u * kc + w] * g[w];
+                }
+            }
+            s
+        }
+    }
+}
+
+/// `c²/a`, or 0 when the candidate is (nearly) a combination of the
+/// selected columns (`a` tiny against its own sum of squares `scale`).
+fn quad_form_1(a: f64, c: f64, scale: f64) -> f64 {
+    if a > 1e-10 * scale.abs() && a > 0.0 { c * c / a } else { 0.0 }
+}
+
+/// `cᵀA⁻¹c` for a 2×2 `A` (row-major), falling back to the better of the
+/// two single columns when `A` is nearly singular.
+fn quad_form_2(a: &[f64], c: &[f64], scale: [f64; 2]) -> f64 {
+    let det = a[0] * a[3] - a[1] * a[2];
+    let ok0 = a[0] > 1e-10 * scale[0].abs();
+    let ok1 = a[3] > 1e-10 * scale[1].abs();
+    if ok0 && ok1 && det > 1e-10 * a[0] * a[3] {
+        (a[3] * c[0] * c[0] - (a[1] + a[2]) * c[0] * c[1] + a[0] * c[1] * c[1]) / det
+    } else {
+        quad_form_1(a[0], c[0], scale[0]).max(quad_form_1(a[3], c[1], scale[1]))
+    }
 }
 
 /// The best candidate of one family.
@@ -553,19 +626,71 @@ pub fn search_family(prep: &Prepared, sel: &Selected, fam: Family, ctx: &SearchC
             }
             let mid = steps.len() / 2;
             steps.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-            let p_min = (range / 100.0).max(4.0 * steps[mid]);
+            let p_min = (range / 50.0).max(4.0 * steps[mid]);
             let p_max = range / 1.5;
             if p_min >= p_max {
                 return None;
             }
             let (f_lo, f_hi) = (1.0 / p_max, 1.0 / p_min);
-            let df = 1.0 / (3.0 * range);
-            let grid = (((f_hi - f_lo) / df).ceil() as usize).clamp(2, 400);
+            let df = 1.0 / (2.5 * range);
+            let grid = (((f_hi - f_lo) / df).ceil() as usize).clamp(2, 250);
             let step = (f_hi - f_lo) / (grid - 1) as f64;
-            let only_start = [0usize];
+            // Per-sample projections, so that a frequency costs one pass:
+            // x = J_j·[sin θ, cos θ], θ = 2π f q.
+            let ks = sel.cols.k;
+            let mut w = Vec::with_capacity(prep.n);
+            let mut pr = Vec::with_capacity(prep.n);
+            let mut ps = vec![0.0; prep.n * ks];
+            for i in 0..prep.n {
+                let jj = prep.jj(i, j);
+                w.push(jj[0] * jj[0] + jj[1] * jj[1] + jj[2] * jj[2]);
+                pr.push(jj[0] * prep.r[i][0] + jj[1] * prep.r[i][1] + jj[2] * prep.r[i][2]);
+                for a in 0..3 {
+                    if ks > 0 {
+                        let row = sel.cols.row(3 * i + a);
+                        for z in 0..ks {
+                            ps[i * ks + z] += jj[a] * row[z];
+                        }
+                    }
+                }
+            }
+            let mut cs = vec![0.0; 2 * ks];
             let mut full = |f: f64| -> f64 {
-                let base = base_columns(prep, fam, 1.0 / f);
-                scan(prep, sel, &base, &only_start, None, 0)[0]
+                let (mut ss, mut sc, mut cc, mut rs, mut rc) = (0.0, 0.0, 0.0, 0.0, 0.0);
+                cs.iter_mut().for_each(|x| *x = 0.0);
+                let omega = std::f64::consts::TAU * f;
+                for i in 0..prep.n {
+                    let (sn, co) = (omega * prep.qj(i, j)).sin_cos();
+                    ss += w[i] * sn * sn;
+                    sc += w[i] * sn * co;
+                    cc += w[i] * co * co;
+                    rs += pr[i] * sn;
+                    rc += pr[i] * co;
+                    for z in 0..ks {
+                        let v = ps[i * ks + z];
+                        cs[z] += sn * v;
+                        cs[ks + z] += co * v;
+                    }
+                }
+                let mut a = [ss, sc, sc, cc];
+                let mut c = [rs, rc];
+                if ks > 0 {
+                    for u in 0..2 {
+                        let mut mrow = vec![0.0; ks];
+                        for (zz, m) in mrow.iter_mut().enumerate() {
+                            for z in 0..ks {
+                                *m += cs[u * ks + z] * sel.ginv[(z, zz)];
+                            }
+                        }
+                        for z in 0..ks {
+                            c[u] -= mrow[z] * sel.h[z];
+                            for v in 0..2 {
+                                a[u * 2 + v] -= mrow[z] * cs[v * ks + z];
+                            }
+                        }
+                    }
+                }
+                quad_form_2(&a, &c, [ss, cc])
             };
             let mut vals: Vec<(f64, f64)> = (0..grid)
                 .map(|g| {

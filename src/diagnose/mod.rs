@@ -13,6 +13,7 @@
 pub mod effects;
 pub mod fit;
 pub mod prepare;
+pub mod programs;
 pub mod recording;
 pub mod report;
 pub mod rng;

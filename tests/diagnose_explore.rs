@@ -1,0 +1,53 @@
+mod diagnose_support;
+use diagnose_support::*;
+use kinpost::diagnose::*;
+
+#[test]
+#[ignore]
+fn explore() {
+    let spec = std::env::var("SPEC").unwrap_or("backlash:X=0.003".into());
+    let m = if std::env::var("M").as_deref() == Ok("wang") { Machine::Wang } else { Machine::Zhao };
+    let seed: u64 = std::env::var("SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
+    let blocks: usize = std::env::var("BLOCKS").ok().and_then(|s| s.parse().ok()).unwrap_or(150);
+    let chain = m.chain();
+    let errors = m.errors();
+    let prog = m.program(blocks, seed);
+    let opts = sim_options(seed);
+    let effects: Vec<EffectSpec> = if spec.is_empty() { vec![] } else { spec.split(';').map(|s| parse_effect_spec(s).unwrap()).collect() };
+    let t0 = std::time::Instant::now();
+    let rec = simulate(&chain, Some(&errors), &prog, &effects, &opts).unwrap();
+    let t1 = t0.elapsed();
+    println!("samples {} sim {:?}", rec.len(), t1);
+    println!("effect rms {:.5} geom rms {:.5}", effect_rms(&chain, Some(&errors), &prog, &effects, &opts), geometric_rms(&chain, &errors, &prog, &opts));
+    let t0 = std::time::Instant::now();
+    let r = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
+    println!("diagnose {:?}", t0.elapsed());
+    println!("{}", r.to_text());
+    println!("{}", serde_json::to_string_pretty(&r.candidates).unwrap());
+}
+
+#[test]
+#[ignore]
+fn profile() {
+    use kinpost::diagnose::{fit, prepare};
+    let m = Machine::Zhao;
+    let chain = m.chain();
+    let errors = m.errors();
+    let prog = m.program(150, 1);
+    let rec = simulate(&chain, Some(&errors), &prog, &[], &sim_options(1)).unwrap();
+    let t0 = std::time::Instant::now();
+    let mm = prepare::ModelMachine::new(&chain, Some(&errors)).unwrap();
+    let prep = prepare::prepare(&mm, &rec).unwrap();
+    println!("prepare {:?}", t0.elapsed());
+    let (_, sigma) = prepare::noise_floor(&prep.r);
+    let ctx = fit::SearchCtx { sigma, ln_n: (prep.rows() as f64).ln(), min_after: 80 };
+    let sel = fit::Selected::new(&prep, fit::design(&prep, &[]));
+    for f in fit::Family::all(&prep) {
+        let t0 = std::time::Instant::now();
+        let c = fit::search_family(&prep, &sel, f, &ctx);
+        println!("{:?} {:?} {:?}", f, t0.elapsed(), c.map(|c| c.score));
+    }
+    let t0 = std::time::Instant::now();
+    let h = fit::holdout_rss(&prep, &fit::design(&prep, &[fit::Term{family: fit::Family::Backlash(1), nl: 0.0, onset: 0}]));
+    println!("holdout {:?} {h}", t0.elapsed());
+}
