@@ -51,3 +51,31 @@ fn profile() {
     let h = fit::holdout_rss(&prep, &fit::design(&prep, &[fit::Term{family: fit::Family::Backlash(1), nl: 0.0, onset: 0}]));
     println!("holdout {:?} {h}", t0.elapsed());
 }
+
+#[test]
+#[ignore]
+fn thermal_profile() {
+    use kinpost::diagnose::{fit, prepare};
+    let m = Machine::Zhao;
+    let chain = m.chain();
+    let errors = m.errors();
+    let seed = 14;
+    let prog = m.program(120, seed);
+    let opts = sim_options(seed);
+    let truth = calibrated(&chain, &errors, &prog, "thermal_drift:Z=0.002,tau=120@block=30", 0.0012, &opts);
+    let rec = simulate(&chain, Some(&errors), &prog, &[truth.clone()], &opts).unwrap();
+    let mm = prepare::ModelMachine::new(&chain, Some(&errors)).unwrap();
+    let prep = prepare::prepare(&mm, &rec).unwrap();
+    let (_, sigma) = prepare::noise_floor(&prep.r);
+    let sel = fit::Selected::new(&prep, fit::design(&prep, &[]));
+    let on30 = (0..prep.n).find(|&i| rec.samples[i].block == Some(30)).unwrap();
+    let on27 = (0..prep.n).find(|&i| rec.samples[i].block == Some(27)).unwrap();
+    for (tau, on) in [(120.0, on30), (247.3, on27), (120.0, on27), (247.3, on30), (160.0, on30), (90.0, on30)] {
+        let t = fit::Term { family: fit::Family::ThermalDrift(2), nl: tau, onset: on };
+        let cols = fit::design(&prep, &[t]);
+        let s = fit::Selected::new(&prep, cols);
+        let d = (s.h.transpose() * &s.ginv * &s.h)[(0,0)];
+        println!("tau {tau} onset {on} t {:.1} dchi2 {:.1}", prep.t[on], d / sigma / sigma);
+    }
+    let _ = sel;
+}

@@ -125,3 +125,36 @@ pub fn geometric_rms(chain: &Chain, errors: &ErrorModel, program: &[Waypoint], o
     let s: f64 = a.iter().zip(&b).map(|(x, y)| (x - y).norm_squared()).sum();
     (s / a.len() as f64).sqrt()
 }
+
+/// Multiplies the amplitude-like parameter of an effect by `k` (the
+/// time constant, period and phase stay).
+pub fn scale_effect(e: &mut kinpost::diagnose::Effect, k: f64) {
+    use kinpost::diagnose::Effect::*;
+    match e {
+        Backlash { value, .. } | ZeroOffset { value, .. } => *value *= k,
+        ServoLag { tau_s, .. } => *tau_s *= k,
+        ThermalDrift { amplitude_mm, .. } => *amplitude_mm *= k,
+        Scale { ppm, .. } => *ppm *= k,
+        Squareness { angle_urad, .. } => *angle_urad *= k,
+        Cyclic { amplitude, .. } => *amplitude *= k,
+        RotaryCenterOffset { offset_mm, .. } => offset_mm.iter_mut().for_each(|v| *v *= k),
+        PivotLength { delta_mm } => *delta_mm *= k,
+    }
+}
+
+/// `spec` with its amplitude scaled so that the effect's tip displacement
+/// has the 3-D RMS `target` (mm) along `program`.
+pub fn calibrated(
+    chain: &Chain,
+    errors: &ErrorModel,
+    program: &[Waypoint],
+    spec: &str,
+    target: f64,
+    opts: &SimOptions,
+) -> EffectSpec {
+    let mut s = kinpost::diagnose::parse_effect_spec(spec).unwrap();
+    let r = effect_rms(chain, Some(errors), program, std::slice::from_ref(&s), opts);
+    assert!(r > 0.0, "{spec} has no effect on this program");
+    scale_effect(&mut s.effect, target / r);
+    s
+}
