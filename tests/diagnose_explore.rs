@@ -79,3 +79,46 @@ fn thermal_profile() {
     }
     let _ = sel;
 }
+
+#[test]
+#[ignore]
+fn fa_case() {
+    use kinpost::diagnose::{fit, prepare};
+    let m = Machine::Zhao;
+    let chain = m.chain();
+    let errors = m.errors();
+    let prog = m.program(80, 1003);
+    let rec = simulate(&chain, Some(&errors), &prog, &[], &sim_options(1003)).unwrap();
+    let mm = prepare::ModelMachine::new(&chain, Some(&errors)).unwrap();
+    let prep = prepare::prepare(&mm, &rec).unwrap();
+    let (_, sigma) = prepare::noise_floor(&prep.r);
+    let ctx = fit::SearchCtx { sigma, ln_n: (prep.rows() as f64).ln(), min_after: (prep.n / 50).max(20) };
+    let sel = fit::Selected::new(&prep, fit::design(&prep, &[]));
+    let c = fit::search_family(&prep, &sel, fit::Family::Squareness(1, 2), &ctx).unwrap();
+    println!("{c:?} n {} onsets {}", prep.n, prep.onsets.len());
+    let base = fit::base_columns(&prep, fit::Family::Squareness(1, 2), 0.0);
+    let prof = fit::scan(&prep, &sel, &base, &prep.onsets, None, ctx.min_after);
+    for (k, d) in prof.iter().enumerate() { print!("{}:{:.1} ", prep.onsets[k], d / sigma / sigma); }
+    println!();
+}
+
+#[test]
+#[ignore]
+fn refine_check() {
+    use kinpost::compensate::{Options, refine};
+    use kinpost::machine::NoErrors;
+    let m = Machine::Zhao;
+    let chain = m.chain();
+    let errors = m.errors();
+    let mchain = errors.apply_fixed(&chain).unwrap();
+    let bound = errors.bind(&mchain).unwrap();
+    let other = m.program(10, 77);
+    let traj = sample_waypoints(&chain, &other, 1.0, Some(300.0)).unwrap();
+    for p in traj.iter().take(15) {
+        let qn: Vec<f64> = p.q.iter().zip(&chain.joints).map(|(v, j)| if j.kind == kinpost::machine::JointKind::Revolute { v.to_radians() } else { *v }).collect();
+        let target = chain.pose(&qn, &NoErrors);
+        let r = refine(&mchain, &bound, &target, &qn, &Options::default());
+        let got = mchain.pose(&r.q, &bound);
+        println!("q {:?} -> {:?} it {} conv {} tip err {:.3e} dq {:?}", p.q, r.q, r.iterations, r.converged, (got.tip - target.tip).norm(), r.q.iter().zip(&qn).map(|(a,b)| a-b).collect::<Vec<_>>());
+    }
+}
