@@ -122,3 +122,16 @@ fn refine_check() {
         println!("q {:?} -> {:?} it {} conv {} tip err {:.3e} dq {:?}", p.q, r.q, r.iterations, r.converged, (got.tip - target.tip).norm(), r.q.iter().zip(&qn).map(|(a,b)| a-b).collect::<Vec<_>>());
     }
 }
+
+#[test]
+#[ignore]
+fn svg() {
+    let m = Machine::Zhao;
+    let chain = m.chain();
+    let errors = m.errors();
+    let prog = m.program(120, 3);
+    let e = parse_effect_spec("backlash:X=0.0025").unwrap();
+    let rec = simulate(&chain, Some(&errors), &prog, &[e], &sim_options(3)).unwrap();
+    let r = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
+    r.write_svg(std::path::Path::new("/tmp/diag.svg")).unwrap();
+}

@@ -111,7 +111,8 @@ pub fn diagnose(
 
     // Forward stepwise selection.
     let mut terms: Vec<Term> = Vec::new();
-    let mut fitted_meta: Vec<(f64, (f64, f64), Option<(Term, f64)>)> = Vec::new();
+    let mut fitted_meta: Vec<(f64, (f64, f64))> = Vec::new();
+    let mut rounds: Vec<Vec<Candidate>> = Vec::new();
     let mut first_round: Vec<Candidate> = Vec::new();
     let mut hold_prev = fit::holdout_rss(&prep, &fit::design(&prep, &[]));
     let hold_before = hold_prev;
@@ -140,16 +141,9 @@ pub fn diagnose(
             }
         }
         let Some((c, hold)) = accepted else { break };
-        let label = c.term.family.axis_label(&prep.names);
-        let runner = cands
-            .iter()
-            .find(|o| {
-                !(o.term.family.kind() == c.term.family.kind()
-                    && o.term.family.axis_label(&prep.names) == label)
-            })
-            .map(|o| (o.term, c.score - o.score));
+        rounds.push(cands.clone());
         terms.push(c.term);
-        fitted_meta.push((c.score, (hold_prev, hold), runner));
+        fitted_meta.push((c.score, (hold_prev, hold)));
         hold_prev = hold;
     }
 
@@ -210,7 +204,19 @@ pub fn diagnose(
         } else {
             None
         };
-        let (score, hold, runner) = fitted_meta[k];
+        let (score, hold) = fitted_meta[k];
+        // Runner-up: the best candidate of the same round that is not one
+        // of the effects found (a different effect, or the same on another
+        // axis): the best alternative explanation of this mismatch.
+        let runner = rounds[k]
+            .iter()
+            .find(|o| {
+                !terms.iter().any(|t| {
+                    t.family.kind() == o.term.family.kind()
+                        && t.family.axis_label(&prep.names) == o.term.family.axis_label(&prep.names)
+                })
+            })
+            .map(|o| (o.term, score - o.score));
         let runner_up = runner.map(|(rt, d)| {
             let sel = Selected::new(&prep, fit::design(&prep, &[rt]));
             let (rb, _) = fit::lsq(&prep, &sel.cols, &|_| true);

@@ -202,18 +202,21 @@ fn param_text(name: &str, v: f64, sd: Option<f64>) -> String {
     } else {
         (name, "", 1.0, 6)
     };
-    // Periods and time constants are not small: fewer scaled decimals.
+    // Periods and time constants are not small.
     let (unit, scale, dec) = if base == "period" && unit == "µm" {
         ("mm", 1.0, 3)
     } else {
         (unit, scale, dec)
     };
+    // Enough decimals for four significant digits of small values.
+    let mag = (v * scale).abs().max(sd.unwrap_or(0.0) * scale);
+    let dec = if mag > 0.0 && mag.is_finite() {
+        dec.max((3.0 - mag.log10().floor()).clamp(0.0, 12.0) as usize)
+    } else {
+        dec
+    };
     match sd {
-        Some(s) => format!(
-            "{base} = {:.dec$} ± {:.dec$} {unit}",
-            v * scale,
-            s * scale
-        ),
+        Some(s) => format!("{base} = {:.dec$} ± {:.dec$} {unit}", v * scale, s * scale),
         None => format!("{base} = {:.dec$} {unit}", v * scale),
     }
 }
