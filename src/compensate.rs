@@ -87,7 +87,8 @@ fn pinv(m: &DMatrix<f64>) -> DMatrix<f64> {
     let svd = m.clone().svd(true, true);
     let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
     let eps = smax * 1e-12 * (m.nrows().max(m.ncols()) as f64);
-    svd.pseudo_inverse(eps.max(f64::MIN_POSITIVE)).unwrap_or_else(|_| DMatrix::zeros(m.ncols(), m.nrows()))
+    svd.pseudo_inverse(eps.max(f64::MIN_POSITIVE))
+        .unwrap_or_else(|_| DMatrix::zeros(m.ncols(), m.nrows()))
 }
 
 /// One step of the chosen method.
@@ -113,7 +114,13 @@ fn step(jac: &Jacobian, rp: &Vector3<f64>, ro: &Vector3<f64>, opts: &Options) ->
 
 /// Refines joint values `q0` so that the actual machine (`chain` with
 /// `errors`) puts the tool on `target`.
-pub fn refine(chain: &Chain, errors: &dyn JointErrors, target: &Pose, q0: &[f64], opts: &Options) -> Refined {
+pub fn refine(
+    chain: &Chain,
+    errors: &dyn JointErrors,
+    target: &Pose,
+    q0: &[f64],
+    opts: &Options,
+) -> Refined {
     let mut q = q0.to_vec();
     let mut iterations = 0;
     let mut converged = false;
@@ -132,7 +139,10 @@ pub fn refine(chain: &Chain, errors: &dyn JointErrors, target: &Pose, q0: &[f64]
         let dq = step(&jac, &rp, &ro, opts);
         // Converged when the tip is met and the step no longer changes the
         // joints at floating-point level (the axis has reached its optimum).
-        let negligible = dq.iter().zip(&q).all(|(d, qi)| d.abs() <= 1e-14 * (1.0 + qi.abs()));
+        let negligible = dq
+            .iter()
+            .zip(&q)
+            .all(|(d, qi)| d.abs() <= 1e-14 * (1.0 + qi.abs()));
         if negligible && (rp.norm() <= opts.tip_tolerance_mm || opts.method == Method::Paper) {
             converged = true;
             break;
@@ -184,7 +194,14 @@ mod tests {
                     3e-6 * (q / 70.0).cos(),
                     2e-6 * (q / 30.0).sin(),
                 )),
-                3 => Some(ErrorMotion::new(0.0, 0.0, 0.0, 0.0, 5e-6 * (2.0 * q).sin(), 0.0)),
+                3 => Some(ErrorMotion::new(
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    5e-6 * (2.0 * q).sin(),
+                    0.0,
+                )),
                 _ => None,
             }
         }
@@ -199,7 +216,16 @@ mod tests {
         let before = c.pose(&q_th, &Small);
         assert!(before.tip_distance(&target) > 1e-3);
         let exact = refine(&c, &Small, &target, &q_th, &Options::default());
-        let theo = refine(&c, &Small, &target, &q_th, &Options { method: Method::Theoretical, ..Options::default() });
+        let theo = refine(
+            &c,
+            &Small,
+            &target,
+            &q_th,
+            &Options {
+                method: Method::Theoretical,
+                ..Options::default()
+            },
+        );
         for r in [&exact, &theo] {
             assert!(r.converged);
             assert!(r.tip_residual_mm < 1e-12, "{}", r.tip_residual_mm);
@@ -222,7 +248,10 @@ mod tests {
             }
             let p = c.pose(&q, &Small);
             assert!(p.tip_distance(&target) < 1e-12);
-            assert!(p.axis_angle(&target) >= exact.axis_residual_rad - 1e-13, "db {db}");
+            assert!(
+                p.axis_angle(&target) >= exact.axis_residual_rad - 1e-13,
+                "db {db}"
+            );
         }
     }
 
@@ -231,7 +260,16 @@ mod tests {
         let c = zhao();
         let q_th = [0.7, 35.0, -12.0, 0.4];
         let target = c.pose(&q_th, &NoErrors);
-        let paper = refine(&c, &Small, &target, &q_th, &Options { method: Method::Paper, ..Options::default() });
+        let paper = refine(
+            &c,
+            &Small,
+            &target,
+            &q_th,
+            &Options {
+                method: Method::Paper,
+                ..Options::default()
+            },
+        );
         // Least squares on mixed mm and rad: the tip is not met to nanometres.
         assert!(paper.tip_residual_mm > 1e-7, "{}", paper.tip_residual_mm);
         assert!(paper.tip_residual_mm < 1e-3);

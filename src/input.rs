@@ -60,7 +60,11 @@ impl FilterProgress {
     pub fn new(size: Option<u64>) -> Self {
         let enabled = std::env::var_os("AXIS_PROGRESS_BAR").is_some();
         FilterProgress {
-            size: if enabled { size.filter(|s| *s > 0) } else { None },
+            size: if enabled {
+                size.filter(|s| *s > 0)
+            } else {
+                None
+            },
             last: u64::MAX,
         }
     }

@@ -12,7 +12,10 @@ use std::path::Path;
 
 /// Runs `f` with a writer for `path` (or standard output when `None`), and
 /// commits the output only if `f` succeeds.
-pub fn write_atomically<T>(path: Option<&Path>, f: impl FnOnce(&mut dyn Write) -> Result<T>) -> Result<T> {
+pub fn write_atomically<T>(
+    path: Option<&Path>,
+    f: impl FnOnce(&mut dyn Write) -> Result<T>,
+) -> Result<T> {
     match path {
         Some(path) => {
             let display = path.display().to_string();
@@ -31,7 +34,8 @@ pub fn write_atomically<T>(path: Option<&Path>, f: impl FnOnce(&mut dyn Write) -
                 .into_inner()
                 .map_err(|e| Error::io(&display, e.into_error()))?;
             tmp.as_file().sync_all().ok();
-            tmp.persist(path).map_err(|e| Error::io(&display, e.error))?;
+            tmp.persist(path)
+                .map_err(|e| Error::io(&display, e.error))?;
             Ok(value)
         }
         None => {
@@ -66,7 +70,11 @@ mod tests {
         });
         assert!(r.is_err());
         assert_eq!(std::fs::read(&p).unwrap(), b"old");
-        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "no temporary left behind");
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "no temporary left behind"
+        );
         write_atomically(Some(&p), |w| {
             w.write_all(b"new").unwrap();
             Ok(())

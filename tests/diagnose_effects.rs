@@ -63,7 +63,12 @@ fn parameter_error(found: &Effect, truth: &Effect) -> Option<f64> {
             let dphi = ((fa - fb + 540.0).rem_euclid(360.0) - 180.0).abs();
             rel(*a, *b).max(rel(*pa, *pb)).max(dphi / 360.0)
         }
-        (RotaryCenterOffset { offset_mm: a, axis, .. }, RotaryCenterOffset { offset_mm: b, .. }) => {
+        (
+            RotaryCenterOffset {
+                offset_mm: a, axis, ..
+            },
+            RotaryCenterOffset { offset_mm: b, .. },
+        ) => {
             // Only the components perpendicular to the axis act.
             let keep = |v: &[f64; 3]| -> [f64; 3] {
                 let mut w = *v;
@@ -93,20 +98,42 @@ fn run_case(m: Machine, spec: &str, seed: u64) -> Outcome {
     let program = m.program(blocks, seed);
     let opts = sim_options(seed);
     let truth = calibrated(&chain, &errors, &program, spec, TARGET_RMS, &opts);
-    let eff_rms = effect_rms(&chain, Some(&errors), &program, std::slice::from_ref(&truth), &opts);
+    let eff_rms = effect_rms(
+        &chain,
+        Some(&errors),
+        &program,
+        std::slice::from_ref(&truth),
+        &opts,
+    );
     let geo_rms = geometric_rms(&chain, &errors, &program, &opts);
-    let rec = simulate(&chain, Some(&errors), &program, std::slice::from_ref(&truth), &opts).unwrap();
+    let rec = simulate(
+        &chain,
+        Some(&errors),
+        &program,
+        std::slice::from_ref(&truth),
+        &opts,
+    )
+    .unwrap();
     let report = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
     check(m, spec, &truth, eff_rms, geo_rms, &report)
 }
 
-fn check(m: Machine, spec: &str, truth: &EffectSpec, eff_rms: f64, geo_rms: f64, r: &Report) -> Outcome {
+fn check(
+    m: Machine,
+    spec: &str,
+    truth: &EffectSpec,
+    eff_rms: f64,
+    geo_rms: f64,
+    r: &Report,
+) -> Outcome {
     let mut failures = Vec::new();
     if eff_rms > 1.5 * SIGMA {
         failures.push(format!("effect RMS {eff_rms} above 1.5 σ"));
     }
     if geo_rms <= eff_rms {
-        failures.push(format!("geometric errors {geo_rms} not larger than the effect {eff_rms}"));
+        failures.push(format!(
+            "geometric errors {geo_rms} not larger than the effect {eff_rms}"
+        ));
     }
     let Some(f) = r.findings.first() else {
         return Outcome {
@@ -126,7 +153,10 @@ fn check(m: Machine, spec: &str, truth: &EffectSpec, eff_rms: f64, geo_rms: f64,
     let perr = parameter_error(&f.spec.effect, &truth.effect);
     match perr {
         Some(e) if e <= 0.2 => {}
-        _ => failures.push(format!("parameters {:?} vs truth {:?}", f.spec.effect, truth.effect)),
+        _ => failures.push(format!(
+            "parameters {:?} vs truth {:?}",
+            f.spec.effect, truth.effect
+        )),
     }
     if r.holdout_rms_after_mm >= r.holdout_rms_before_mm {
         failures.push("held-out RMS not reduced".into());
@@ -136,7 +166,9 @@ fn check(m: Machine, spec: &str, truth: &EffectSpec, eff_rms: f64, geo_rms: f64,
     let found_start = f.where_.blocks[0].unwrap();
     let onset_err = found_start as i64 - expected_start as i64;
     if onset_err.abs() > 10 {
-        failures.push(format!("start block {found_start}, expected {expected_start}"));
+        failures.push(format!(
+            "start block {found_start}, expected {expected_start}"
+        ));
     }
     Outcome {
         line: format!(
@@ -174,7 +206,10 @@ fn run_all(cases: &[(Machine, &str)]) {
                 })
             })
             .collect();
-        handles.into_iter().flat_map(|h| h.join().unwrap()).collect()
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap())
+            .collect()
     });
     let mut bad = Vec::new();
     for o in &outcomes {
@@ -210,10 +245,16 @@ fn every_effect_is_found_on_wang2023_xyzab() {
         (Machine::Wang, "thermal_drift:X=0.002,tau=200"),
         (Machine::Wang, "scale:Z=8"),
         (Machine::Wang, "squareness:XY=8"),
-        (Machine::Wang, "cyclic:Y=0.0015,period=40,phase=-45@block=20"),
+        (
+            Machine::Wang,
+            "cyclic:Y=0.0015,period=40,phase=-45@block=20",
+        ),
         (Machine::Wang, "zero_offset:X=0.0015"),
         (Machine::Wang, "rotary_center_offset:A=0,0.0012,0.0016"),
-        (Machine::Wang, "rotary_center_offset:B=0.0015,0,0.001@block=40"),
+        (
+            Machine::Wang,
+            "rotary_center_offset:B=0.0015,0,0.001@block=40",
+        ),
         (Machine::Wang, "pivot_length:0.0015@block=50"),
     ]);
 }
@@ -222,9 +263,14 @@ fn every_effect_is_found_on_wang2023_xyzab() {
 #[test]
 #[ignore]
 fn robustness_sweep() {
-    let spec = std::env::var("ROBUST").unwrap_or("zhao:thermal_drift:Z=0.002,tau=90@block=30".into());
+    let spec =
+        std::env::var("ROBUST").unwrap_or("zhao:thermal_drift:Z=0.002,tau=90@block=30".into());
     let (m, s) = spec.split_once(':').unwrap();
-    let m = if m == "wang" { Machine::Wang } else { Machine::Zhao };
+    let m = if m == "wang" {
+        Machine::Wang
+    } else {
+        Machine::Zhao
+    };
     let mut fails = 0;
     for seed in 100..112 {
         let o = run_case(m, s, seed);

@@ -27,18 +27,33 @@ fn false_alarms(m: Machine) -> (usize, Vec<String>) {
                         .map(|k| {
                             let seed = 1000 + k;
                             let program = m.program(blocks, seed);
-                            let rec = simulate(chain, Some(errors), &program, &[], &sim_options(seed)).unwrap();
-                            let r = diagnose(chain, Some(errors), &rec, &DiagOptions::default()).unwrap();
-                            assert!(r.findings.is_empty() || r.verdict.starts_with("missing physics found"));
+                            let rec =
+                                simulate(chain, Some(errors), &program, &[], &sim_options(seed))
+                                    .unwrap();
+                            let r = diagnose(chain, Some(errors), &rec, &DiagOptions::default())
+                                .unwrap();
+                            assert!(
+                                r.findings.is_empty()
+                                    || r.verdict.starts_with("missing physics found")
+                            );
                             if r.findings.is_empty() {
-                                assert!(r.verdict.starts_with("consistent with measurement noise"), "{}", r.verdict);
+                                assert!(
+                                    r.verdict.starts_with("consistent with measurement noise"),
+                                    "{}",
+                                    r.verdict
+                                );
                             }
                             let names = r
                                 .findings
                                 .iter()
-                                .map(|f| format!("{} {}", f.effect, f.axis.clone().unwrap_or_default()))
+                                .map(|f| {
+                                    format!("{} {}", f.effect, f.axis.clone().unwrap_or_default())
+                                })
                                 .collect();
-                            let best = r.candidates.first().map_or(f64::NEG_INFINITY, |c| c.delta_bic);
+                            let best = r
+                                .candidates
+                                .first()
+                                .map_or(f64::NEG_INFINITY, |c| c.delta_bic);
                             (seed, names, best)
                         })
                         .collect::<Vec<_>>()
@@ -53,7 +68,10 @@ fn false_alarms(m: Machine) -> (usize, Vec<String>) {
             alarms.push(format!("seed {seed}: {}", names.join(", ")));
         }
     }
-    let worst = results.iter().map(|r| r.2).fold(f64::NEG_INFINITY, f64::max);
+    let worst = results
+        .iter()
+        .map(|r| r.2)
+        .fold(f64::NEG_INFINITY, f64::max);
     println!("{m:?}: largest first-round candidate ΔBIC on clean data {worst:.1} (margin 10)");
     (alarms.len(), alarms)
 }

@@ -16,14 +16,26 @@ use kinpost::machine::{Chain, JointKind, NoErrors};
 fn to_internal(chain: &Chain, q: &[f64]) -> Vec<f64> {
     q.iter()
         .zip(&chain.joints)
-        .map(|(v, j)| if j.kind == JointKind::Revolute { v.to_radians() } else { *v })
+        .map(|(v, j)| {
+            if j.kind == JointKind::Revolute {
+                v.to_radians()
+            } else {
+                *v
+            }
+        })
         .collect()
 }
 
 fn to_file(chain: &Chain, q: &[f64]) -> Vec<f64> {
     q.iter()
         .zip(&chain.joints)
-        .map(|(v, j)| if j.kind == JointKind::Revolute { v.to_degrees() } else { *v })
+        .map(|(v, j)| {
+            if j.kind == JointKind::Revolute {
+                v.to_degrees()
+            } else {
+                *v
+            }
+        })
         .collect()
 }
 
@@ -107,10 +119,18 @@ fn two_effects_found_written_and_compensated() {
     let report = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
     println!("{}", report.to_text());
     assert_eq!(report.findings.len(), 2, "{}", report.to_text());
-    let scale = report.findings.iter().find(|f| f.effect == "scale").expect("scale");
+    let scale = report
+        .findings
+        .iter()
+        .find(|f| f.effect == "scale")
+        .expect("scale");
     assert_eq!(scale.axis.as_deref(), Some("X"));
     assert!((scale.parameters["ppm"] - 15.0).abs() < 3.0);
-    let bl = report.findings.iter().find(|f| f.effect == "backlash").expect("backlash");
+    let bl = report
+        .findings
+        .iter()
+        .find(|f| f.effect == "backlash")
+        .expect("backlash");
     assert_eq!(bl.axis.as_deref(), Some("Z"));
     assert!((bl.parameters["value_mm"] - 0.0025).abs() < 0.0005);
     assert!(bl.where_.blocks[0].unwrap().abs_diff(30) <= 10);
@@ -145,7 +165,11 @@ fn two_effects_found_written_and_compensated() {
         .collect();
     let old = rerun_error(&chain, &errors, &errors, &now, &traj);
     let new = rerun_error(&chain, &back, &errors, &now, &traj);
-    println!("re-run tool-tip error RMS: compensated with the error tables {:.3} µm, with the improved model {:.3} µm", old * 1e3, new * 1e3);
+    println!(
+        "re-run tool-tip error RMS: compensated with the error tables {:.3} µm, with the improved model {:.3} µm",
+        old * 1e3,
+        new * 1e3
+    );
     assert!(new < 0.3 * old, "old {old} new {new}");
 }
 
@@ -183,7 +207,11 @@ fn static_effects_in_a_model_act_like_the_simulated_truth() {
         model.effects = specs.clone();
         let a = evaluate_trajectory(&chain, Some(&errors), &specs, &traj).unwrap();
         let b = evaluate_trajectory(&chain, Some(&model), &[], &traj).unwrap();
-        let worst = a.iter().zip(&b).map(|(x, y)| (x - y).norm()).fold(0.0, f64::max);
+        let worst = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x - y).norm())
+            .fold(0.0, f64::max);
         // Equal to first order: the small-angle forms differ by nanometres at most.
         assert!(worst < 1e-6, "{m:?}: {worst} mm");
     }

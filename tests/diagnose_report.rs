@@ -40,9 +40,17 @@ fn json_has_exactly_the_formats_fields() {
     assert!(w["condition"].as_str().unwrap().contains("from block"));
     assert!(f["rms_explained_mm"].as_f64().unwrap() > 0.0);
     assert!(f["runner_up"]["effect"].as_str().is_some());
-    assert!(j["verdict"].as_str().unwrap().starts_with("missing physics found"));
+    assert!(
+        j["verdict"]
+            .as_str()
+            .unwrap()
+            .starts_with("missing physics found")
+    );
     let text = r.to_text();
-    assert!(text.contains("µm") && text.contains("zero_offset Z"), "{text}");
+    assert!(
+        text.contains("µm") && text.contains("zero_offset Z"),
+        "{text}"
+    );
     let svg = r.to_svg().unwrap();
     assert!(svg.starts_with("<svg") && svg.contains("time (s)"));
 }
@@ -56,7 +64,11 @@ fn clean_recording_says_consistent_with_noise() {
     let rec = simulate(&chain, Some(&errors), &program, &[], &sim_options(8)).unwrap();
     let r = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
     assert!(r.findings.is_empty());
-    assert!(r.verdict.starts_with("consistent with measurement noise"), "{}", r.verdict);
+    assert!(
+        r.verdict.starts_with("consistent with measurement noise"),
+        "{}",
+        r.verdict
+    );
     assert_eq!(r.to_json()["findings"], serde_json::json!([]));
     assert!(r.to_svg().is_ok());
     // Without the error model the fixture errors are the mismatch: found,
@@ -69,11 +81,21 @@ fn clean_recording_says_consistent_with_noise() {
 fn bad_recordings_are_located_errors() {
     let chain = zhao();
     let axes: Vec<String> = chain.joints.iter().map(|j| j.name.clone()).collect();
-    let text = "t,block,C,X,Z,B,meas_x,meas_y,meas_z\n0,1,0,0,0,0,0,0,-20\n0.1,1,0,0,0,inf,0,0,-20\n";
-    let e = Recording::parse(text, "r.csv", &axes).unwrap_err().to_string();
+    let text =
+        "t,block,C,X,Z,B,meas_x,meas_y,meas_z\n0,1,0,0,0,0,0,0,-20\n0.1,1,0,0,0,inf,0,0,-20\n";
+    let e = Recording::parse(text, "r.csv", &axes)
+        .unwrap_err()
+        .to_string();
     assert!(e.starts_with("r.csv:3:13:"), "{e}");
-    let short = Recording::parse("t,C,X,Z,B,meas_x,meas_y,meas_z\n0,0,0,0,0,0,0,-20\n", "r.csv", &axes).unwrap();
-    let e = diagnose(&chain, None, &short, &DiagOptions::default()).unwrap_err().to_string();
+    let short = Recording::parse(
+        "t,C,X,Z,B,meas_x,meas_y,meas_z\n0,0,0,0,0,0,0,-20\n",
+        "r.csv",
+        &axes,
+    )
+    .unwrap();
+    let e = diagnose(&chain, None, &short, &DiagOptions::default())
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("at least 20"), "{e}");
     // Simulation and diagnosis are deterministic.
     let m = Machine::Zhao;

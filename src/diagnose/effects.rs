@@ -673,7 +673,10 @@ impl BoundEffect {
             Effect::ThermalDrift { axis, .. } => {
                 let j = find(axis)?;
                 if kind_of(j) != JointKind::Prismatic {
-                    return Err(effect_err(spec, format!("axis {axis} is not a linear axis")));
+                    return Err(effect_err(
+                        spec,
+                        format!("axis {axis} is not a linear axis"),
+                    ));
                 }
                 (Some(j), None)
             }
@@ -700,7 +703,10 @@ impl BoundEffect {
             Effect::RotaryCenterOffset { axis, .. } => {
                 let j = find(axis)?;
                 if kind_of(j) != JointKind::Revolute {
-                    return Err(effect_err(spec, format!("axis {axis} is not a rotary axis")));
+                    return Err(effect_err(
+                        spec,
+                        format!("axis {axis} is not a rotary axis"),
+                    ));
                 }
                 (Some(j), None)
             }
@@ -740,8 +746,7 @@ impl BoundEffect {
                 phase_deg,
                 ..
             } => {
-                amplitude
-                    * (std::f64::consts::TAU * s.q[j] / period + phase_deg.to_radians()).sin()
+                amplitude * (std::f64::consts::TAU * s.q[j] / period + phase_deg.to_radians()).sin()
             }
             Effect::ZeroOffset { value, .. } => *value,
             Effect::RotaryCenterOffset { .. } | Effect::PivotLength { .. } => 0.0,

@@ -9,6 +9,9 @@
 //! grid and refined by golden-section search; the onset is profiled over
 //! every block start at once.
 
+// Numerical code: several parallel arrays are indexed by one counter.
+#![allow(clippy::needless_range_loop)]
+
 use nalgebra::{DMatrix, DVector};
 
 use super::effects::{Effect, EffectKind, EffectSpec};
@@ -283,7 +286,11 @@ pub fn pinv_sym(m: &DMatrix<f64>) -> DMatrix<f64> {
     let d: Vec<f64> = (0..n)
         .map(|k| {
             let v = m[(k, k)];
-            if v > 0.0 && v.is_finite() { 1.0 / v.sqrt() } else { 0.0 }
+            if v > 0.0 && v.is_finite() {
+                1.0 / v.sqrt()
+            } else {
+                0.0
+            }
         })
         .collect();
     let scaled = DMatrix::from_fn(n, n, |a, b| m[(a, b)] * d[a] * d[b]);
@@ -467,7 +474,11 @@ fn diag_scale(acc_cc: &[f64], kc: usize, g: Option<&[f64]>) -> f64 {
 /// `c²/a`, or 0 when the candidate is (nearly) a combination of the
 /// selected columns (`a` tiny against its own sum of squares `scale`).
 fn quad_form_1(a: f64, c: f64, scale: f64) -> f64 {
-    if a > 1e-10 * scale.abs() && a > 0.0 { c * c / a } else { 0.0 }
+    if a > 1e-10 * scale.abs() && a > 0.0 {
+        c * c / a
+    } else {
+        0.0
+    }
 }
 
 /// `cᵀA⁻¹c` for a 2×2 `A` (row-major), falling back to the better of the
@@ -561,7 +572,12 @@ fn golden_max(mut lo: f64, mut hi: f64, iters: usize, f: &mut dyn FnMut(f64) -> 
 /// Searches one family: non-linear parameter (grid + golden section) and
 /// onset (profile over all block starts). `None` if the family has no
 /// support in the data (joint never moves, …).
-pub fn search_family(prep: &Prepared, sel: &Selected, fam: Family, ctx: &SearchCtx) -> Option<Candidate> {
+pub fn search_family(
+    prep: &Prepared,
+    sel: &Selected,
+    fam: Family,
+    ctx: &SearchCtx,
+) -> Option<Candidate> {
     let s2 = ctx.sigma * ctx.sigma;
     let onsets = &prep.onsets;
     let k_lin = fam.linear_params() as f64;
@@ -593,7 +609,11 @@ pub fn search_family(prep: &Prepared, sel: &Selected, fam: Family, ctx: &SearchC
             let b = (best.4 + step).min(hi);
             let (x, _) = golden_max(a, b, 14, &mut |x| eval(x).0);
             let (sc, k, d, pen) = eval(x);
-            let (x, k, d, pen) = if sc >= best.0 { (x, k, d, pen) } else { (best.4, best.1, best.2, best.3) };
+            let (x, k, d, pen) = if sc >= best.0 {
+                (x, k, d, pen)
+            } else {
+                (best.4, best.1, best.2, best.3)
+            };
             let penalty = (k_lin + 1.0) * ctx.ln_n + 2.0 * (grid as f64).ln() + pen;
             Some(Candidate {
                 term: Term {
@@ -621,7 +641,7 @@ pub fn search_family(prep: &Prepared, sel: &Selected, fam: Family, ctx: &SearchC
                 }
             }
             let range = qmax - qmin;
-            if !(range > 1e-6) || steps.is_empty() {
+            if range.partial_cmp(&1e-6) != Some(std::cmp::Ordering::Greater) || steps.is_empty() {
                 return None;
             }
             let mid = steps.len() / 2;
@@ -730,7 +750,7 @@ pub fn search_family(prep: &Prepared, sel: &Selected, fam: Family, ctx: &SearchC
             }
             let base = base_columns(prep, fam, 0.0);
             let norm: f64 = base.data.iter().map(|x| x * x).sum();
-            if !(norm > 0.0) {
+            if norm.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return None;
             }
             let prof = scan(prep, sel, &base, onsets, None, ctx.min_after);
@@ -752,7 +772,11 @@ pub fn search_family(prep: &Prepared, sel: &Selected, fam: Family, ctx: &SearchC
 
 /// Least squares on the rows of the samples for which `train(i)` holds:
 /// coefficients and the normal matrix.
-pub fn lsq(prep: &Prepared, cols: &Cols, train: &dyn Fn(usize) -> bool) -> (DVector<f64>, DMatrix<f64>) {
+pub fn lsq(
+    prep: &Prepared,
+    cols: &Cols,
+    train: &dyn Fn(usize) -> bool,
+) -> (DVector<f64>, DMatrix<f64>) {
     let k = cols.k;
     let mut g = DMatrix::zeros(k, k);
     let mut h = DVector::zeros(k);
@@ -879,7 +903,9 @@ pub fn parameter_sd(prep: &Prepared, term: &Term, beta: &[f64], cov: &DMatrix<f6
             let ga = [c / a, s / a];
             let gp = [-s / (a * a), c / (a * a)];
             let q = |g: [f64; 2]| {
-                (g[0] * g[0] * cov[(0, 0)] + 2.0 * g[0] * g[1] * cov[(0, 1)] + g[1] * g[1] * cov[(1, 1)])
+                (g[0] * g[0] * cov[(0, 0)]
+                    + 2.0 * g[0] * g[1] * cov[(0, 1)]
+                    + g[1] * g[1] * cov[(1, 1)])
                     .max(0.0)
                     .sqrt()
             };
@@ -892,7 +918,9 @@ pub fn parameter_sd(prep: &Prepared, term: &Term, beta: &[f64], cov: &DMatrix<f6
             (0..3)
                 .map(|x| {
                     let g = [b.dirs[0][x], b.dirs[1][x]];
-                    (g[0] * g[0] * cov[(0, 0)] + 2.0 * g[0] * g[1] * cov[(0, 1)] + g[1] * g[1] * cov[(1, 1)])
+                    (g[0] * g[0] * cov[(0, 0)]
+                        + 2.0 * g[0] * g[1] * cov[(0, 1)]
+                        + g[1] * g[1] * cov[(1, 1)])
                         .max(0.0)
                         .sqrt()
                 })

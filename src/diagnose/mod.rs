@@ -10,6 +10,9 @@
 //!
 //! See `docs/diagnose.md`.
 
+// Numerical code: several parallel arrays are indexed by one counter.
+#![allow(clippy::needless_range_loop)]
+
 pub mod effects;
 pub mod fit;
 pub mod prepare;
@@ -67,7 +70,10 @@ fn rms(r: &[[f64; 3]]) -> f64 {
     if r.is_empty() {
         return 0.0;
     }
-    (r.iter().map(|v| v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sum::<f64>() / (3 * r.len()) as f64)
+    (r.iter()
+        .map(|v| v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        .sum::<f64>()
+        / (3 * r.len()) as f64)
         .sqrt()
 }
 
@@ -248,7 +254,13 @@ pub fn diagnose(
         let tips = if fitted.len() == 1 {
             tips_all.clone()
         } else {
-            exact_tips(chain, errors, &prep, std::slice::from_ref(&f.spec), &[onsets[k]])?
+            exact_tips(
+                chain,
+                errors,
+                &prep,
+                std::slice::from_ref(&f.spec),
+                &[onsets[k]],
+            )?
         };
         let d: Vec<[f64; 3]> = (0..prep.n)
             .map(|i| {
@@ -281,7 +293,10 @@ pub fn diagnose(
                 .collect();
             let mut condition = report::condition_text(&f.spec.effect, rotary);
             if let Some(b) = f.spec.from_block {
-                condition.push_str(&format!("; from block {b} on (t = {:.1} s)", prep.t[f.term.onset]));
+                condition.push_str(&format!(
+                    "; from block {b} on (t = {:.1} s)",
+                    prep.t[f.term.onset]
+                ));
             }
             Finding {
                 effect: f.spec.effect.kind().name().to_string(),
@@ -342,7 +357,9 @@ pub fn diagnose(
                 format!(
                     "{}{}",
                     f.effect,
-                    f.axis.as_deref().map_or(String::new(), |a| format!(" of {a}"))
+                    f.axis
+                        .as_deref()
+                        .map_or(String::new(), |a| format!(" of {a}"))
                 )
             })
             .collect();
@@ -462,7 +479,11 @@ fn locate(prep: &Prepared, after: &[[f64; 3]], sigma: f64) -> Locate {
     }
     let mut conds: Vec<Condition> = Vec::new();
     for j in 0..prep.dof {
-        let unit = if prep.kinds[j] == JointKind::Revolute { "deg" } else { "mm" };
+        let unit = if prep.kinds[j] == JointKind::Revolute {
+            "deg"
+        } else {
+            "mm"
+        };
         // Projection of the residual on the joint's tip direction.
         let proj: Vec<Option<f64>> = (0..n)
             .map(|i| {
@@ -499,14 +520,23 @@ fn locate(prep: &Prepared, after: &[[f64; 3]], sigma: f64) -> Locate {
         };
         push("moving +".into(), &|i| prep.vj(i, j) > 1e-9);
         push("moving −".into(), &|i| prep.vj(i, j) < -1e-9);
-        push("after a + motion (direction +)".into(), &|i| prep.dirj(i, j) > 0.0);
-        push("after a − motion (direction −)".into(), &|i| prep.dirj(i, j) < 0.0);
-        let mut speeds: Vec<f64> = (0..n).map(|i| prep.vj(i, j).abs()).filter(|v| *v > 1e-9).collect();
+        push("after a + motion (direction +)".into(), &|i| {
+            prep.dirj(i, j) > 0.0
+        });
+        push("after a − motion (direction −)".into(), &|i| {
+            prep.dirj(i, j) < 0.0
+        });
+        let mut speeds: Vec<f64> = (0..n)
+            .map(|i| prep.vj(i, j).abs())
+            .filter(|v| *v > 1e-9)
+            .collect();
         if !speeds.is_empty() {
             let mid = speeds.len() / 2;
             speeds.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
             let med = speeds[mid];
-            push(format!("speed > {med:.3} {unit}/s"), &|i| prep.vj(i, j).abs() > med);
+            push(format!("speed > {med:.3} {unit}/s"), &|i| {
+                prep.vj(i, j).abs() > med
+            });
         }
         let (lo, hi) = (0..n).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), i| {
             (a.min(prep.qj(i, j)), b.max(prep.qj(i, j)))
@@ -543,11 +573,24 @@ fn series(prep: &Prepared, after: &[[f64; 3]], top: Option<&Term>, tips: &[[f64;
         s.x_label = "time (s)".into();
         s.x = prep.t.clone();
         s.y_label = "|residual| (µm)".into();
-        s.proj_before = prep.r.iter().map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()).collect();
-        s.proj_after = after.iter().map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()).collect();
+        s.proj_before = prep
+            .r
+            .iter()
+            .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+            .collect();
+        s.proj_after = after
+            .iter()
+            .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+            .collect();
         return s;
     };
-    let unit = |j: usize| if prep.kinds[j] == JointKind::Revolute { "deg" } else { "mm" };
+    let unit = |j: usize| {
+        if prep.kinds[j] == JointKind::Revolute {
+            "deg"
+        } else {
+            "mm"
+        }
+    };
     let fam = term.family;
     // Direction to project on, per sample.
     let dir: Vec<[f64; 3]> = (0..n)
@@ -568,7 +611,9 @@ fn series(prep: &Prepared, after: &[[f64; 3]], top: Option<&Term>, tips: &[[f64;
             f => {
                 let j = f.joint().unwrap_or(0);
                 let jj = prep.jj(i, j);
-                let nn = (jj[0] * jj[0] + jj[1] * jj[1] + jj[2] * jj[2]).sqrt().max(1e-12);
+                let nn = (jj[0] * jj[0] + jj[1] * jj[1] + jj[2] * jj[2])
+                    .sqrt()
+                    .max(1e-12);
                 [jj[0] / nn, jj[1] / nn, jj[2] / nn]
             }
         })
@@ -576,18 +621,30 @@ fn series(prep: &Prepared, after: &[[f64; 3]], top: Option<&Term>, tips: &[[f64;
     let name = |j: usize| prep.names[j].clone();
     let (label, x): (String, Vec<f64>) = match fam {
         Family::ThermalDrift(_) => ("time (s)".into(), prep.t.clone()),
-        Family::Squareness(a, _) => (format!("{} ({})", name(a), unit(a)), (0..n).map(|i| prep.qj(i, a)).collect()),
+        Family::Squareness(a, _) => (
+            format!("{} ({})", name(a), unit(a)),
+            (0..n).map(|i| prep.qj(i, a)).collect(),
+        ),
         Family::PivotLength => (
             "tool tilt from +z (deg)".into(),
-            prep.tool_axis.iter().map(|a| a[2].clamp(-1.0, 1.0).acos().to_degrees()).collect(),
+            prep.tool_axis
+                .iter()
+                .map(|a| a[2].clamp(-1.0, 1.0).acos().to_degrees())
+                .collect(),
         ),
         f => {
             let j = f.joint().unwrap_or(0);
-            (format!("{} ({})", name(j), unit(j)), (0..n).map(|i| prep.qj(i, j)).collect())
+            (
+                format!("{} ({})", name(j), unit(j)),
+                (0..n).map(|i| prep.qj(i, j)).collect(),
+            )
         }
     };
     let what = match fam.axis_label(&prep.names) {
-        Some(a) => format!("residual along the {} {a} direction (µm)", fam.kind().name()),
+        Some(a) => format!(
+            "residual along the {} {a} direction (µm)",
+            fam.kind().name()
+        ),
         None => format!("residual along the {} direction (µm)", fam.kind().name()),
     };
     s.x_label = label;
@@ -603,7 +660,11 @@ fn series(prep: &Prepared, after: &[[f64; 3]], top: Option<&Term>, tips: &[[f64;
 /// thermal drift) along a trajectory: Δq per point (mm, deg), chain order.
 /// Directions are tracked along `traj`; thermal drift runs from the first
 /// point (or from its `from_block`).
-pub fn dynamic_offsets(chain: &Chain, model: &ErrorModel, traj: &[TrajPoint]) -> Result<Vec<Vec<f64>>> {
+pub fn dynamic_offsets(
+    chain: &Chain,
+    model: &ErrorModel,
+    traj: &[TrajPoint],
+) -> Result<Vec<Vec<f64>>> {
     let n = chain.dof();
     let mut effects: Vec<BoundEffect> = model
         .effects
@@ -619,7 +680,10 @@ pub fn dynamic_offsets(chain: &Chain, model: &ErrorModel, traj: &[TrajPoint]) ->
         if p.q.len() != n || p.v.len() != n {
             return Err(Error::input(
                 Location::new("<trajectory>", 0, 0),
-                format!("a trajectory point has {} values; the machine has {n} joints", p.q.len()),
+                format!(
+                    "a trajectory point has {} values; the machine has {n} joints",
+                    p.q.len()
+                ),
             ));
         }
         for j in 0..n {
@@ -653,7 +717,11 @@ pub fn dynamic_offsets(chain: &Chain, model: &ErrorModel, traj: &[TrajPoint]) ->
 /// in the direction of motion; servo lag: `+τ·v` feed-forward; thermal
 /// drift: minus the drift at that time). Static effects are compensated by
 /// the Newton refinement on the model's chain (`crate::compensate`).
-pub fn compensate_dynamic(chain: &Chain, model: &ErrorModel, traj: &[TrajPoint]) -> Result<Vec<TrajPoint>> {
+pub fn compensate_dynamic(
+    chain: &Chain,
+    model: &ErrorModel,
+    traj: &[TrajPoint],
+) -> Result<Vec<TrajPoint>> {
     let dq = dynamic_offsets(chain, model, traj)?;
     Ok(traj
         .iter()

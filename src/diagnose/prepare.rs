@@ -3,9 +3,12 @@
 //! of motion, the tool-tip Jacobian of the model chain, the tool axis and
 //! the exact tip change of a unit rotary-centre offset.
 
+// Numerical code: several parallel arrays are indexed by one counter.
+#![allow(clippy::needless_range_loop)]
+
 use nalgebra::{Unit, Vector3};
 
-use super::effects::{BoundEffect, DirectionTracker, EffectSpec, MotionState, DIRECTION_DEAD_BAND};
+use super::effects::{BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionState};
 use super::recording::Recording;
 use crate::error::{Error, Location, Result};
 use crate::geometric::{BoundErrors, ErrorModel};
@@ -144,10 +147,18 @@ impl Prepared {
     }
 }
 
+/// Unit offset directions of a revolute joint and the chains with a 1 mm
+/// offset along each.
+type RcoChains = ([Vector3<f64>; 2], [Chain; 2]);
+
 /// Two unit vectors perpendicular to `u`.
 fn perpendicular_pair(u: &Unit<Vector3<f64>>) -> [Vector3<f64>; 2] {
     let u = u.into_inner();
-    let pick = if u.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let pick = if u.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
     let e1 = (pick - u * u.dot(&pick)).normalize();
     let e2 = u.cross(&e1).normalize();
     [e1, e2]
@@ -221,7 +232,7 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
     let mut dynamic = machine.dynamic.clone();
     let mut active = vec![false; dynamic.len()];
     // Rotary-centre-offset chains: unit offsets before/after each revolute joint.
-    let mut rco_chains: Vec<Option<([Vector3<f64>; 2], [Chain; 2])>> = Vec::with_capacity(dof);
+    let mut rco_chains: Vec<Option<RcoChains>> = Vec::with_capacity(dof);
     for j in 0..dof {
         if kinds[j] == JointKind::Revolute {
             let dirs = perpendicular_pair(&chain.joints[j].axis);
@@ -259,14 +270,16 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
             dir: &dir[i * dof..(i + 1) * dof],
         };
         for (k, e) in dynamic.iter_mut().enumerate() {
-            if !active[k] && e.spec.from_block.is_none_or(|b| block[i].is_none_or(|bi| bi >= b)) {
+            if !active[k]
+                && e.spec
+                    .from_block
+                    .is_none_or(|b| block[i].is_none_or(|bi| bi >= b))
+            {
                 active[k] = true;
                 e.t0 = t[i];
             }
         }
-        for j in 0..dof {
-            qi[j] = st.q[j];
-        }
+        qi[..dof].copy_from_slice(&st.q[..dof]);
         for (k, e) in dynamic.iter().enumerate() {
             if active[k]
                 && let Some(j) = e.joint
@@ -281,7 +294,11 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
         }
         let (pose, jm) = chain.pose_and_jacobian(&qi, errors);
         for j in 0..dof {
-            let f = if kinds[j] == JointKind::Revolute { deg } else { 1.0 };
+            let f = if kinds[j] == JointKind::Revolute {
+                deg
+            } else {
+                1.0
+            };
             jac.push([jm[(0, j)] * f, jm[(1, j)] * f, jm[(2, j)] * f]);
         }
         tool_axis.push([pose.axis.x, pose.axis.y, pose.axis.z]);

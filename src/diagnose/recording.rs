@@ -294,7 +294,9 @@ impl<R: BufRead> RecordingReader<R> {
                         None => {
                             return Err(Error::input_with(
                                 loc(col),
-                                format!("block: `{f}` is not a block number (a non-negative integer)"),
+                                format!(
+                                    "block: `{f}` is not a block number (a non-negative integer)"
+                                ),
                                 line.to_string(),
                             ));
                         }
@@ -494,9 +496,13 @@ mod tests {
     #[test]
     fn errors_are_located() {
         let h = "t,X,Z,B,C,meas_x,meas_y,meas_z\n";
-        let e = Recording::parse(&format!("{h}0,1,2,3,4,5,6,7\n0,1,2,3,4,5,6,7\n"), "r.csv", &axes())
-            .unwrap_err()
-            .to_string();
+        let e = Recording::parse(
+            &format!("{h}0,1,2,3,4,5,6,7\n0,1,2,3,4,5,6,7\n"),
+            "r.csv",
+            &axes(),
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.starts_with("r.csv:3:1:"), "{e}");
         assert!(e.contains("time must increase"), "{e}");
         let e = Recording::parse(&format!("{h}0,1,2,x3,4,5,6,7\n"), "r.csv", &axes())

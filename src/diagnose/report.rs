@@ -387,8 +387,12 @@ impl Report {
 pub fn condition_text(effect: &Effect, rotary: bool) -> String {
     let u = if rotary { "deg" } else { "mm" };
     match effect {
-        Effect::Backlash { axis, .. } => format!("at reversals of {axis}: the error changes sign with the direction of its last motion"),
-        Effect::ServoLag { axis, .. } => format!("while {axis} moves, proportional to its speed, against the motion"),
+        Effect::Backlash { axis, .. } => format!(
+            "at reversals of {axis}: the error changes sign with the direction of its last motion"
+        ),
+        Effect::ServoLag { axis, .. } => {
+            format!("while {axis} moves, proportional to its speed, against the motion")
+        }
         Effect::ThermalDrift { axis, tau_s, .. } => {
             format!("grows with time along {axis} (time constant {tau_s:.0} s)")
         }
@@ -404,9 +408,7 @@ pub fn condition_text(effect: &Effect, rotary: bool) -> String {
         Effect::RotaryCenterOffset { axis, .. } => {
             format!("varies with the {axis} angle: {axis} turns about a displaced line")
         }
-        Effect::PivotLength { .. } => {
-            "along the tool axis, showing as the tool tilts".to_string()
-        }
+        Effect::PivotLength { .. } => "along the tool axis, showing as the tool tilts".to_string(),
     }
 }
 

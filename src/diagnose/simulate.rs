@@ -18,7 +18,9 @@
 
 use nalgebra::Vector3;
 
-use super::effects::{BoundEffect, DirectionTracker, EffectSpec, MotionState, chain_with_effects, DIRECTION_DEAD_BAND};
+use super::effects::{
+    BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionState, chain_with_effects,
+};
 use super::recording::{Recording, Sample};
 use super::rng::Rng;
 use crate::error::{Error, Location, Result};
@@ -130,7 +132,10 @@ fn timeline(chain: &Chain, wps: &[Waypoint], accel: Option<f64>) -> Result<Vec<S
         if w.q.iter().any(|v| !v.is_finite()) {
             return Err(Error::input(
                 loc(),
-                format!("waypoint {k} (block {}) has a non-finite axis value", w.block),
+                format!(
+                    "waypoint {k} (block {}) has a non-finite axis value",
+                    w.block
+                ),
             ));
         }
         if k == 0 {
@@ -144,7 +149,10 @@ fn timeline(chain: &Chain, wps: &[Waypoint], accel: Option<f64>) -> Result<Vec<S
         if !(w.feed.is_finite() && w.feed > 0.0) {
             return Err(Error::input(
                 loc(),
-                format!("waypoint {k} (block {}): feed {} mm/min must be positive", w.block, w.feed),
+                format!(
+                    "waypoint {k} (block {}): feed {} mm/min must be positive",
+                    w.block, w.feed
+                ),
             ));
         }
         let v = w.feed / 60.0;
@@ -184,7 +192,11 @@ pub(crate) struct TrueMachine<'a> {
 }
 
 impl<'a> TrueMachine<'a> {
-    pub(crate) fn new(chain: &Chain, model: Option<&'a ErrorModel>, effects: &[EffectSpec]) -> Result<Self> {
+    pub(crate) fn new(
+        chain: &Chain,
+        model: Option<&'a ErrorModel>,
+        effects: &[EffectSpec],
+    ) -> Result<Self> {
         let (chain, errors) = match model {
             Some(m) => {
                 let c = m.apply_fixed(chain)?;
@@ -301,7 +313,10 @@ pub fn sample_waypoints(
     if let Some(a) = accel_mm_s2
         && !(a.is_finite() && a > 0.0)
     {
-        return Err(Error::input(loc(), "the acceleration limit must be positive"));
+        return Err(Error::input(
+            loc(),
+            "the acceleration limit must be positive",
+        ));
     }
     if waypoints.is_empty() {
         return Err(Error::input(loc(), "no waypoints to simulate"));
@@ -316,7 +331,8 @@ pub fn sample_waypoints(
     let mut out = Vec::with_capacity(count);
     let mut seg = 0usize;
     for i in 0..count {
-        let t = i as f64 * sample_interval_s;
+        // Rounded to 1 ns so that times print cleanly.
+        let t = (i as f64 * sample_interval_s * 1e9).round() / 1e9;
         while seg + 1 < segs.len() && t >= segs[seg + 1].t_start {
             seg += 1;
         }
@@ -389,7 +405,10 @@ pub fn evaluate_trajectory(
         if p.q.len() != n || p.v.len() != n {
             return Err(Error::input(
                 Location::new("<trajectory>", 0, 0),
-                format!("a trajectory point has {} values; the machine has {n} joints", p.q.len()),
+                format!(
+                    "a trajectory point has {} values; the machine has {n} joints",
+                    p.q.len()
+                ),
             ));
         }
         for j in 0..n {

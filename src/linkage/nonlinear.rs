@@ -179,9 +179,19 @@ mod tests {
         // the chord's sagitta is L·(1 − cos(Δ/2)).
         let c = wang();
         let d = 2f64.to_radians();
-        let e = nonlinear_error(&c, &NoErrors, &[0.0, 0.0, 0.0, 0.0, 0.0], &[0.0, 0.0, 0.0, 0.0, d]);
+        let e = nonlinear_error(
+            &c,
+            &NoErrors,
+            &[0.0, 0.0, 0.0, 0.0, 0.0],
+            &[0.0, 0.0, 0.0, 0.0, d],
+        );
         let sagitta = 265.0 * (1.0 - (d / 2.0).cos());
-        assert!((e.max_mm - sagitta).abs() < 1e-12, "{} vs {}", e.max_mm, sagitta);
+        assert!(
+            (e.max_mm - sagitta).abs() < 1e-12,
+            "{} vs {}",
+            e.max_mm,
+            sagitta
+        );
         assert!((e.t_at_max - 0.5).abs() < 1e-6);
         // The textbook estimate is the small-angle form of the same sagitta.
         assert!((e.estimate_mm - 265.0 * d * d / 8.0).abs() < 1e-9);
@@ -190,7 +200,12 @@ mod tests {
     #[test]
     fn linear_only_block_has_no_nonlinear_error() {
         let c = wang();
-        let e = nonlinear_error(&c, &NoErrors, &[0.1, 0.0, 0.0, 0.0, 0.2], &[0.1, 10.0, 5.0, -3.0, 0.2]);
+        let e = nonlinear_error(
+            &c,
+            &NoErrors,
+            &[0.1, 0.0, 0.0, 0.0, 0.2],
+            &[0.1, 10.0, 5.0, -3.0, 0.2],
+        );
         assert_eq!(e.max_mm, 0.0);
     }
 }

@@ -70,7 +70,12 @@ impl RotaryPair {
 /// on `tip`, by Newton steps on the prismatic columns of the Jacobian
 /// (exact after one step on an error-free chain, where the tip is affine in
 /// the linear axes).
-pub fn solve_linears(chain: &Chain, errors: &dyn JointErrors, q: &mut [f64], tip: &Vector3<f64>) -> Result<(), String> {
+pub fn solve_linears(
+    chain: &Chain,
+    errors: &dyn JointErrors,
+    q: &mut [f64],
+    tip: &Vector3<f64>,
+) -> Result<(), String> {
     let lin: Vec<usize> = (0..chain.dof())
         .filter(|&j| chain.joints[j].kind == JointKind::Prismatic)
         .collect();
@@ -136,7 +141,11 @@ pub fn insert_points(
             for i in 1..segments {
                 // Odd segments move the split rotary, even ones the held rotary.
                 if i % 2 == 1 {
-                    a += if i == 1 { da / (2 * m) as f64 } else { da / m as f64 };
+                    a += if i == 1 {
+                        da / (2 * m) as f64
+                    } else {
+                        da / m as f64
+                    };
                 } else {
                     b += db / m as f64;
                 }
@@ -153,10 +162,20 @@ pub fn insert_points(
 }
 
 /// The largest exact nonlinear error over the segments of `qa → points → qb`.
-pub fn worst_segment(chain: &Chain, errors: &dyn JointErrors, qa: &[f64], points: &[Vec<f64>], qb: &[f64]) -> NonlinearError {
+pub fn worst_segment(
+    chain: &Chain,
+    errors: &dyn JointErrors,
+    qa: &[f64],
+    points: &[Vec<f64>],
+    qb: &[f64],
+) -> NonlinearError {
     let mut worst: Option<NonlinearError> = None;
     let mut prev = qa;
-    for q in points.iter().map(|v| v.as_slice()).chain(std::iter::once(qb)) {
+    for q in points
+        .iter()
+        .map(|v| v.as_slice())
+        .chain(std::iter::once(qb))
+    {
         let e = nonlinear_error(chain, errors, prev, q);
         if worst.is_none_or(|w| e.max_mm > w.max_mm) {
             worst = Some(e);
@@ -199,7 +218,15 @@ mod tests {
         assert_eq!(pair, RotaryPair { split: 0, held: 4 });
         let qa = row(150.891, -1.827, -38.483, 40.823, 336.463);
         let qb = row(149.828, -1.885, -37.6, 40.5, 336.789);
-        let pts = insert_points(&c, &NoErrors, &qa, &qb, Pattern::Staggered { m: 1 }, Some(pair)).unwrap();
+        let pts = insert_points(
+            &c,
+            &NoErrors,
+            &qa,
+            &qb,
+            Pattern::Staggered { m: 1 },
+            Some(pair),
+        )
+        .unwrap();
         // Table 3 rows 2 and 3 (printed to 0.001 mm / 0.001°).
         let expect = [
             [150.915, -1.871, -38.515, 40.823, 336.626],

@@ -3,4 +3,6 @@
 pub mod format;
 pub mod modal;
 
-pub use modal::{BlockError, BlockMeaning, FeedMode, ModalState, Motion, PoseStart, TcpCode, Units, WordRef};
+pub use modal::{
+    BlockError, BlockMeaning, FeedMode, ModalState, Motion, PoseStart, TcpCode, Units, WordRef,
+};

@@ -170,7 +170,11 @@ impl ModalState {
     }
 
     /// Applies one block and says what it means.
-    pub fn apply(&mut self, words: &[WordRef<'_>], keywords: &[(usize, &str)]) -> Result<BlockMeaning, BlockError> {
+    pub fn apply(
+        &mut self,
+        words: &[WordRef<'_>],
+        keywords: &[(usize, &str)],
+    ) -> Result<BlockMeaning, BlockError> {
         let mut tcp_codes = Vec::new();
         let mut tcp_offset_items = Vec::new();
         let mut non_modal = false;
@@ -364,13 +368,24 @@ mod tests {
     fn pose_block_with_modal_components() {
         let mut m = ModalState::new(PoseStart::On);
         let b = m
-            .apply(&[w("G", 1.0, 0), w("X", 1.0, 2), w("Y", 2.0, 4), w("Z", 3.0, 6), w("F", 100.0, 8)], &[])
+            .apply(
+                &[
+                    w("G", 1.0, 0),
+                    w("X", 1.0, 2),
+                    w("Y", 2.0, 4),
+                    w("Z", 3.0, 6),
+                    w("F", 100.0, 8),
+                ],
+                &[],
+            )
             .unwrap();
         let (tip, axis) = b.pose.unwrap();
         assert_eq!(tip, Vector3::new(1.0, 2.0, 3.0));
         assert_eq!(axis, Vector3::z());
         assert_eq!(b.pose_items, vec![2, 4, 6]);
-        let b = m.apply(&[w("X", 5.0, 0), w("I", 0.6, 2), w("K", 0.8, 4)], &[]).unwrap();
+        let b = m
+            .apply(&[w("X", 5.0, 0), w("I", 0.6, 2), w("K", 0.8, 4)], &[])
+            .unwrap();
         let (tip, axis) = b.pose.unwrap();
         assert_eq!(tip, Vector3::new(5.0, 2.0, 3.0));
         assert!((axis - Vector3::new(0.6, 0.0, 0.8)).norm() < 1e-15);
@@ -381,7 +396,17 @@ mod tests {
     fn inch_and_incremental() {
         let mut m = ModalState::new(PoseStart::On);
         m.apply(&[w("G", 20.0, 0)], &[]).unwrap();
-        let b = m.apply(&[w("G", 1.0, 0), w("X", 1.0, 1), w("Y", 0.0, 2), w("Z", 2.0, 3)], &[]).unwrap();
+        let b = m
+            .apply(
+                &[
+                    w("G", 1.0, 0),
+                    w("X", 1.0, 1),
+                    w("Y", 0.0, 2),
+                    w("Z", 2.0, 3),
+                ],
+                &[],
+            )
+            .unwrap();
         assert_eq!(b.pose.unwrap().0, Vector3::new(25.4, 0.0, 50.8));
         m.apply(&[w("G", 91.0, 0)], &[]).unwrap();
         let b = m.apply(&[w("X", 1.0, 1)], &[]).unwrap();
@@ -391,20 +416,34 @@ mod tests {
     #[test]
     fn tcp_codes_switch_pose_mode() {
         let mut m = ModalState::new(PoseStart::Off);
-        let b = m.apply(&[w("G", 0.0, 0), w("X", 1.0, 1), w("Y", 1.0, 2), w("Z", 1.0, 3)], &[]).unwrap();
+        let b = m
+            .apply(
+                &[
+                    w("G", 0.0, 0),
+                    w("X", 1.0, 1),
+                    w("Y", 1.0, 2),
+                    w("Z", 1.0, 3),
+                ],
+                &[],
+            )
+            .unwrap();
         assert!(b.pose.is_none());
         let b = m.apply(&[w("G", 43.5, 0), w("H", 1.0, 2)], &[]).unwrap();
         assert_eq!(b.tcp_codes, vec![TcpCode::FanucOn(0)]);
         assert_eq!(b.tcp_offset_items, vec![2]);
         // Machine-coordinate moves before TCP do not define the tool tip.
         assert!(m.apply(&[w("X", 2.0, 1)], &[]).is_err());
-        let b = m.apply(&[w("X", 2.0, 1), w("Y", 1.0, 2), w("Z", 1.0, 3)], &[]).unwrap();
+        let b = m
+            .apply(&[w("X", 2.0, 1), w("Y", 1.0, 2), w("Z", 1.0, 3)], &[])
+            .unwrap();
         assert!(b.pose.is_some());
         m.apply(&[w("G", 49.0, 0)], &[]).unwrap();
         assert!(m.apply(&[w("X", 2.0, 1)], &[]).unwrap().pose.is_none());
         let b = m.apply(&[], &[(0, "TRAORI")]).unwrap();
         assert_eq!(b.tcp_codes, vec![TcpCode::SiemensOn(0)]);
-        let b = m.apply(&[w("A3", 0.0, 0), w("B3", 0.0, 1), w("C3", 1.0, 2)], &[]).unwrap();
+        let b = m
+            .apply(&[w("A3", 0.0, 0), w("B3", 0.0, 1), w("C3", 1.0, 2)], &[])
+            .unwrap();
         assert!(b.pose.is_some());
     }
 
@@ -414,14 +453,29 @@ mod tests {
         let e = m.apply(&[w("G", 1.0, 0), w("X", 1.0, 3)], &[]).unwrap_err();
         assert!(e.message.contains("Y is not known"), "{}", e.message);
         let mut m = ModalState::new(PoseStart::On);
-        m.apply(&[w("X", 0.0, 0), w("Y", 0.0, 1), w("Z", 0.0, 2)], &[]).unwrap();
+        m.apply(&[w("X", 0.0, 0), w("Y", 0.0, 1), w("Z", 0.0, 2)], &[])
+            .unwrap();
         let e = m.apply(&[w("G", 2.0, 0), w("X", 1.0, 5)], &[]).unwrap_err();
         assert_eq!(e.item, Some(5));
-        let e = m.apply(&[w("G", 1.0, 0), w("I", 0.0, 1), w("J", 0.0, 2), w("K", 0.0, 7)], &[]).unwrap_err();
+        let e = m
+            .apply(
+                &[
+                    w("G", 1.0, 0),
+                    w("I", 0.0, 1),
+                    w("J", 0.0, 2),
+                    w("K", 0.0, 7),
+                ],
+                &[],
+            )
+            .unwrap_err();
         assert!(e.message.contains("zero"));
-        let e = m.apply(&[w("I", 0.0, 1), w("J", 0.0, 2), w("K", 1.1, 7)], &[]).unwrap_err();
+        let e = m
+            .apply(&[w("I", 0.0, 1), w("J", 0.0, 2), w("K", 1.1, 7)], &[])
+            .unwrap_err();
         assert!(e.message.contains("length"));
-        let b = m.apply(&[w("I", 0.0, 1), w("J", 0.0, 2), w("K", 1.0004, 7)], &[]).unwrap();
+        let b = m
+            .apply(&[w("I", 0.0, 1), w("J", 0.0, 2), w("K", 1.0004, 7)], &[])
+            .unwrap();
         assert_eq!(b.warnings.len(), 1);
     }
 }

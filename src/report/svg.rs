@@ -12,7 +12,11 @@ fn plot_err<E: std::fmt::Debug>(e: E) -> Error {
 
 /// Symmetric y range (µm) that holds `p`-quantile of |values|, with margin.
 fn y_range(values: &[f64]) -> f64 {
-    let mut a: Vec<f64> = values.iter().map(|v| v.abs()).filter(|v| v.is_finite()).collect();
+    let mut a: Vec<f64> = values
+        .iter()
+        .map(|v| v.abs())
+        .filter(|v| v.is_finite())
+        .collect();
     if a.is_empty() {
         return 1.0;
     }
@@ -26,16 +30,22 @@ fn minmax(v: &[f64]) -> (f64, f64) {
     let (lo, hi) = v
         .iter()
         .filter(|x| x.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
     if !(lo.is_finite() && hi.is_finite()) {
         return (0.0, 1.0);
     }
-    if hi > lo { (lo, hi) } else { (lo - 0.5, hi + 0.5) }
+    if hi > lo {
+        (lo, hi)
+    } else {
+        (lo - 0.5, hi + 0.5)
+    }
 }
 
 /// Largest number of points drawn per series (the rest are thinned out
 /// evenly, so that the file stays small).
-pub const MAX_POINTS: usize = 2500;
+pub const MAX_POINTS: usize = 800;
 
 /// Renders the report's plots as one SVG document (two panels).
 pub fn render(report: &Report) -> Result<String> {
@@ -128,7 +138,11 @@ pub fn render(report: &Report) -> Result<String> {
         let pb: Vec<f64> = s.proj_before.iter().map(|v| v * 1e3).collect();
         let pa: Vec<f64> = s.proj_after.iter().map(|v| v * 1e3).collect();
         let ymax = y_range(&pb).max(y_range(&pa));
-        let ymin = if pb.iter().chain(&pa).all(|v| *v >= 0.0) { 0.0 } else { -ymax };
+        let ymin = if pb.iter().chain(&pa).all(|v| *v >= 0.0) {
+            0.0
+        } else {
+            -ymax
+        };
         let (x0, x1) = minmax(&s.x);
         let mut chart = ChartBuilder::on(&bottom)
             .margin(12)

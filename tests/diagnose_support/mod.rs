@@ -66,7 +66,12 @@ impl Machine {
         match self {
             // C X Z B
             Machine::Zhao => random_moves(
-                &[t(-120.0, 120.0), t(-80.0, 80.0), t(-80.0, 80.0), t(-60.0, 60.0)],
+                &[
+                    t(-120.0, 120.0),
+                    t(-80.0, 80.0),
+                    t(-80.0, 80.0),
+                    t(-60.0, 60.0),
+                ],
                 blocks,
                 (600.0, 6000.0),
                 0.7,
@@ -118,7 +123,12 @@ pub fn effect_rms(
 
 /// RMS (3-D norm) of the tip displacement of the geometric errors (model
 /// versus nominal chain) along `program`.
-pub fn geometric_rms(chain: &Chain, errors: &ErrorModel, program: &[Waypoint], opts: &SimOptions) -> f64 {
+pub fn geometric_rms(
+    chain: &Chain,
+    errors: &ErrorModel,
+    program: &[Waypoint],
+    opts: &SimOptions,
+) -> f64 {
     let traj = sample_waypoints(chain, program, opts.sample_interval_s, opts.accel_mm_s2).unwrap();
     let a = evaluate_trajectory(chain, None, &[], &traj).unwrap();
     let b = evaluate_trajectory(chain, Some(errors), &[], &traj).unwrap();
