@@ -508,7 +508,7 @@ mod tests {
         let e = Recording::parse(&format!("{h}0,1,2,x3,4,5,6,7\n"), "r.csv", &axes())
             .unwrap_err()
             .to_string();
-        assert!(e.starts_with("r.csv:2:5:"), "{e}");
+        assert!(e.starts_with("r.csv:2:7:"), "{e}");
         assert!(e.contains("`x3`"), "{e}");
         let e = Recording::parse(&format!("{h}0,1,2,NaN,4,5,6,7\n"), "r.csv", &axes())
             .unwrap_err()
