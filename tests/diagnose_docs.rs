@@ -11,7 +11,10 @@ fn example(m: Machine, blocks: usize, seed: u64, specs: &[&str], name: &str) {
     let errors = m.errors();
     let program = m.program(blocks, seed);
     let opts = sim_options(seed);
-    let effects: Vec<_> = specs.iter().map(|s| parse_effect_spec(s).unwrap()).collect();
+    let effects: Vec<_> = specs
+        .iter()
+        .map(|s| parse_effect_spec(s).unwrap())
+        .collect();
     let rec = simulate(&chain, Some(&errors), &program, &effects, &opts).unwrap();
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/diagnose");
     std::fs::create_dir_all(&dir).unwrap();
@@ -31,7 +34,19 @@ fn example(m: Machine, blocks: usize, seed: u64, specs: &[&str], name: &str) {
 #[test]
 #[ignore]
 fn regenerate_worked_examples() {
-    example(Machine::Zhao, 120, 7, &["backlash:X=0.0024@block=40"], "zhao-backlash");
-    example(Machine::Wang, 100, 7, &["pivot_length:0.0015"], "wang-pivot");
+    example(
+        Machine::Zhao,
+        120,
+        7,
+        &["backlash:X=0.0024@block=40"],
+        "zhao-backlash",
+    );
+    example(
+        Machine::Wang,
+        100,
+        7,
+        &["pivot_length:0.0015"],
+        "wang-pivot",
+    );
     example(Machine::Wang, 100, 8, &[], "wang-clean");
 }

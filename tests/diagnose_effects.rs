@@ -266,7 +266,11 @@ fn every_effect_is_found_on_wang2023_xyzab() {
 fn thermal_drift_starting_part_way() {
     let o = run_case(Machine::Zhao, "thermal_drift:Z=0.002,tau=90@block=30", 14);
     println!("{}", o.line);
-    let rest: Vec<&String> = o.failures.iter().filter(|f| !f.starts_with("parameters")).collect();
+    let rest: Vec<&String> = o
+        .failures
+        .iter()
+        .filter(|f| !f.starts_with("parameters"))
+        .collect();
     assert!(rest.is_empty(), "{}: {:?}", o.line, rest);
     let err: f64 = o
         .line

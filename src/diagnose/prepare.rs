@@ -207,6 +207,20 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
         ));
     }
     let t: Vec<f64> = rec.samples.iter().map(|s| s.t).collect();
+    for (i, s) in rec.samples.iter().enumerate() {
+        let bad = |what: &str| {
+            Error::input(
+                Location::new("<recording>", 0, 0),
+                format!("sample {i} (t = {} s): {what}", s.t),
+            )
+        };
+        if !s.t.is_finite() || (i > 0 && s.t <= rec.samples[i - 1].t) {
+            return Err(bad("time must be finite and strictly increasing"));
+        }
+        if s.q.iter().chain(&s.meas).any(|v| !v.is_finite()) {
+            return Err(bad("axis and measured values must be finite numbers"));
+        }
+    }
     let block: Vec<Option<u64>> = rec.samples.iter().map(|s| s.block).collect();
     let mut q = Vec::with_capacity(n * dof);
     for s in &rec.samples {
