@@ -5,6 +5,7 @@
 //! machine's measured geometric errors taken into account.
 
 pub mod cl;
+pub mod cli;
 pub mod compensate;
 pub mod demo;
 pub mod diagnose;
@@ -15,6 +16,7 @@ pub mod input;
 pub mod linkage;
 pub mod machine;
 pub mod output;
+pub mod post;
 pub mod program;
 pub mod report;
 

@@ -1,1 +1,11 @@
-fn main() {}
+//! The `kinpost` binary: parses the command line and hands over to the library.
+
+use clap::Parser;
+
+fn main() {
+    let cli = kinpost::cli::Cli::parse();
+    if let Err(e) = kinpost::cli::run(cli) {
+        eprintln!("kinpost: error: {e}");
+        std::process::exit(e.exit_code());
+    }
+}
