@@ -9,6 +9,7 @@ pub mod cl;
 pub mod cli;
 pub mod compensate;
 pub mod demo;
+pub mod diagnose;
 pub mod error;
 pub mod gcode;
 pub mod geometric;
@@ -19,5 +20,6 @@ pub mod output;
 pub mod plot;
 pub mod post;
 pub mod program;
+pub mod report;
 
 pub use error::{Error, Location, Result};

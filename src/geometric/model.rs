@@ -11,6 +11,7 @@ use super::iso230_2::{self, Iso230_2};
 use super::table::{
     Component, ErrorTable, RAD_PER_ARCSEC, angle_unit, is_rotary_axis, length_unit, parse_tables,
 };
+use crate::diagnose::effects::{BoundEffect, Effect, EffectSpec, StaticTerm};
 use crate::error::{Error, Location, Result};
 use crate::machine::chain::{Chain, ErrorMotion, JointErrors, JointKind, error_matrix};
 
@@ -185,6 +186,13 @@ pub struct ErrorModel {
     pub fixed: Vec<FixedError>,
     /// Provenance.
     pub meta: ModelMeta,
+    /// Effects found by `kinpost diagnose` (`formats.md` §4). Static ones
+    /// (scale, zero offset, cyclic, squareness, rotary centre offset) act
+    /// through [`ErrorModel::bind`]; the pivot length through
+    /// [`ErrorModel::apply_fixed`]; dynamic ones (backlash, servo lag,
+    /// thermal drift) need the motion and are applied by
+    /// [`crate::diagnose::compensate_dynamic`] / [`crate::diagnose::DynamicErrors`].
+    pub effects: Vec<EffectSpec>,
 }
 
 /// Fit statistics of one column.
@@ -425,6 +433,7 @@ impl ErrorModel {
                 })
                 .collect(),
             fixed: self.fixed.clone(),
+            effects: self.effects.iter().map(|e| e.to_json(None)).collect(),
         };
         serde_json::to_value(doc).unwrap_or(serde_json::Value::Null)
     }
@@ -518,10 +527,21 @@ impl ErrorModel {
                 ));
             }
         }
+        let mut effects = Vec::new();
+        for (k, e) in doc.effects.iter().enumerate() {
+            let spec = EffectSpec::from_json(e).map_err(|m| {
+                Error::input(
+                    locate(text, file, "\"effects\""),
+                    format!("effects[{k}]: {m}"),
+                )
+            })?;
+            effects.push(spec);
+        }
         Ok(ErrorModel {
             axes,
             fixed: doc.fixed,
             meta: doc.meta,
+            effects,
         })
     }
 
@@ -588,7 +608,17 @@ impl ErrorModel {
             }
             per_joint[j] = Some(a);
         }
-        Ok(BoundErrors { per_joint })
+        let mut terms = Vec::new();
+        for e in &self.effects {
+            if e.effect.kind().is_dynamic() {
+                continue;
+            }
+            let b = BoundEffect::new(e, chain)?;
+            if let Some(t) = StaticTerm::new(&b, chain) {
+                terms.push(t);
+            }
+        }
+        Ok(BoundErrors { per_joint, terms })
     }
 
     /// Returns `chain` with every fixed error element inserted (in order).
@@ -598,6 +628,12 @@ impl ErrorModel {
         // an anchor.
         for f in self.fixed.iter().rev() {
             c = f.apply(&c)?;
+        }
+        // A pivot length error is a translation along the tool axis at the tip.
+        for e in &self.effects {
+            if let Effect::PivotLength { delta_mm } = e.effect {
+                c.translate(nalgebra::Vector3::new(0.0, 0.0, delta_mm));
+            }
         }
         Ok(c)
     }
@@ -624,6 +660,8 @@ fn locate(text: &str, file: &str, needle: &str) -> Location {
 #[derive(Debug, Clone)]
 pub struct BoundErrors<'a> {
     per_joint: Vec<Option<&'a AxisErrors>>,
+    /// Static diagnosed effects in error-motion form.
+    terms: Vec<StaticTerm>,
 }
 
 impl BoundErrors<'_> {
@@ -639,18 +677,34 @@ impl JointErrors for BoundErrors<'_> {
     }
 
     fn error_and_derivative(&self, joint: usize, q: f64) -> Option<(ErrorMotion, ErrorMotion)> {
-        let a = self.per_joint.get(joint).copied().flatten()?;
-        if a.rotary {
-            // The chain works in rad, the splines in degrees.
-            let (e, d) = a.error_at(q.to_degrees());
-            Some((e, d * (180.0 / std::f64::consts::PI)))
-        } else {
-            Some(a.error_at(q))
+        let base = self.per_joint.get(joint).copied().flatten().map(|a| {
+            if a.rotary {
+                // The chain works in rad, the splines in degrees.
+                let (e, d) = a.error_at(q.to_degrees());
+                (e, d * (180.0 / std::f64::consts::PI))
+            } else {
+                a.error_at(q)
+            }
+        });
+        let mut extra: Option<(ErrorMotion, ErrorMotion)> = None;
+        for t in self.terms.iter().filter(|t| t.joint == joint) {
+            let h = 1e-6 * (1.0 + q.abs());
+            let e = t.error_motion(q);
+            let d = (t.error_motion(q + h) - t.error_motion(q - h)) / (2.0 * h);
+            let acc = extra.get_or_insert((ErrorMotion::zeros(), ErrorMotion::zeros()));
+            acc.0 += e;
+            acc.1 += d;
+        }
+        match (base, extra) {
+            (None, None) => None,
+            (Some(b), None) => Some(b),
+            (None, Some(x)) => Some(x),
+            (Some(b), Some(x)) => Some((b.0 + x.0, b.1 + x.1)),
         }
     }
 
     fn is_empty(&self) -> bool {
-        self.per_joint.iter().all(Option::is_none)
+        self.per_joint.iter().all(Option::is_none) && self.terms.is_empty()
     }
 }
 
@@ -664,6 +718,8 @@ struct ModelJson {
     axes: Vec<AxisJson>,
     #[serde(default)]
     fixed: Vec<FixedError>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    effects: Vec<serde_json::Value>,
 }
 
 #[derive(Serialize, Deserialize)]

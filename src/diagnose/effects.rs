@@ -1,0 +1,970 @@
+//! The catalogue of effects (`formats.md` §4): physics a nominal model
+//! commonly leaves out, each a change of a joint's commanded position
+//! (`q → q + Δq`) or a fixed error element, passed through the chain.
+//!
+//! | effect | parameters | Δ |
+//! | --- | --- | --- |
+//! | `backlash` | `value_mm` / `value_deg` | Δq = −value/2 · (direction of the last motion) |
+//! | `servo_lag` | `tau_s` | Δq = −τ · dq/dt |
+//! | `thermal_drift` | `amplitude_mm`, `tau_s` | Δq = a · (1 − exp(−(t − t₀)/τ)), t₀ the onset |
+//! | `scale` | `ppm` | Δq = s · q |
+//! | `squareness` | `angle_urad` | Δq₂ = S · q₁ (pair `XZ`: moving X moves the tool along Z) |
+//! | `cyclic` | `amplitude_mm`, `period_mm`, `phase_deg` | Δq = a · sin(2π q / p + φ) |
+//! | `zero_offset` | `value_mm` / `value_deg` | Δq = constant |
+//! | `rotary_center_offset` | `dx_mm`, `dy_mm`, `dz_mm` | the joint turns about an axis line displaced by d (frame before the joint) |
+//! | `pivot_length` | `delta_mm` | the tip sits δ further along the tool axis (i, j, k) |
+//!
+//! Rotary axes use `_deg` where a linear axis uses `_mm` (`value_deg`,
+//! `amplitude_deg`, `period_deg`). The command-line syntax is parsed by
+//! [`parse_effect_spec`].
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use nalgebra::{Matrix4, Vector3};
+
+use crate::error::{Error, Location, Result};
+use crate::machine::chain::{Chain, ErrorMotion, JointKind, translation};
+
+/// The names of the catalogue, in the order of `formats.md` §4.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum EffectKind {
+    /// Reversal error.
+    Backlash,
+    /// Following error proportional to speed.
+    ServoLag,
+    /// Exponential growth with time.
+    ThermalDrift,
+    /// Linear scale error.
+    Scale,
+    /// Out-of-squareness of two linear axes.
+    Squareness,
+    /// Periodic error of an axis (ball-screw pitch error).
+    Cyclic,
+    /// Constant offset.
+    ZeroOffset,
+    /// Location error of a rotary axis.
+    RotaryCenterOffset,
+    /// Tool length / pivot length error.
+    PivotLength,
+}
+
+impl EffectKind {
+    /// Every kind, in catalogue order.
+    pub const ALL: [EffectKind; 9] = [
+        EffectKind::Backlash,
+        EffectKind::ServoLag,
+        EffectKind::ThermalDrift,
+        EffectKind::Scale,
+        EffectKind::Squareness,
+        EffectKind::Cyclic,
+        EffectKind::ZeroOffset,
+        EffectKind::RotaryCenterOffset,
+        EffectKind::PivotLength,
+    ];
+
+    /// The catalogue name (`backlash`, `servo_lag`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            EffectKind::Backlash => "backlash",
+            EffectKind::ServoLag => "servo_lag",
+            EffectKind::ThermalDrift => "thermal_drift",
+            EffectKind::Scale => "scale",
+            EffectKind::Squareness => "squareness",
+            EffectKind::Cyclic => "cyclic",
+            EffectKind::ZeroOffset => "zero_offset",
+            EffectKind::RotaryCenterOffset => "rotary_center_offset",
+            EffectKind::PivotLength => "pivot_length",
+        }
+    }
+
+    /// The kind called `name` (case-insensitive; `-` may stand for `_`).
+    pub fn from_name(name: &str) -> Option<EffectKind> {
+        let n = name.trim().to_ascii_lowercase().replace('-', "_");
+        let n = match n.as_str() {
+            "rotary_centre_offset" => "rotary_center_offset",
+            other => other,
+        };
+        EffectKind::ALL.into_iter().find(|k| k.name() == n)
+    }
+
+    /// Dynamic effects depend on the direction of motion, the speed or the
+    /// time, not on the position alone.
+    pub fn is_dynamic(self) -> bool {
+        matches!(
+            self,
+            EffectKind::Backlash | EffectKind::ServoLag | EffectKind::ThermalDrift
+        )
+    }
+}
+
+impl fmt::Display for EffectKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// One effect with its parameters. Values are in the axis's units: mm for
+/// linear axes, degrees for rotary axes (so `value`, `amplitude` and
+/// `period` are `_mm` or `_deg` in files).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Effect {
+    /// Lags the command by value/2 against the direction of the last motion.
+    Backlash {
+        /// Axis letter.
+        axis: String,
+        /// Reversal value, mm or deg.
+        value: f64,
+    },
+    /// Δq = −τ · dq/dt.
+    ServoLag {
+        /// Axis letter.
+        axis: String,
+        /// Time constant, s.
+        tau_s: f64,
+    },
+    /// Δq = a · (1 − exp(−(t − t₀)/τ)) (linear axes).
+    ThermalDrift {
+        /// Axis letter.
+        axis: String,
+        /// Final amplitude, mm.
+        amplitude_mm: f64,
+        /// Time constant, s.
+        tau_s: f64,
+    },
+    /// Δq = s · q.
+    Scale {
+        /// Axis letter.
+        axis: String,
+        /// Scale error, ppm (µm/m).
+        ppm: f64,
+    },
+    /// Δq₂ = S · q₁ for the pair `[first, second]` (both linear).
+    Squareness {
+        /// `[first, second]` axis letters.
+        axes: [String; 2],
+        /// Angle, µrad.
+        angle_urad: f64,
+    },
+    /// Δq = a · sin(2π q / p + φ).
+    Cyclic {
+        /// Axis letter.
+        axis: String,
+        /// Amplitude, mm or deg.
+        amplitude: f64,
+        /// Period, mm or deg.
+        period: f64,
+        /// Phase, deg.
+        phase_deg: f64,
+    },
+    /// Δq = constant.
+    ZeroOffset {
+        /// Axis letter.
+        axis: String,
+        /// Offset, mm or deg.
+        value: f64,
+    },
+    /// The rotary axis turns about a line displaced by `offset_mm`, in the
+    /// frame just before the joint.
+    RotaryCenterOffset {
+        /// Rotary axis letter.
+        axis: String,
+        /// Displacement `[dx, dy, dz]`, mm.
+        offset_mm: [f64; 3],
+    },
+    /// The tool tip sits `delta_mm` further along the tool axis (i, j, k):
+    /// a positive value moves the tip towards the spindle, i.e. the real
+    /// tool (pivot) length is `delta_mm` shorter than modelled.
+    PivotLength {
+        /// Displacement along the tool axis, mm.
+        delta_mm: f64,
+    },
+}
+
+/// An effect with an optional start: it acts from the first sample of block
+/// `from_block` on (from the start when `None`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct EffectSpec {
+    /// The effect.
+    pub effect: Effect,
+    /// First block in which it acts.
+    pub from_block: Option<u64>,
+}
+
+impl From<Effect> for EffectSpec {
+    fn from(effect: Effect) -> Self {
+        EffectSpec {
+            effect,
+            from_block: None,
+        }
+    }
+}
+
+/// True when `axis` names a rotary axis on `chain` (revolute joint), or —
+/// without a chain — when it is A, B or C.
+pub fn axis_is_rotary(chain: Option<&Chain>, axis: &str) -> bool {
+    match chain.and_then(|c| c.joint_index(axis).map(|j| c.joints[j].kind)) {
+        Some(k) => k == JointKind::Revolute,
+        None => matches!(axis.to_ascii_uppercase().as_str(), "A" | "B" | "C"),
+    }
+}
+
+impl Effect {
+    /// Its kind.
+    pub fn kind(&self) -> EffectKind {
+        match self {
+            Effect::Backlash { .. } => EffectKind::Backlash,
+            Effect::ServoLag { .. } => EffectKind::ServoLag,
+            Effect::ThermalDrift { .. } => EffectKind::ThermalDrift,
+            Effect::Scale { .. } => EffectKind::Scale,
+            Effect::Squareness { .. } => EffectKind::Squareness,
+            Effect::Cyclic { .. } => EffectKind::Cyclic,
+            Effect::ZeroOffset { .. } => EffectKind::ZeroOffset,
+            Effect::RotaryCenterOffset { .. } => EffectKind::RotaryCenterOffset,
+            Effect::PivotLength { .. } => EffectKind::PivotLength,
+        }
+    }
+
+    /// The axis label of the report: one letter, a pair (`XZ`), or `None`.
+    pub fn axis_label(&self) -> Option<String> {
+        match self {
+            Effect::Backlash { axis, .. }
+            | Effect::ServoLag { axis, .. }
+            | Effect::ThermalDrift { axis, .. }
+            | Effect::Scale { axis, .. }
+            | Effect::Cyclic { axis, .. }
+            | Effect::ZeroOffset { axis, .. }
+            | Effect::RotaryCenterOffset { axis, .. } => Some(axis.clone()),
+            Effect::Squareness { axes, .. } => Some(format!("{}{}", axes[0], axes[1])),
+            Effect::PivotLength { .. } => None,
+        }
+    }
+
+    /// Parameters with unit-suffixed names (`formats.md` §4); `rotary` says
+    /// whether the axis is rotary (`_deg` instead of `_mm`).
+    pub fn parameters(&self, rotary: bool) -> Vec<(String, f64)> {
+        let u = if rotary { "deg" } else { "mm" };
+        let p = |n: &str, v: f64| (n.to_string(), v);
+        match self {
+            Effect::Backlash { value, .. } | Effect::ZeroOffset { value, .. } => {
+                vec![p(&format!("value_{u}"), *value)]
+            }
+            Effect::ServoLag { tau_s, .. } => vec![p("tau_s", *tau_s)],
+            Effect::ThermalDrift {
+                amplitude_mm,
+                tau_s,
+                ..
+            } => vec![p("amplitude_mm", *amplitude_mm), p("tau_s", *tau_s)],
+            Effect::Scale { ppm, .. } => vec![p("ppm", *ppm)],
+            Effect::Squareness { angle_urad, .. } => vec![p("angle_urad", *angle_urad)],
+            Effect::Cyclic {
+                amplitude,
+                period,
+                phase_deg,
+                ..
+            } => vec![
+                p(&format!("amplitude_{u}"), *amplitude),
+                p(&format!("period_{u}"), *period),
+                p("phase_deg", *phase_deg),
+            ],
+            Effect::RotaryCenterOffset { offset_mm, .. } => vec![
+                p("dx_mm", offset_mm[0]),
+                p("dy_mm", offset_mm[1]),
+                p("dz_mm", offset_mm[2]),
+            ],
+            Effect::PivotLength { delta_mm } => vec![p("delta_mm", *delta_mm)],
+        }
+    }
+
+    /// Builds an effect from its kind, axis label and named parameters (the
+    /// inverse of [`Effect::parameters`]; `_mm` and `_deg` are both accepted).
+    /// Errors are plain messages; callers add the location.
+    pub fn from_parameters(
+        kind: EffectKind,
+        axis: Option<&str>,
+        params: &BTreeMap<String, f64>,
+    ) -> std::result::Result<Effect, String> {
+        let get = |names: &[&str]| -> std::result::Result<f64, String> {
+            for n in names {
+                if let Some(v) = params.get(*n) {
+                    return if v.is_finite() {
+                        Ok(*v)
+                    } else {
+                        Err(format!("parameter `{n}` must be a finite number"))
+                    };
+                }
+            }
+            Err(format!(
+                "{kind} needs the parameter `{}` (parameters given: {})",
+                names[0],
+                params.keys().cloned().collect::<Vec<_>>().join(", ")
+            ))
+        };
+        let opt = |names: &[&str], default: f64| -> std::result::Result<f64, String> {
+            if names.iter().any(|n| params.contains_key(*n)) {
+                get(names)
+            } else {
+                Ok(default)
+            }
+        };
+        let one_axis = || -> std::result::Result<String, String> {
+            match axis.map(str::trim) {
+                Some(a) if !a.is_empty() && a.chars().all(|c| c.is_ascii_alphabetic()) => {
+                    Ok(a.to_ascii_uppercase())
+                }
+                _ => Err(format!("{kind} needs one axis letter")),
+            }
+        };
+        Ok(match kind {
+            EffectKind::Backlash => Effect::Backlash {
+                axis: one_axis()?,
+                value: get(&["value_mm", "value_deg", "value"])?,
+            },
+            EffectKind::ServoLag => Effect::ServoLag {
+                axis: one_axis()?,
+                tau_s: get(&["tau_s", "tau", "value"])?,
+            },
+            EffectKind::ThermalDrift => {
+                let tau_s = get(&["tau_s", "tau"])?;
+                if tau_s <= 0.0 {
+                    return Err("thermal_drift: tau_s must be positive".into());
+                }
+                Effect::ThermalDrift {
+                    axis: one_axis()?,
+                    amplitude_mm: get(&["amplitude_mm", "amplitude", "value"])?,
+                    tau_s,
+                }
+            }
+            EffectKind::Scale => Effect::Scale {
+                axis: one_axis()?,
+                ppm: get(&["ppm", "value"])?,
+            },
+            EffectKind::Squareness => {
+                let a = one_axis()?;
+                let letters: Vec<char> = a.chars().collect();
+                if letters.len() != 2 || letters[0] == letters[1] {
+                    return Err(format!(
+                        "squareness needs a pair of two different axes such as XZ, not `{a}`"
+                    ));
+                }
+                Effect::Squareness {
+                    axes: [letters[0].to_string(), letters[1].to_string()],
+                    angle_urad: get(&["angle_urad", "value"])?,
+                }
+            }
+            EffectKind::Cyclic => {
+                let period = get(&["period_mm", "period_deg", "period"])?;
+                if period <= 0.0 {
+                    return Err("cyclic: the period must be positive".into());
+                }
+                Effect::Cyclic {
+                    axis: one_axis()?,
+                    amplitude: get(&["amplitude_mm", "amplitude_deg", "amplitude", "value"])?,
+                    period,
+                    phase_deg: opt(&["phase_deg", "phase"], 0.0)?,
+                }
+            }
+            EffectKind::ZeroOffset => Effect::ZeroOffset {
+                axis: one_axis()?,
+                value: get(&["value_mm", "value_deg", "value"])?,
+            },
+            EffectKind::RotaryCenterOffset => Effect::RotaryCenterOffset {
+                axis: one_axis()?,
+                offset_mm: [
+                    opt(&["dx_mm", "dx"], 0.0)?,
+                    opt(&["dy_mm", "dy"], 0.0)?,
+                    opt(&["dz_mm", "dz"], 0.0)?,
+                ],
+            },
+            EffectKind::PivotLength => Effect::PivotLength {
+                delta_mm: get(&["delta_mm", "delta", "value"])?,
+            },
+        })
+    }
+}
+
+impl EffectSpec {
+    /// The effect as JSON: `{"effect", "axis", "parameters", "from_block"}`.
+    pub fn to_json(&self, chain: Option<&Chain>) -> serde_json::Value {
+        let label = self.effect.axis_label();
+        let rotary = label
+            .as_deref()
+            .is_some_and(|a| a.len() == 1 && axis_is_rotary(chain, a));
+        let mut params = serde_json::Map::new();
+        for (n, v) in self.effect.parameters(rotary) {
+            params.insert(n, serde_json::json!(v));
+        }
+        serde_json::json!({
+            "effect": self.effect.kind().name(),
+            "axis": label,
+            "parameters": params,
+            "from_block": self.from_block,
+        })
+    }
+
+    /// Reads an effect from its JSON form ([`EffectSpec::to_json`]).
+    pub fn from_json(v: &serde_json::Value) -> std::result::Result<EffectSpec, String> {
+        let name = v
+            .get("effect")
+            .and_then(|e| e.as_str())
+            .ok_or("an effect needs a string field `effect`")?;
+        let kind = EffectKind::from_name(name).ok_or_else(|| {
+            format!(
+                "unknown effect `{name}` (known: {})",
+                EffectKind::ALL.map(|k| k.name()).join(", ")
+            )
+        })?;
+        let axis = v.get("axis").and_then(|a| a.as_str());
+        let mut params = BTreeMap::new();
+        if let Some(map) = v.get("parameters").and_then(|p| p.as_object()) {
+            for (k, val) in map {
+                let x = val
+                    .as_f64()
+                    .ok_or_else(|| format!("{name}: parameter `{k}` must be a number"))?;
+                params.insert(k.clone(), x);
+            }
+        }
+        let effect = Effect::from_parameters(kind, axis, &params)?;
+        let from_block = match v.get("from_block") {
+            None | Some(serde_json::Value::Null) => None,
+            Some(b) => Some(
+                b.as_u64()
+                    .ok_or_else(|| format!("{name}: `from_block` must be a block number"))?,
+            ),
+        };
+        Ok(EffectSpec { effect, from_block })
+    }
+}
+
+/// Parses a command-line effect specification:
+///
+/// ```text
+/// backlash:X=0.003              value (mm, or deg on a rotary axis)
+/// servo_lag:X=0.02              τ in s
+/// thermal_drift:Z=0.01,tau=600  amplitude mm, τ s
+/// scale:X=50                    ppm
+/// squareness:XZ=20              µrad (moving X moves the tool along Z)
+/// cyclic:X=0.002,period=20,phase=0   amplitude, period (mm or deg), phase deg
+/// zero_offset:Z=0.005           mm (or deg)
+/// rotary_center_offset:C=dx,dy,dz    mm
+/// pivot_length:0.01             mm
+/// ```
+///
+/// Any of them may end in `@block=N` (or `@N`): the effect acts from block
+/// N on. The parameter names of `formats.md` §4 are accepted as keys too
+/// (`tau_s=600`, `period_mm=20`, …).
+pub fn parse_effect_spec(s: &str) -> Result<EffectSpec> {
+    let bad = |msg: String| Error::input_with(Location::new("--inject", 0, 0), msg, s.to_string());
+    let text = s.trim();
+    let (body, from_block) = match text.rsplit_once('@') {
+        None => (text, None),
+        Some((b, tail)) => {
+            let tail = tail.trim();
+            let num = tail
+                .strip_prefix("block=")
+                .or_else(|| tail.strip_prefix("block"))
+                .unwrap_or(tail)
+                .trim()
+                .trim_start_matches(['N', 'n']);
+            let n: u64 = num.parse().map_err(|_| {
+                bad(format!(
+                    "`@{tail}`: expected `@block=N` with N a block number"
+                ))
+            })?;
+            (b.trim(), Some(n))
+        }
+    };
+    let (name, rest) = body.split_once(':').ok_or_else(|| {
+        bad("expected `effect:AXIS=value[,key=value…]`, e.g. `backlash:X=0.003`".into())
+    })?;
+    let kind = EffectKind::from_name(name).ok_or_else(|| {
+        bad(format!(
+            "unknown effect `{}` (known: {})",
+            name.trim(),
+            EffectKind::ALL.map(|k| k.name()).join(", ")
+        ))
+    })?;
+    let num = |v: &str| -> Result<f64> {
+        let x: f64 = v
+            .trim()
+            .parse()
+            .map_err(|_| bad(format!("`{}` is not a number", v.trim())))?;
+        if x.is_finite() {
+            Ok(x)
+        } else {
+            Err(bad(format!("`{}` is not a finite number", v.trim())))
+        }
+    };
+    let mut params = BTreeMap::new();
+    let mut axis = None;
+    match kind {
+        EffectKind::PivotLength => {
+            let v = rest.trim();
+            let v = v.split_once('=').map_or(v, |(_, x)| x);
+            params.insert("delta_mm".to_string(), num(v)?);
+        }
+        EffectKind::RotaryCenterOffset => {
+            let (a, vals) = rest
+                .split_once('=')
+                .ok_or_else(|| bad("expected `rotary_center_offset:C=dx,dy,dz` (mm)".into()))?;
+            axis = Some(a.trim().to_string());
+            let vs: Vec<&str> = vals.split(',').collect();
+            if vs.is_empty() || vs.len() > 3 {
+                return Err(bad("expected up to three offsets dx,dy,dz (mm)".into()));
+            }
+            for (k, v) in vs.iter().enumerate() {
+                params.insert(["dx_mm", "dy_mm", "dz_mm"][k].to_string(), num(v)?);
+            }
+        }
+        _ => {
+            let mut parts = rest.split(',');
+            let first = parts.next().unwrap_or("");
+            let (a, v) = first.split_once('=').ok_or_else(|| {
+                bad(format!(
+                    "expected `{}:AXIS=value`, e.g. `{}`",
+                    kind.name(),
+                    example(kind)
+                ))
+            })?;
+            axis = Some(a.trim().to_string());
+            params.insert("value".to_string(), num(v)?);
+            for p in parts {
+                let (k, v) = p
+                    .split_once('=')
+                    .ok_or_else(|| bad(format!("expected `key=value`, found `{}`", p.trim())))?;
+                params.insert(k.trim().to_ascii_lowercase(), num(v)?);
+            }
+        }
+    }
+    let effect = Effect::from_parameters(kind, axis.as_deref(), &params).map_err(bad)?;
+    Ok(EffectSpec { effect, from_block })
+}
+
+fn example(kind: EffectKind) -> &'static str {
+    match kind {
+        EffectKind::Backlash => "backlash:X=0.003",
+        EffectKind::ServoLag => "servo_lag:X=0.02",
+        EffectKind::ThermalDrift => "thermal_drift:Z=0.01,tau=600",
+        EffectKind::Scale => "scale:X=50",
+        EffectKind::Squareness => "squareness:XZ=20",
+        EffectKind::Cyclic => "cyclic:X=0.002,period=20,phase=0",
+        EffectKind::ZeroOffset => "zero_offset:Z=0.005",
+        EffectKind::RotaryCenterOffset => "rotary_center_offset:C=0.01,0.005,0",
+        EffectKind::PivotLength => "pivot_length:0.01",
+    }
+}
+
+/// Tracks the direction of the last motion of one axis, with a dead band so
+/// that trace jitter does not count as a reversal: the direction changes
+/// only once the axis has moved back by more than the dead band from its
+/// turning point. Before the first motion the direction is 0.
+#[derive(Debug, Clone, Copy)]
+pub struct DirectionTracker {
+    dead_band: f64,
+    dir: f64,
+    extreme: Option<f64>,
+}
+
+/// Default dead band of [`DirectionTracker`] (mm or deg).
+pub const DIRECTION_DEAD_BAND: f64 = 1e-4;
+
+impl DirectionTracker {
+    /// A tracker with the given dead band (mm or deg).
+    pub fn new(dead_band: f64) -> Self {
+        DirectionTracker {
+            dead_band,
+            dir: 0.0,
+            extreme: None,
+        }
+    }
+
+    /// Feeds the next commanded position; returns the direction of the last
+    /// motion (−1, 0 or +1).
+    pub fn update(&mut self, q: f64) -> f64 {
+        match self.extreme {
+            None => self.extreme = Some(q),
+            Some(e) => {
+                if self.dir > 0.0 {
+                    if q > e {
+                        self.extreme = Some(q);
+                    } else if q < e - self.dead_band {
+                        self.dir = -1.0;
+                        self.extreme = Some(q);
+                    }
+                } else if self.dir < 0.0 {
+                    if q < e {
+                        self.extreme = Some(q);
+                    } else if q > e + self.dead_band {
+                        self.dir = 1.0;
+                        self.extreme = Some(q);
+                    }
+                } else if (q - e).abs() > self.dead_band {
+                    self.dir = (q - e).signum();
+                    self.extreme = Some(q);
+                }
+            }
+        }
+        self.dir
+    }
+}
+
+/// The motion state of the machine at one instant, in file units.
+#[derive(Debug, Clone, Copy)]
+pub struct MotionState<'a> {
+    /// Time since the start, s.
+    pub t: f64,
+    /// Commanded positions (mm, deg), chain order.
+    pub q: &'a [f64],
+    /// Commanded velocities (mm/s, deg/s), chain order.
+    pub v: &'a [f64],
+    /// Direction of the last motion per joint (−1, 0, +1).
+    pub dir: &'a [f64],
+}
+
+/// An effect resolved against a chain: joint indices checked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoundEffect {
+    /// The effect.
+    pub spec: EffectSpec,
+    /// Joint the effect moves (`None` for `pivot_length`).
+    pub joint: Option<usize>,
+    /// Source joint of a squareness (the first axis of the pair).
+    pub source: Option<usize>,
+    /// Time at which the effect starts acting (thermal drift clock), s.
+    pub t0: f64,
+}
+
+fn effect_err(spec: &EffectSpec, msg: String) -> Error {
+    Error::input(
+        Location::new("<effect>", 0, 0),
+        format!("{}: {msg}", spec.effect.kind().name()),
+    )
+}
+
+impl BoundEffect {
+    /// Resolves `spec` on `chain`: the axes must be joints of the right kind
+    /// (thermal drift and squareness on linear axes, a rotary centre offset
+    /// on a rotary axis; squareness pairs must not have a rotary joint
+    /// between them).
+    pub fn new(spec: &EffectSpec, chain: &Chain) -> Result<BoundEffect> {
+        let find = |a: &str| {
+            chain.joint_index(a).ok_or_else(|| {
+                effect_err(
+                    spec,
+                    format!(
+                        "axis {a} is not a joint of the machine (joints: {})",
+                        chain
+                            .joints
+                            .iter()
+                            .map(|j| j.name.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                )
+            })
+        };
+        let kind_of = |j: usize| chain.joints[j].kind;
+        let (joint, source) = match &spec.effect {
+            Effect::Backlash { axis, .. }
+            | Effect::ServoLag { axis, .. }
+            | Effect::Scale { axis, .. }
+            | Effect::Cyclic { axis, .. }
+            | Effect::ZeroOffset { axis, .. } => (Some(find(axis)?), None),
+            Effect::ThermalDrift { axis, .. } => {
+                let j = find(axis)?;
+                if kind_of(j) != JointKind::Prismatic {
+                    return Err(effect_err(
+                        spec,
+                        format!("axis {axis} is not a linear axis"),
+                    ));
+                }
+                (Some(j), None)
+            }
+            Effect::Squareness { axes, .. } => {
+                let a = find(&axes[0])?;
+                let b = find(&axes[1])?;
+                if kind_of(a) != JointKind::Prismatic || kind_of(b) != JointKind::Prismatic {
+                    return Err(effect_err(
+                        spec,
+                        "squareness needs two linear axes".to_string(),
+                    ));
+                }
+                if revolute_between(chain, a, b) {
+                    return Err(effect_err(
+                        spec,
+                        format!(
+                            "a rotary axis lies between {} and {} in the chain",
+                            axes[0], axes[1]
+                        ),
+                    ));
+                }
+                (Some(b), Some(a))
+            }
+            Effect::RotaryCenterOffset { axis, .. } => {
+                let j = find(axis)?;
+                if kind_of(j) != JointKind::Revolute {
+                    return Err(effect_err(
+                        spec,
+                        format!("axis {axis} is not a rotary axis"),
+                    ));
+                }
+                (Some(j), None)
+            }
+            Effect::PivotLength { .. } => (None, None),
+        };
+        Ok(BoundEffect {
+            spec: spec.clone(),
+            joint,
+            source,
+            t0: 0.0,
+        })
+    }
+
+    /// Change of the commanded position of [`BoundEffect::joint`] (file
+    /// units), or 0 for effects that are not joint shifts.
+    pub fn delta_q(&self, s: &MotionState) -> f64 {
+        let Some(j) = self.joint else { return 0.0 };
+        match &self.spec.effect {
+            Effect::Backlash { value, .. } => -0.5 * value * s.dir[j],
+            Effect::ServoLag { tau_s, .. } => -tau_s * s.v[j],
+            Effect::ThermalDrift {
+                amplitude_mm,
+                tau_s,
+                ..
+            } => {
+                let dt = (s.t - self.t0).max(0.0);
+                amplitude_mm * (1.0 - (-dt / tau_s).exp())
+            }
+            Effect::Scale { ppm, .. } => ppm * 1e-6 * s.q[j],
+            Effect::Squareness { angle_urad, .. } => {
+                let a = self.source.unwrap_or(j);
+                angle_urad * 1e-6 * s.q[a]
+            }
+            Effect::Cyclic {
+                amplitude,
+                period,
+                phase_deg,
+                ..
+            } => {
+                amplitude * (std::f64::consts::TAU * s.q[j] / period + phase_deg.to_radians()).sin()
+            }
+            Effect::ZeroOffset { value, .. } => *value,
+            Effect::RotaryCenterOffset { .. } | Effect::PivotLength { .. } => 0.0,
+        }
+    }
+
+    /// Whether this effect changes the chain (rotary centre offset, pivot
+    /// length) rather than a joint position.
+    pub fn modifies_chain(&self) -> bool {
+        matches!(
+            self.spec.effect,
+            Effect::RotaryCenterOffset { .. } | Effect::PivotLength { .. }
+        )
+    }
+}
+
+/// A static effect turned into an error motion of one joint, so that it
+/// acts through the chain's [`crate::machine::JointErrors`] without knowing
+/// the motion: a shift along (or about) the joint's own axis for scale,
+/// zero offset and cyclic; for squareness a shift of the *first* joint of
+/// the pair along the second axis; for a rotary centre offset the
+/// translation `Rᵀd − d` (since `Trans(d)·Rot(q)·Trans(−d) = Rot(q)·Trans(Rᵀd − d)`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StaticTerm {
+    /// Joint whose error motion carries the effect.
+    pub joint: usize,
+    rotary: bool,
+    axis: nalgebra::Unit<Vector3<f64>>,
+    /// Squareness: direction of the second axis in the first joint's frame.
+    along: Vector3<f64>,
+    effect: Effect,
+}
+
+impl StaticTerm {
+    /// The error-motion form of a bound static effect (`None` for dynamic
+    /// effects and for the pivot length, which is a fixed element).
+    pub fn new(b: &BoundEffect, chain: &Chain) -> Option<StaticTerm> {
+        let (joint, along) = match &b.spec.effect {
+            Effect::Scale { .. }
+            | Effect::ZeroOffset { .. }
+            | Effect::Cyclic { .. }
+            | Effect::RotaryCenterOffset { .. } => (b.joint?, Vector3::zeros()),
+            Effect::Squareness { .. } => {
+                let a = b.source?;
+                (a, direction_in_frame_of(chain, a, b.joint?))
+            }
+            _ => return None,
+        };
+        let jt = &chain.joints[joint];
+        Some(StaticTerm {
+            joint,
+            rotary: jt.kind == JointKind::Revolute,
+            axis: jt.axis,
+            along,
+            effect: b.spec.effect.clone(),
+        })
+    }
+
+    /// The error motion at joint position `q` (mm or rad).
+    pub fn error_motion(&self, q: f64) -> ErrorMotion {
+        let to_file = |x: f64| if self.rotary { x.to_degrees() } else { x };
+        let to_int = |x: f64| if self.rotary { x.to_radians() } else { x };
+        let u = self.axis.into_inner();
+        let shift = |dq_file: f64| -> ErrorMotion {
+            let d = to_int(dq_file);
+            let mut e = ErrorMotion::zeros();
+            let o = if self.rotary { 3 } else { 0 };
+            e[o] = d * u.x;
+            e[o + 1] = d * u.y;
+            e[o + 2] = d * u.z;
+            e
+        };
+        match &self.effect {
+            Effect::Scale { ppm, .. } => shift(ppm * 1e-6 * to_file(q)),
+            Effect::ZeroOffset { value, .. } => shift(*value),
+            Effect::Cyclic {
+                amplitude,
+                period,
+                phase_deg,
+                ..
+            } => shift(
+                amplitude
+                    * (std::f64::consts::TAU * to_file(q) / period + phase_deg.to_radians()).sin(),
+            ),
+            Effect::Squareness { angle_urad, .. } => {
+                let d = angle_urad * 1e-6 * q * self.along;
+                ErrorMotion::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
+            }
+            Effect::RotaryCenterOffset { offset_mm, .. } => {
+                let d = Vector3::from_column_slice(offset_mm);
+                let r = crate::machine::chain::rotation3(&self.axis, q);
+                let t = r.transpose() * d - d;
+                ErrorMotion::new(t.x, t.y, t.z, 0.0, 0.0, 0.0)
+            }
+            _ => ErrorMotion::zeros(),
+        }
+    }
+}
+
+/// True when a revolute joint lies between joints `a` and `b` in the chain.
+fn revolute_between(chain: &Chain, a: usize, b: usize) -> bool {
+    let (lo, hi) = {
+        let ea = chain.joints[a].element;
+        let eb = chain.joints[b].element;
+        (ea.min(eb), ea.max(eb))
+    };
+    chain.elements[lo + 1..hi].iter().any(|el| {
+        matches!(el, crate::machine::chain::Element::Joint(k) if chain.joints[*k].kind == JointKind::Revolute)
+    })
+}
+
+/// The direction of prismatic joint `b`, expressed in the moving frame of
+/// joint `a` (the fixed rotations between them applied; no revolute joint
+/// may lie between them).
+fn direction_in_frame_of(chain: &Chain, a: usize, b: usize) -> Vector3<f64> {
+    use crate::machine::chain::Element;
+    let ea = chain.joints[a].element;
+    let eb = chain.joints[b].element;
+    let rot = |m: &Matrix4<f64>| m.fixed_view::<3, 3>(0, 0).into_owned();
+    let u = chain.joints[b].axis.into_inner();
+    if ea < eb {
+        // Frame after a → frame before b: product of elements in between.
+        let mut r = nalgebra::Matrix3::identity();
+        for el in &chain.elements[ea + 1..eb] {
+            if let Element::Fixed(m) = el {
+                r *= rot(m);
+            }
+        }
+        r * u
+    } else {
+        // b comes first: the direction of b in a's moving frame is the
+        // inverse rotation of the elements from b up to a.
+        let mut r = nalgebra::Matrix3::identity();
+        for el in &chain.elements[eb + 1..ea] {
+            if let Element::Fixed(m) = el {
+                r *= rot(m);
+            }
+        }
+        r.transpose() * u
+    }
+}
+
+/// Returns `chain` with the chain-modifying effects inserted: a rotary
+/// centre offset as `Trans(d)` before and `Trans(−d)` after its joint, a
+/// pivot length as a translation along the tool axis at the tip.
+pub fn chain_with_effects(chain: &Chain, effects: &[&BoundEffect]) -> Chain {
+    let mut c = chain.clone();
+    for e in effects {
+        match &e.spec.effect {
+            Effect::RotaryCenterOffset { offset_mm, .. } => {
+                if let Some(j) = e.joint {
+                    let d = Vector3::from_column_slice(offset_mm);
+                    let el = c.joints[j].element;
+                    c = c.with_fixed_inserted(el + 1, translation(&(-d)));
+                    c = c.with_fixed_inserted(el, translation(&d));
+                }
+            }
+            Effect::PivotLength { delta_mm } => {
+                c.translate(Vector3::new(0.0, 0.0, *delta_mm));
+            }
+            _ => {}
+        }
+    }
+    c
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_every_documented_spec() {
+        let cases = [
+            "backlash:X=0.003",
+            "servo_lag:X=0.02",
+            "thermal_drift:Z=0.01,tau=600",
+            "scale:X=50",
+            "squareness:XZ=20",
+            "cyclic:X=0.002,period=20,phase=0",
+            "zero_offset:Z=0.005",
+            "rotary_center_offset:C=0.01,0.02,0",
+            "pivot_length:0.01",
+            "backlash:X=0.003@block=120",
+        ];
+        for c in cases {
+            let s = parse_effect_spec(c).unwrap_or_else(|e| panic!("{c}: {e}"));
+            let back = EffectSpec::from_json(&s.to_json(None)).unwrap();
+            assert_eq!(back, s, "{c}");
+        }
+        let s = parse_effect_spec("thermal_drift:Z=0.01,tau=600@block=7").unwrap();
+        assert_eq!(s.from_block, Some(7));
+        assert_eq!(
+            s.effect,
+            Effect::ThermalDrift {
+                axis: "Z".into(),
+                amplitude_mm: 0.01,
+                tau_s: 600.0
+            }
+        );
+        for bad in [
+            "nonsense:X=1",
+            "backlash",
+            "backlash:X=abc",
+            "cyclic:X=0.002",
+            "squareness:X=3",
+            "backlash:X=1@blk",
+            "thermal_drift:Z=0.01",
+            "scale:X=inf",
+        ] {
+            assert!(parse_effect_spec(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn direction_tracker_ignores_jitter() {
+        let mut t = DirectionTracker::new(1e-3);
+        let qs = [0.0, 0.0005, 0.002, 0.003, 0.0029, 0.0025, 0.001, 0.0012];
+        let dirs: Vec<f64> = qs.iter().map(|&q| t.update(q)).collect();
+        assert_eq!(dirs, vec![0.0, 0.0, 1.0, 1.0, 1.0, 1.0, -1.0, -1.0]);
+    }
+}

@@ -1,0 +1,799 @@
+//! Find the missing physics: where a recording and the model disagree, which
+//! effect of the catalogue explains it, its parameters with uncertainties,
+//! the proof on held-out data, and the improved model.
+//!
+//! * [`recording`]: the recording CSV of `formats.md` §2 (reader, writer).
+//! * [`effects`]: the catalogue of `formats.md` §4 and [`parse_effect_spec`].
+//! * [`simulate`](mod@simulate): simulated recordings ([`simulate()`]).
+//! * [`fit`]: linearised effect fits, onset profiles, cross-validation.
+//! * [`report`]: the report ([`Report`]): JSON, text, SVG.
+//!
+//! See `docs/diagnose.md`.
+
+// Numerical code: several parallel arrays are indexed by one counter.
+#![allow(clippy::needless_range_loop)]
+
+pub mod effects;
+pub mod fit;
+pub mod prepare;
+pub mod programs;
+pub mod recording;
+pub mod report;
+pub mod rng;
+pub mod simulate;
+
+use std::collections::BTreeMap;
+
+pub use effects::{Effect, EffectKind, EffectSpec, parse_effect_spec};
+pub use recording::{Recording, RecordingReader, Sample};
+pub use report::{Finding, Report, RunnerUp, Where};
+pub use simulate::{
+    SimOptions, TrajPoint, Waypoint, central_velocities, evaluate_trajectory, sample_waypoints,
+    simulate,
+};
+
+use effects::{BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, MotionState};
+use fit::{Candidate, Family, Fitted, SearchCtx, Selected, Term};
+use prepare::{ModelMachine, Prepared, noise_floor, prepare};
+use report::{Condition, Locate, Series, Window};
+
+use crate::error::{Error, Location, Result};
+use crate::geometric::ErrorModel;
+use crate::machine::chain::{Chain, ErrorMotion, JointErrors, JointKind};
+
+/// Options of [`diagnose`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiagOptions {
+    /// Largest number of effects to report.
+    pub max_effects: usize,
+    /// A candidate must lower the BIC by more than this (χ² units) after
+    /// paying for its parameters and searches.
+    pub bic_margin: f64,
+    /// Override of the noise floor (mm); estimated robustly when `None`.
+    pub noise_floor_mm: Option<f64>,
+    /// Restrict the candidates to these kinds (all when empty).
+    pub kinds: Vec<EffectKind>,
+}
+
+impl Default for DiagOptions {
+    fn default() -> Self {
+        DiagOptions {
+            max_effects: 4,
+            bic_margin: 10.0,
+            noise_floor_mm: None,
+            kinds: Vec::new(),
+        }
+    }
+}
+
+fn rms(r: &[[f64; 3]]) -> f64 {
+    if r.is_empty() {
+        return 0.0;
+    }
+    (r.iter()
+        .map(|v| v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        .sum::<f64>()
+        / (3 * r.len()) as f64)
+        .sqrt()
+}
+
+/// The block of sample `i`.
+fn block_of(prep: &Prepared, i: usize) -> Option<u64> {
+    prep.block.get(i).copied().flatten()
+}
+
+/// Diagnoses a recording against the model: `chain` with the known error
+/// model `errors` (its tables, fixed elements and effects).
+pub fn diagnose(
+    chain: &Chain,
+    errors: Option<&ErrorModel>,
+    rec: &Recording,
+    opts: &DiagOptions,
+) -> Result<Report> {
+    if rec.samples.len() < 20 {
+        return Err(Error::input(
+            Location::new("<recording>", 0, 0),
+            format!(
+                "the recording has {} samples; a diagnosis needs at least 20",
+                rec.samples.len()
+            ),
+        ));
+    }
+    let machine = ModelMachine::new(chain, errors)?;
+    let prep = prepare(&machine, rec)?;
+    let (per, est) = noise_floor(&prep.r);
+    let sigma = opts.noise_floor_mm.filter(|s| *s > 0.0).unwrap_or(est);
+    let s2 = sigma * sigma;
+    let n_rows = prep.rows() as f64;
+    let ctx = SearchCtx {
+        sigma,
+        ln_n: n_rows.ln(),
+        min_after: (prep.n / 50).max(20),
+    };
+    let families: Vec<Family> = Family::all(&prep)
+        .into_iter()
+        .filter(|f| opts.kinds.is_empty() || opts.kinds.contains(&f.kind()))
+        .collect();
+
+    // Forward stepwise selection.
+    let mut terms: Vec<Term> = Vec::new();
+    let mut fitted_meta: Vec<(f64, (f64, f64))> = Vec::new();
+    let mut rounds: Vec<Vec<Candidate>> = Vec::new();
+    let mut first_round: Vec<Candidate> = Vec::new();
+    let mut hold_prev = fit::holdout_rss(&prep, &fit::design(&prep, &[]));
+    let hold_before = hold_prev;
+    while terms.len() < opts.max_effects {
+        let sel = Selected::new(&prep, fit::design(&prep, &terms));
+        let mut cands: Vec<Candidate> = families
+            .iter()
+            .filter(|f| !terms.iter().any(|t| t.family == **f))
+            .filter_map(|f| fit::search_family(&prep, &sel, *f, &ctx))
+            .collect();
+        cands.sort_by(|a, b| b.score.total_cmp(&a.score));
+        if terms.is_empty() {
+            first_round = cands.clone();
+        }
+        let mut accepted = None;
+        for c in cands.iter().take(3) {
+            if c.score < opts.bic_margin {
+                break;
+            }
+            let mut trial = terms.clone();
+            trial.push(c.term);
+            let hold = fit::holdout_rss(&prep, &fit::design(&prep, &trial));
+            if hold_prev - hold >= ctx.ln_n * s2 {
+                accepted = Some((*c, hold));
+                break;
+            }
+        }
+        let Some((c, hold)) = accepted else { break };
+        rounds.push(cands.clone());
+        terms.push(c.term);
+        fitted_meta.push((c.score, (hold_prev, hold)));
+        hold_prev = hold;
+    }
+
+    // Back-fitting: re-search each term's non-linear parameter and onset
+    // with the others in the model.
+    if terms.len() > 1 {
+        for k in 0..terms.len() {
+            let others: Vec<Term> = terms
+                .iter()
+                .enumerate()
+                .filter(|(m, _)| *m != k)
+                .map(|(_, t)| *t)
+                .collect();
+            let sel = Selected::new(&prep, fit::design(&prep, &others));
+            if let Some(c) = fit::search_family(&prep, &sel, terms[k].family, &ctx) {
+                terms[k] = c.term;
+            }
+        }
+    }
+
+    // Final joint fit with covariance (non-linear parameters by their
+    // Gauss–Newton columns).
+    let all = fit::design(&prep, &terms);
+    let (beta, _) = fit::lsq(&prep, &all, &|_| true);
+    let mut offsets = Vec::with_capacity(terms.len());
+    let mut off = 0;
+    for t in &terms {
+        offsets.push(off);
+        off += t.family.linear_params();
+    }
+    let mut full = all.clone();
+    let mut nl_index = vec![None; terms.len()];
+    for (k, t) in terms.iter().enumerate() {
+        if t.family.has_nonlinear() {
+            let b: Vec<f64> = (0..t.family.linear_params())
+                .map(|p| beta[offsets[k] + p])
+                .collect();
+            nl_index[k] = Some(full.k);
+            full = full.hcat(&fit::nl_derivative(&prep, t, &b));
+        }
+    }
+    let (_, g) = fit::lsq(&prep, &full, &|_| true);
+    let cov = fit::pinv_sym(&g) * s2;
+
+    let mut fitted: Vec<Fitted> = Vec::new();
+    for (k, t) in terms.iter().enumerate() {
+        let kl = t.family.linear_params();
+        let b: Vec<f64> = (0..kl).map(|p| beta[offsets[k] + p]).collect();
+        let mut idx: Vec<usize> = (offsets[k]..offsets[k] + kl).collect();
+        if let Some(i) = nl_index[k] {
+            idx.push(i);
+        }
+        let sub = nalgebra::DMatrix::from_fn(idx.len(), idx.len(), |a, c| cov[(idx[a], idx[c])]);
+        let sd = fit::parameter_sd(&prep, t, &b, &sub);
+        let effect = fit::term_effect(&prep, t, &b);
+        let from_block = if t.onset > 0 {
+            block_of(&prep, t.onset)
+        } else {
+            None
+        };
+        let (score, hold) = fitted_meta[k];
+        // Runner-up: the best candidate of the same round that is not one
+        // of the effects found (a different effect, or the same on another
+        // axis): the best alternative explanation of this mismatch.
+        let runner = rounds[k]
+            .iter()
+            .find(|o| {
+                !terms.iter().any(|t| {
+                    t.family.kind() == o.term.family.kind()
+                        && t.family.axis_label(&prep.names) == o.term.family.axis_label(&prep.names)
+                })
+            })
+            .map(|o| (o.term, score - o.score));
+        let runner_up = runner.map(|(rt, d)| {
+            let sel = Selected::new(&prep, fit::design(&prep, &[rt]));
+            let (rb, _) = fit::lsq(&prep, &sel.cols, &|_| true);
+            (rt, d, fit::term_effect(&prep, &rt, rb.as_slice()))
+        });
+        fitted.push(Fitted {
+            term: *t,
+            spec: EffectSpec { effect, from_block },
+            sd,
+            score,
+            holdout: hold,
+            runner_up,
+        });
+    }
+
+    // Exact re-evaluation through the chain.
+    let specs: Vec<EffectSpec> = fitted.iter().map(|f| f.spec.clone()).collect();
+    let onsets: Vec<usize> = fitted.iter().map(|f| f.term.onset).collect();
+    let tips_all = exact_tips(chain, errors, &prep, &specs, &onsets)?;
+    let after: Vec<[f64; 3]> = (0..prep.n)
+        .map(|i| {
+            let m = rec.samples[i].meas;
+            let p = tips_all[i];
+            [m[0] - p[0], m[1] - p[1], m[2] - p[2]]
+        })
+        .collect();
+    let mut explained = Vec::with_capacity(fitted.len());
+    for (k, f) in fitted.iter().enumerate() {
+        let tips = if fitted.len() == 1 {
+            tips_all.clone()
+        } else {
+            exact_tips(
+                chain,
+                errors,
+                &prep,
+                std::slice::from_ref(&f.spec),
+                &[onsets[k]],
+            )?
+        };
+        let d: Vec<[f64; 3]> = (0..prep.n)
+            .map(|i| {
+                let a = tips[i];
+                let b = prep.model_tip[i];
+                [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+            })
+            .collect();
+        explained.push(rms(&d));
+    }
+
+    let rms_before = rms(&prep.r);
+    let rms_after = rms(&after);
+    let hold_after = fit::holdout_rss(&prep, &all);
+    let to_rms = |rss: f64| (rss / n_rows).sqrt();
+    let t_span = [prep.t[0], prep.t[prep.n - 1]];
+    let blocks = [block_of(&prep, 0), block_of(&prep, prep.n - 1)];
+
+    let mut findings: Vec<Finding> = fitted
+        .iter()
+        .zip(&explained)
+        .map(|(f, &ex)| {
+            let rotary = report::effect_is_rotary(&f.spec.effect, &machine.chain);
+            let params = f.spec.effect.parameters(rotary);
+            let parameters: BTreeMap<String, f64> = params.iter().cloned().collect();
+            let uncertainty: BTreeMap<String, f64> = params
+                .iter()
+                .zip(&f.sd)
+                .map(|((n, _), s)| (n.clone(), *s))
+                .collect();
+            let mut condition = report::condition_text(&f.spec.effect, rotary);
+            if let Some(b) = f.spec.from_block {
+                condition.push_str(&format!(
+                    "; from block {b} on (t = {:.1} s)",
+                    prep.t[f.term.onset]
+                ));
+            }
+            Finding {
+                effect: f.spec.effect.kind().name().to_string(),
+                axis: f.spec.effect.axis_label(),
+                parameters,
+                uncertainty,
+                where_: Where {
+                    blocks: [block_of(&prep, f.term.onset), blocks[1]],
+                    t_s: [prep.t[f.term.onset], t_span[1]],
+                    condition,
+                },
+                rms_explained_mm: ex,
+                from_block: f.spec.from_block,
+                delta_bic: f.score,
+                holdout_rms_mm: [to_rms(f.holdout.0), to_rms(f.holdout.1)],
+                runner_up: f.runner_up.as_ref().map(|(rt, d, e)| RunnerUp {
+                    effect: rt.family.kind().name().to_string(),
+                    axis: rt.family.axis_label(&prep.names),
+                    parameters: e
+                        .parameters(report::effect_is_rotary(e, &machine.chain))
+                        .into_iter()
+                        .collect(),
+                    delta_bic: *d,
+                }),
+                spec: f.spec.clone(),
+            }
+        })
+        .collect();
+    let order: Vec<usize> = {
+        let mut o: Vec<usize> = (0..findings.len()).collect();
+        o.sort_by(|a, b| explained[*b].total_cmp(&explained[*a]));
+        o
+    };
+    let top_term = order.first().map(|&k| fitted[k].term);
+    findings = order.iter().map(|&k| findings[k].clone()).collect();
+
+    let chi2 = |r: &[[f64; 3]]| rms(r).powi(2) / s2;
+    let chi_before = chi2(&prep.r);
+    let chi_after = chi2(&after);
+    let verdict = if findings.is_empty() {
+        if chi_before < 1.1 {
+            format!(
+                "consistent with measurement noise: the residual RMS {:.3} µm is at the noise floor {:.3} µm; no missing physics found",
+                rms_before * 1e3,
+                sigma * 1e3
+            )
+        } else {
+            format!(
+                "unexplained mismatch: the residual RMS {:.3} µm exceeds the noise floor {:.3} µm, but no effect of the catalogue explains it on held-out data",
+                rms_before * 1e3,
+                sigma * 1e3
+            )
+        }
+    } else {
+        let names: Vec<String> = findings
+            .iter()
+            .map(|f| {
+                format!(
+                    "{}{}",
+                    f.effect,
+                    f.axis
+                        .as_deref()
+                        .map_or(String::new(), |a| format!(" of {a}"))
+                )
+            })
+            .collect();
+        let rest = if chi_after > 1.1 {
+            format!(
+                "; a mismatch above the noise remains (RMS {:.3} µm vs floor {:.3} µm)",
+                rms_after * 1e3,
+                sigma * 1e3
+            )
+        } else {
+            "; what remains is consistent with measurement noise".to_string()
+        };
+        format!(
+            "missing physics found: {}; held-out RMS {:.3} → {:.3} µm{rest}",
+            names.join(", "),
+            to_rms(hold_before) * 1e3,
+            to_rms(hold_after) * 1e3
+        )
+    };
+
+    let locate = locate(&prep, &after, sigma);
+    let series = series(&prep, &after, top_term.as_ref(), &tips_all);
+    Ok(Report {
+        samples: prep.n,
+        noise_floor_mm: sigma,
+        rms_before_mm: rms_before,
+        rms_after_mm: rms_after,
+        holdout_rms_before_mm: to_rms(hold_before),
+        holdout_rms_after_mm: to_rms(hold_after),
+        findings,
+        verdict,
+        noise_floor_xyz_mm: per,
+        chi2_per_dof_before: chi_before,
+        chi2_per_dof_after: chi_after,
+        t_s: t_span,
+        blocks,
+        candidates: first_round
+            .iter()
+            .take(10)
+            .map(|c| report::Candidate {
+                effect: c.term.family.kind().name().to_string(),
+                axis: c.term.family.axis_label(&prep.names),
+                delta_bic: c.score,
+            })
+            .collect(),
+        locate,
+        method: format!(
+            "forward stepwise over {} candidate effects; a candidate enters when it lowers the BIC (noise floor σ, ln n = {:.2} per parameter, plus search penalties) by more than {} and the held-out residual sum of squares (5 contiguous time folds) by more than ln n · σ²",
+            families.len(),
+            ctx.ln_n,
+            opts.bic_margin
+        ),
+        series,
+    })
+}
+
+/// Exact tool tips of the model plus `specs`, each acting from its onset
+/// sample, at the recorded motion states.
+fn exact_tips(
+    chain: &Chain,
+    errors: Option<&ErrorModel>,
+    prep: &Prepared,
+    specs: &[EffectSpec],
+    onsets: &[usize],
+) -> Result<Vec<[f64; 3]>> {
+    let mut m = simulate::TrueMachine::new(chain, errors, specs)?;
+    let n_model = m.effects.len() - specs.len();
+    for (k, &o) in onsets.iter().enumerate() {
+        m.effects[n_model + k].t0 = prep.t[o.min(prep.n - 1)];
+    }
+    let mut active = 0u64;
+    let mut out = Vec::with_capacity(prep.n);
+    for i in 0..prep.n {
+        for k in 0..n_model {
+            if active & (1 << k) == 0
+                && m.effects[k]
+                    .spec
+                    .from_block
+                    .is_none_or(|b| prep.block[i].is_none_or(|bi| bi >= b))
+            {
+                active |= 1 << k;
+                m.effects[k].t0 = prep.t[i];
+            }
+        }
+        for (k, &o) in onsets.iter().enumerate() {
+            if i >= o {
+                active |= 1 << (n_model + k);
+            }
+        }
+        let tip = m.tip(&prep.state(i), active);
+        out.push([tip.x, tip.y, tip.z]);
+    }
+    Ok(out)
+}
+
+/// Windows and conditions where the residual departs from noise.
+fn locate(prep: &Prepared, after: &[[f64; 3]], sigma: f64) -> Locate {
+    let n = prep.n;
+    let w = 20.min(n);
+    let s2 = sigma * sigma;
+    let mut windows = Vec::new();
+    for k in 0..w {
+        let a = k * n / w;
+        let b = ((k + 1) * n / w).max(a + 1);
+        let m = (b - a) as f64 * 3.0;
+        let rb = rms(&prep.r[a..b]);
+        let ra = rms(&after[a..b]);
+        let z = |r: f64| (r * r * m / s2 - m) / (2.0 * m).sqrt();
+        windows.push(Window {
+            blocks: [block_of(prep, a), block_of(prep, b - 1)],
+            t_s: [prep.t[a], prep.t[b - 1]],
+            rms_before_mm: rb,
+            rms_after_mm: ra,
+            excess_sigma_before: z(rb),
+            excess_sigma_after: z(ra),
+        });
+    }
+    let mut conds: Vec<Condition> = Vec::new();
+    for j in 0..prep.dof {
+        let unit = if prep.kinds[j] == JointKind::Revolute {
+            "deg"
+        } else {
+            "mm"
+        };
+        // Projection of the residual on the joint's tip direction.
+        let proj: Vec<Option<f64>> = (0..n)
+            .map(|i| {
+                let jj = prep.jj(i, j);
+                let norm = (jj[0] * jj[0] + jj[1] * jj[1] + jj[2] * jj[2]).sqrt();
+                (norm > 1e-9).then(|| {
+                    (prep.r[i][0] * jj[0] + prep.r[i][1] * jj[1] + prep.r[i][2] * jj[2]) / norm
+                })
+            })
+            .collect();
+        let mut push = |label: String, sel: &dyn Fn(usize) -> bool| {
+            let (mut s, mut c) = (0.0, 0usize);
+            for i in 0..n {
+                if let Some(p) = proj[i]
+                    && sel(i)
+                {
+                    s += p;
+                    c += 1;
+                }
+            }
+            if c >= 10 {
+                let mean = s / c as f64;
+                let z = mean * (c as f64).sqrt() / sigma;
+                if z.abs() > 5.0 {
+                    conds.push(Condition {
+                        axis: prep.names[j].clone(),
+                        condition: label,
+                        samples: c,
+                        mean_mm: mean,
+                        z,
+                    });
+                }
+            }
+        };
+        push("moving +".into(), &|i| prep.vj(i, j) > 1e-9);
+        push("moving −".into(), &|i| prep.vj(i, j) < -1e-9);
+        push("after a + motion (direction +)".into(), &|i| {
+            prep.dirj(i, j) > 0.0
+        });
+        push("after a − motion (direction −)".into(), &|i| {
+            prep.dirj(i, j) < 0.0
+        });
+        let mut speeds: Vec<f64> = (0..n)
+            .map(|i| prep.vj(i, j).abs())
+            .filter(|v| *v > 1e-9)
+            .collect();
+        if !speeds.is_empty() {
+            let mid = speeds.len() / 2;
+            speeds.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+            let med = speeds[mid];
+            push(format!("speed > {med:.3} {unit}/s"), &|i| {
+                prep.vj(i, j).abs() > med
+            });
+        }
+        let (lo, hi) = (0..n).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), i| {
+            (a.min(prep.qj(i, j)), b.max(prep.qj(i, j)))
+        });
+        if hi > lo {
+            for bin in 0..4 {
+                let a = lo + (hi - lo) * bin as f64 / 4.0;
+                let b = lo + (hi - lo) * (bin + 1) as f64 / 4.0;
+                push(format!("position {a:.1}…{b:.1} {unit}"), &|i| {
+                    let q = prep.qj(i, j);
+                    q >= a && (q < b || bin == 3)
+                });
+            }
+        }
+    }
+    conds.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
+    conds.truncate(12);
+    Locate {
+        windows,
+        conditions: conds,
+    }
+}
+
+/// Data for the plots.
+fn series(prep: &Prepared, after: &[[f64; 3]], top: Option<&Term>, tips: &[[f64; 3]]) -> Series {
+    let n = prep.n;
+    let mut s = Series {
+        t: prep.t.clone(),
+        before: prep.r.clone(),
+        after: after.to_vec(),
+        ..Default::default()
+    };
+    let Some(term) = top else {
+        s.x_label = "time (s)".into();
+        s.x = prep.t.clone();
+        s.y_label = "|residual| (µm)".into();
+        s.proj_before = prep
+            .r
+            .iter()
+            .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+            .collect();
+        s.proj_after = after
+            .iter()
+            .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
+            .collect();
+        return s;
+    };
+    let unit = |j: usize| {
+        if prep.kinds[j] == JointKind::Revolute {
+            "deg"
+        } else {
+            "mm"
+        }
+    };
+    let fam = term.family;
+    // Direction to project on, per sample.
+    let dir: Vec<[f64; 3]> = (0..n)
+        .map(|i| match fam {
+            Family::RotaryCenterOffset(_) | Family::PivotLength => {
+                let d = [
+                    tips[i][0] - prep.model_tip[i][0],
+                    tips[i][1] - prep.model_tip[i][1],
+                    tips[i][2] - prep.model_tip[i][2],
+                ];
+                let nn = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                if nn > 1e-12 && !matches!(fam, Family::PivotLength) {
+                    [d[0] / nn, d[1] / nn, d[2] / nn]
+                } else {
+                    prep.tool_axis[i]
+                }
+            }
+            f => {
+                let j = f.joint().unwrap_or(0);
+                let jj = prep.jj(i, j);
+                let nn = (jj[0] * jj[0] + jj[1] * jj[1] + jj[2] * jj[2])
+                    .sqrt()
+                    .max(1e-12);
+                [jj[0] / nn, jj[1] / nn, jj[2] / nn]
+            }
+        })
+        .collect();
+    let name = |j: usize| prep.names[j].clone();
+    let (label, x): (String, Vec<f64>) = match fam {
+        Family::ThermalDrift(_) => ("time (s)".into(), prep.t.clone()),
+        Family::Squareness(a, _) => (
+            format!("{} ({})", name(a), unit(a)),
+            (0..n).map(|i| prep.qj(i, a)).collect(),
+        ),
+        Family::PivotLength => (
+            "tool tilt from +z (deg)".into(),
+            prep.tool_axis
+                .iter()
+                .map(|a| a[2].clamp(-1.0, 1.0).acos().to_degrees())
+                .collect(),
+        ),
+        f => {
+            let j = f.joint().unwrap_or(0);
+            (
+                format!("{} ({})", name(j), unit(j)),
+                (0..n).map(|i| prep.qj(i, j)).collect(),
+            )
+        }
+    };
+    let what = match fam.axis_label(&prep.names) {
+        Some(a) => format!(
+            "residual along the {} {a} direction (µm)",
+            fam.kind().name()
+        ),
+        None => format!("residual along the {} direction (µm)", fam.kind().name()),
+    };
+    s.x_label = label;
+    s.x = x;
+    s.y_label = what;
+    let dot = |a: &[f64; 3], b: &[f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    s.proj_before = (0..n).map(|i| dot(&prep.r[i], &dir[i])).collect();
+    s.proj_after = (0..n).map(|i| dot(&after[i], &dir[i])).collect();
+    s
+}
+
+/// Dynamic offsets of a model's dynamic effects (backlash, servo lag,
+/// thermal drift) along a trajectory: Δq per point (mm, deg), chain order.
+/// Directions are tracked along `traj`; thermal drift runs from the first
+/// point (or from its `from_block`).
+pub fn dynamic_offsets(
+    chain: &Chain,
+    model: &ErrorModel,
+    traj: &[TrajPoint],
+) -> Result<Vec<Vec<f64>>> {
+    let n = chain.dof();
+    let mut effects: Vec<BoundEffect> = model
+        .effects
+        .iter()
+        .filter(|e| e.effect.kind().is_dynamic())
+        .map(|e| BoundEffect::new(e, chain))
+        .collect::<Result<_>>()?;
+    let mut active = vec![false; effects.len()];
+    let mut trackers = vec![DirectionTracker::new(DIRECTION_DEAD_BAND); n];
+    let mut dir = vec![0.0; n];
+    let mut out = Vec::with_capacity(traj.len());
+    for p in traj {
+        if p.q.len() != n || p.v.len() != n {
+            return Err(Error::input(
+                Location::new("<trajectory>", 0, 0),
+                format!(
+                    "a trajectory point has {} values; the machine has {n} joints",
+                    p.q.len()
+                ),
+            ));
+        }
+        for j in 0..n {
+            dir[j] = trackers[j].update(p.q[j]);
+        }
+        let st = MotionState {
+            t: p.t,
+            q: &p.q,
+            v: &p.v,
+            dir: &dir,
+        };
+        let mut dq = vec![0.0; n];
+        for (k, e) in effects.iter_mut().enumerate() {
+            if !active[k] && e.spec.from_block.is_none_or(|b| p.block >= b) {
+                active[k] = true;
+                e.t0 = p.t;
+            }
+            if active[k]
+                && let Some(j) = e.joint
+            {
+                dq[j] += e.delta_q(&st);
+            }
+        }
+        out.push(dq);
+    }
+    Ok(out)
+}
+
+/// Pre-compensates a commanded trajectory for the model's dynamic effects:
+/// each point's command becomes `q − Δq` (backlash: half the reversal value
+/// in the direction of motion; servo lag: `+τ·v` feed-forward; thermal
+/// drift: minus the drift at that time). Static effects are compensated by
+/// the Newton refinement on the model's chain (`crate::compensate`).
+pub fn compensate_dynamic(
+    chain: &Chain,
+    model: &ErrorModel,
+    traj: &[TrajPoint],
+) -> Result<Vec<TrajPoint>> {
+    let dq = dynamic_offsets(chain, model, traj)?;
+    Ok(traj
+        .iter()
+        .zip(dq)
+        .map(|(p, d)| TrajPoint {
+            t: p.t,
+            block: p.block,
+            q: p.q.iter().zip(&d).map(|(q, d)| q - d).collect(),
+            v: p.v.clone(),
+        })
+        .collect())
+}
+
+/// A [`JointErrors`] source that adds known dynamic joint offsets (from
+/// [`dynamic_offsets`], in file units) to a base error source: evaluate the
+/// chain at one trajectory point with the direction, speed and time known.
+pub struct DynamicErrors<'a> {
+    base: &'a dyn JointErrors,
+    kinds: Vec<JointKind>,
+    axes: Vec<nalgebra::Vector3<f64>>,
+    dq: Vec<f64>,
+}
+
+impl<'a> DynamicErrors<'a> {
+    /// Wraps `base` for `chain` with zero offsets.
+    pub fn new(chain: &Chain, base: &'a dyn JointErrors) -> Self {
+        DynamicErrors {
+            base,
+            kinds: chain.joints.iter().map(|j| j.kind).collect(),
+            axes: chain.joints.iter().map(|j| j.axis.into_inner()).collect(),
+            dq: vec![0.0; chain.dof()],
+        }
+    }
+
+    /// Sets the offsets of the current point (mm, deg; chain order).
+    pub fn set_offsets(&mut self, dq: &[f64]) {
+        for (a, b) in self.dq.iter_mut().zip(dq) {
+            *a = *b;
+        }
+    }
+}
+
+impl JointErrors for DynamicErrors<'_> {
+    fn error(&self, joint: usize, q: f64) -> Option<ErrorMotion> {
+        self.error_and_derivative(joint, q).map(|(e, _)| e)
+    }
+
+    fn error_and_derivative(&self, joint: usize, q: f64) -> Option<(ErrorMotion, ErrorMotion)> {
+        let base = self.base.error_and_derivative(joint, q);
+        let d = *self.dq.get(joint)?;
+        if d == 0.0 {
+            return base;
+        }
+        let u = self.axes[joint];
+        let mut e = ErrorMotion::zeros();
+        if self.kinds[joint] == JointKind::Revolute {
+            let r = d.to_radians();
+            e[3] = r * u.x;
+            e[4] = r * u.y;
+            e[5] = r * u.z;
+        } else {
+            e[0] = d * u.x;
+            e[1] = d * u.y;
+            e[2] = d * u.z;
+        }
+        Some(match base {
+            Some((b, db)) => (b + e, db),
+            None => (e, ErrorMotion::zeros()),
+        })
+    }
+
+    fn is_empty(&self) -> bool {
+        self.base.is_empty() && self.dq.iter().all(|d| *d == 0.0)
+    }
+}

@@ -1,0 +1,402 @@
+//! The residual of a recording against the model, with everything the
+//! effect fits need per sample: commanded positions, velocities, directions
+//! of motion, the tool-tip Jacobian of the model chain, the tool axis and
+//! the exact tip change of a unit rotary-centre offset.
+
+// Numerical code: several parallel arrays are indexed by one counter.
+#![allow(clippy::needless_range_loop)]
+
+use nalgebra::{Unit, Vector3};
+
+use super::effects::{BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionState};
+use super::recording::Recording;
+use crate::error::{Error, Location, Result};
+use crate::geometric::{BoundErrors, ErrorModel};
+use crate::machine::chain::{Chain, JointErrors, JointKind, NoErrors, translation};
+
+/// The model machine: chain with the model's fixed elements, error motions
+/// and the model's own dynamic effects.
+pub struct ModelMachine<'a> {
+    /// Chain with the model's fixed elements (and pivot length) inserted.
+    pub chain: Chain,
+    errors: Option<BoundErrors<'a>>,
+    /// The model's dynamic effects (backlash, servo lag, thermal drift).
+    pub dynamic: Vec<BoundEffect>,
+}
+
+impl<'a> ModelMachine<'a> {
+    /// Builds the model machine for `chain` and an optional error model.
+    pub fn new(chain: &Chain, model: Option<&'a ErrorModel>) -> Result<Self> {
+        match model {
+            None => Ok(ModelMachine {
+                chain: chain.clone(),
+                errors: None,
+                dynamic: Vec::new(),
+            }),
+            Some(m) => {
+                let c = m.apply_fixed(chain)?;
+                let errors = m.bind(&c)?;
+                let dynamic = m
+                    .effects
+                    .iter()
+                    .filter(|e| e.effect.kind().is_dynamic())
+                    .map(|e| BoundEffect::new(e, &c))
+                    .collect::<Result<Vec<_>>>()?;
+                Ok(ModelMachine {
+                    chain: c,
+                    errors: Some(errors),
+                    dynamic,
+                })
+            }
+        }
+    }
+
+    /// The chain's error source.
+    pub fn errors(&self) -> &dyn JointErrors {
+        match &self.errors {
+            Some(e) => e,
+            None => &NoErrors,
+        }
+    }
+}
+
+/// Per-sample data for the fits. Positions in file units (mm, deg); the
+/// Jacobian columns are per file unit (mm per mm, mm per deg).
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    /// Number of samples.
+    pub n: usize,
+    /// Number of joints.
+    pub dof: usize,
+    /// Joint names.
+    pub names: Vec<String>,
+    /// Joint kinds.
+    pub kinds: Vec<JointKind>,
+    /// Time, s.
+    pub t: Vec<f64>,
+    /// Block of each sample (`None` when the recording has none).
+    pub block: Vec<Option<u64>>,
+    /// Commanded positions, `n × dof`.
+    pub q: Vec<f64>,
+    /// Commanded velocities (central differences), `n × dof`.
+    pub v: Vec<f64>,
+    /// Direction of the last motion, `n × dof`.
+    pub dir: Vec<f64>,
+    /// Tip Jacobian columns, `n × dof` 3-vectors.
+    pub jac: Vec<[f64; 3]>,
+    /// Tool axis per sample.
+    pub tool_axis: Vec<[f64; 3]>,
+    /// For each revolute joint: two unit offset directions perpendicular to
+    /// its axis (frame before the joint) and the exact tip change for a
+    /// 1 mm offset along each, per sample.
+    pub rco: Vec<Option<RcoBasis>>,
+    /// Residual measured − model, mm.
+    pub r: Vec<[f64; 3]>,
+    /// Model tip, mm.
+    pub model_tip: Vec<[f64; 3]>,
+    /// Sample indices where a new block (or pseudo-block) starts: the
+    /// candidate onsets.
+    pub onsets: Vec<usize>,
+}
+
+/// Rotary-centre-offset basis of one revolute joint.
+#[derive(Debug, Clone)]
+pub struct RcoBasis {
+    /// Two unit directions perpendicular to the joint axis.
+    pub dirs: [Vector3<f64>; 2],
+    /// Tip change per mm along each direction, per sample.
+    pub cols: Vec<[[f64; 3]; 2]>,
+}
+
+impl Prepared {
+    /// `q` of joint `j` at sample `i`.
+    #[inline]
+    pub fn qj(&self, i: usize, j: usize) -> f64 {
+        self.q[i * self.dof + j]
+    }
+    /// Velocity of joint `j` at sample `i`.
+    #[inline]
+    pub fn vj(&self, i: usize, j: usize) -> f64 {
+        self.v[i * self.dof + j]
+    }
+    /// Direction of joint `j` at sample `i`.
+    #[inline]
+    pub fn dirj(&self, i: usize, j: usize) -> f64 {
+        self.dir[i * self.dof + j]
+    }
+    /// Jacobian column of joint `j` at sample `i`.
+    #[inline]
+    pub fn jj(&self, i: usize, j: usize) -> [f64; 3] {
+        self.jac[i * self.dof + j]
+    }
+
+    /// Number of residual rows (3 per sample).
+    pub fn rows(&self) -> usize {
+        3 * self.n
+    }
+
+    /// The motion state of sample `i`, for evaluating effects.
+    pub fn state(&self, i: usize) -> MotionState<'_> {
+        let a = i * self.dof;
+        MotionState {
+            t: self.t[i],
+            q: &self.q[a..a + self.dof],
+            v: &self.v[a..a + self.dof],
+            dir: &self.dir[a..a + self.dof],
+        }
+    }
+}
+
+/// Unit offset directions of a revolute joint and the chains with a 1 mm
+/// offset along each.
+type RcoChains = ([Vector3<f64>; 2], [Chain; 2]);
+
+/// Two unit vectors perpendicular to `u`.
+fn perpendicular_pair(u: &Unit<Vector3<f64>>) -> [Vector3<f64>; 2] {
+    let u = u.into_inner();
+    let pick = if u.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let e1 = (pick - u * u.dot(&pick)).normalize();
+    let e2 = u.cross(&e1).normalize();
+    [e1, e2]
+}
+
+/// Largest number of pseudo-blocks used as candidate onsets when the
+/// recording has no block column (or very many blocks).
+pub const MAX_ONSETS: usize = 400;
+
+/// Velocities by central differences (one-sided at the ends).
+fn velocities(t: &[f64], q: &[f64], dof: usize) -> Vec<f64> {
+    let n = t.len();
+    let mut v = vec![0.0; n * dof];
+    if n < 2 {
+        return v;
+    }
+    for i in 0..n {
+        let (a, b) = if i == 0 {
+            (0, 1)
+        } else if i == n - 1 {
+            (n - 2, n - 1)
+        } else {
+            (i - 1, i + 1)
+        };
+        let dt = t[b] - t[a];
+        for j in 0..dof {
+            v[i * dof + j] = (q[b * dof + j] - q[a * dof + j]) / dt;
+        }
+    }
+    v
+}
+
+/// Prepares `rec` against the model machine.
+pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
+    let chain = &machine.chain;
+    let dof = chain.dof();
+    let n = rec.samples.len();
+    if rec.axes.len() != dof {
+        return Err(Error::input(
+            Location::new("<recording>", 0, 0),
+            format!(
+                "the recording has {} axes, the machine {} joints",
+                rec.axes.len(),
+                dof
+            ),
+        ));
+    }
+    let t: Vec<f64> = rec.samples.iter().map(|s| s.t).collect();
+    for (i, s) in rec.samples.iter().enumerate() {
+        let bad = |what: &str| {
+            Error::input(
+                Location::new("<recording>", 0, 0),
+                format!("sample {i} (t = {} s): {what}", s.t),
+            )
+        };
+        if !s.t.is_finite() || (i > 0 && s.t <= rec.samples[i - 1].t) {
+            return Err(bad("time must be finite and strictly increasing"));
+        }
+        if s.q.iter().chain(&s.meas).any(|v| !v.is_finite()) {
+            return Err(bad("axis and measured values must be finite numbers"));
+        }
+    }
+    let block: Vec<Option<u64>> = rec.samples.iter().map(|s| s.block).collect();
+    let mut q = Vec::with_capacity(n * dof);
+    for s in &rec.samples {
+        if s.q.len() != dof {
+            return Err(Error::input(
+                Location::new("<recording>", 0, 0),
+                "a sample has the wrong number of axis values",
+            ));
+        }
+        q.extend_from_slice(&s.q);
+    }
+    let v = velocities(&t, &q, dof);
+    let mut dir = vec![0.0; n * dof];
+    let mut trackers = vec![DirectionTracker::new(DIRECTION_DEAD_BAND); dof];
+    for i in 0..n {
+        for j in 0..dof {
+            dir[i * dof + j] = trackers[j].update(q[i * dof + j]);
+        }
+    }
+    let kinds: Vec<JointKind> = chain.joints.iter().map(|j| j.kind).collect();
+    let deg = std::f64::consts::PI / 180.0;
+    // Onsets of the model's dynamic effects.
+    let mut dynamic = machine.dynamic.clone();
+    let mut active = vec![false; dynamic.len()];
+    // Rotary-centre-offset chains: unit offsets before/after each revolute joint.
+    let mut rco_chains: Vec<Option<RcoChains>> = Vec::with_capacity(dof);
+    for j in 0..dof {
+        if kinds[j] == JointKind::Revolute {
+            let dirs = perpendicular_pair(&chain.joints[j].axis);
+            let mk = |d: Vector3<f64>| {
+                let el = chain.joints[j].element;
+                chain
+                    .with_fixed_inserted(el + 1, translation(&(-d)))
+                    .with_fixed_inserted(el, translation(&d))
+            };
+            rco_chains.push(Some((dirs, [mk(dirs[0]), mk(dirs[1])])));
+        } else {
+            rco_chains.push(None);
+        }
+    }
+    let mut rco: Vec<Option<RcoBasis>> = rco_chains
+        .iter()
+        .map(|c| {
+            c.as_ref().map(|(dirs, _)| RcoBasis {
+                dirs: *dirs,
+                cols: Vec::with_capacity(n),
+            })
+        })
+        .collect();
+    let mut jac = Vec::with_capacity(n * dof);
+    let mut tool_axis = Vec::with_capacity(n);
+    let mut r = Vec::with_capacity(n);
+    let mut model_tip = Vec::with_capacity(n);
+    let errors = machine.errors();
+    let mut qi = vec![0.0; dof];
+    for i in 0..n {
+        let st = MotionState {
+            t: t[i],
+            q: &q[i * dof..(i + 1) * dof],
+            v: &v[i * dof..(i + 1) * dof],
+            dir: &dir[i * dof..(i + 1) * dof],
+        };
+        for (k, e) in dynamic.iter_mut().enumerate() {
+            if !active[k]
+                && e.spec
+                    .from_block
+                    .is_none_or(|b| block[i].is_none_or(|bi| bi >= b))
+            {
+                active[k] = true;
+                e.t0 = t[i];
+            }
+        }
+        qi[..dof].copy_from_slice(&st.q[..dof]);
+        for (k, e) in dynamic.iter().enumerate() {
+            if active[k]
+                && let Some(j) = e.joint
+            {
+                qi[j] += e.delta_q(&st);
+            }
+        }
+        for j in 0..dof {
+            if kinds[j] == JointKind::Revolute {
+                qi[j] *= deg;
+            }
+        }
+        let (pose, jm) = chain.pose_and_jacobian(&qi, errors);
+        for j in 0..dof {
+            let f = if kinds[j] == JointKind::Revolute {
+                deg
+            } else {
+                1.0
+            };
+            jac.push([jm[(0, j)] * f, jm[(1, j)] * f, jm[(2, j)] * f]);
+        }
+        tool_axis.push([pose.axis.x, pose.axis.y, pose.axis.z]);
+        let m = rec.samples[i].meas;
+        r.push([m[0] - pose.tip.x, m[1] - pose.tip.y, m[2] - pose.tip.z]);
+        model_tip.push([pose.tip.x, pose.tip.y, pose.tip.z]);
+        for j in 0..dof {
+            if let (Some((_, chains)), Some(b)) = (&rco_chains[j], rco[j].as_mut()) {
+                let mut cols = [[0.0; 3]; 2];
+                for (k, c) in chains.iter().enumerate() {
+                    let p = c.pose(&qi, errors).tip - pose.tip;
+                    cols[k] = [p.x, p.y, p.z];
+                }
+                b.cols.push(cols);
+            }
+        }
+    }
+    // Candidate onsets: first sample of every block; thinned to MAX_ONSETS.
+    let mut onsets: Vec<usize> = Vec::new();
+    if block.iter().all(Option::is_some) {
+        for i in 0..n {
+            if i == 0 || block[i] != block[i - 1] {
+                onsets.push(i);
+            }
+        }
+    }
+    if onsets.len() > MAX_ONSETS || onsets.is_empty() {
+        let step = (n as f64 / MAX_ONSETS as f64).max(1.0);
+        let mut thinned: Vec<usize> = Vec::new();
+        let base: Vec<usize> = if onsets.is_empty() {
+            (0..n).collect()
+        } else {
+            onsets.clone()
+        };
+        let mut next = 0.0;
+        for &i in &base {
+            if i as f64 >= next {
+                thinned.push(i);
+                next = i as f64 + step;
+            }
+        }
+        onsets = thinned;
+    }
+    Ok(Prepared {
+        n,
+        dof,
+        names: chain.joints.iter().map(|j| j.name.clone()).collect(),
+        kinds,
+        t,
+        block,
+        q,
+        v,
+        dir,
+        jac,
+        tool_axis,
+        rco,
+        r,
+        model_tip,
+        onsets,
+    })
+}
+
+/// Robust noise floor of the residual: for each coordinate, the median
+/// absolute first difference divided by 0.6745·√2 (the first difference of
+/// white noise has standard deviation σ√2; a smooth effect hardly changes
+/// between consecutive samples, and the median ignores the few jumps at
+/// reversals or onsets). Returns the per-coordinate figures and their
+/// quadratic mean, floored at 1 nm.
+pub fn noise_floor(r: &[[f64; 3]]) -> ([f64; 3], f64) {
+    let mut per = [0.0; 3];
+    if r.len() < 3 {
+        return (per, 1e-6);
+    }
+    for (c, out) in per.iter_mut().enumerate() {
+        let mut d: Vec<f64> = r.windows(2).map(|w| (w[1][c] - w[0][c]).abs()).collect();
+        let mid = d.len() / 2;
+        d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+        *out = d[mid] / (0.674_489_75 * std::f64::consts::SQRT_2);
+    }
+    let pooled = ((per[0] * per[0] + per[1] * per[1] + per[2] * per[2]) / 3.0).sqrt();
+    (per, pooled.max(1e-6))
+}
+
+/// Helper for callers: effect specs bound to the model chain.
+pub fn bind_all(specs: &[EffectSpec], chain: &Chain) -> Result<Vec<BoundEffect>> {
+    specs.iter().map(|s| BoundEffect::new(s, chain)).collect()
+}

@@ -1,0 +1,420 @@
+//! The diagnosis report: JSON exactly per `formats.md` §3 (plus extra
+//! fields), a readable text form with a unit on every number, and the data
+//! for the SVG plots.
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+
+use super::effects::{Effect, EffectSpec, axis_is_rotary};
+use crate::geometric::ErrorModel;
+
+/// Where an effect acts.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Where {
+    /// First and last block in which it acts (`null` without a block column).
+    pub blocks: [Option<u64>; 2],
+    /// First and last time, s.
+    pub t_s: [f64; 2],
+    /// When it shows, in words.
+    pub condition: String,
+}
+
+/// The best alternative explanation of the same mismatch.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunnerUp {
+    /// Effect name.
+    pub effect: String,
+    /// Axis label.
+    pub axis: Option<String>,
+    /// Its parameters when fitted instead.
+    pub parameters: BTreeMap<String, f64>,
+    /// How much worse it explains the data: BIC difference to the finding
+    /// (χ² units; above 10 is decisive).
+    pub delta_bic: f64,
+}
+
+/// One effect found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Finding {
+    /// Catalogue name.
+    pub effect: String,
+    /// Axis letter, pair, or null.
+    pub axis: Option<String>,
+    /// Fitted parameters, unit-suffixed names.
+    pub parameters: BTreeMap<String, f64>,
+    /// One standard deviation of each parameter (LSQ covariance scaled by
+    /// the noise floor; time constants and periods by their Gauss–Newton
+    /// column).
+    pub uncertainty: BTreeMap<String, f64>,
+    /// Where it acts.
+    #[serde(rename = "where")]
+    pub where_: Where,
+    /// RMS per coordinate of the tool-tip displacement the effect causes
+    /// over the recording (exact, through the chain), mm.
+    pub rms_explained_mm: f64,
+    /// First block in which it acts when it starts part-way, else null.
+    pub from_block: Option<u64>,
+    /// BIC decrease when it entered the model (χ² units).
+    pub delta_bic: f64,
+    /// Held-out RMS before and after it entered, mm.
+    pub holdout_rms_mm: [f64; 2],
+    /// The best other explanation (a different effect or axis).
+    pub runner_up: Option<RunnerUp>,
+    /// The effect in model-file form.
+    #[serde(skip)]
+    pub spec: EffectSpec,
+}
+
+/// A time window of the residual.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Window {
+    /// First and last block.
+    pub blocks: [Option<u64>; 2],
+    /// First and last time, s.
+    pub t_s: [f64; 2],
+    /// RMS per coordinate before the fit, mm.
+    pub rms_before_mm: f64,
+    /// RMS per coordinate after the fit, mm.
+    pub rms_after_mm: f64,
+    /// Excess over the noise floor before the fit, in standard deviations
+    /// of the χ² statistic; above 4 departs from noise.
+    pub excess_sigma_before: f64,
+    /// The same after the fit.
+    pub excess_sigma_after: f64,
+}
+
+/// A condition under which the residual departs from zero.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Condition {
+    /// Axis.
+    pub axis: String,
+    /// The condition, e.g. `moving −`, `position 50…100 mm`, `speed > 8 mm/s`.
+    pub condition: String,
+    /// Samples in it.
+    pub samples: usize,
+    /// Mean residual along the axis's tool-tip direction, mm.
+    pub mean_mm: f64,
+    /// Mean divided by its standard error.
+    pub z: f64,
+}
+
+/// Where model and recording disagree, before any effect is fitted.
+#[derive(Debug, Clone, PartialEq, Serialize, Default)]
+pub struct Locate {
+    /// Windows whose residual departs from the noise floor (all windows
+    /// are listed; `excess_sigma_before > 4` marks a departure).
+    pub windows: Vec<Window>,
+    /// The most significant conditions (|z| > 5), strongest first.
+    pub conditions: Vec<Condition>,
+}
+
+/// Series for the plots (not serialised).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Series {
+    /// Time, s.
+    pub t: Vec<f64>,
+    /// Residual before, mm.
+    pub before: Vec<[f64; 3]>,
+    /// Residual after, mm.
+    pub after: Vec<[f64; 3]>,
+    /// Label of the x axis of the second plot (with unit).
+    pub x_label: String,
+    /// X values of the second plot.
+    pub x: Vec<f64>,
+    /// Label of the projected residual.
+    pub y_label: String,
+    /// Residual before, projected on the top finding's direction, mm.
+    pub proj_before: Vec<f64>,
+    /// The same after.
+    pub proj_after: Vec<f64>,
+}
+
+/// The diagnosis report (`formats.md` §3).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Report {
+    /// Number of samples.
+    pub samples: usize,
+    /// Robust per-coordinate noise floor, mm.
+    pub noise_floor_mm: f64,
+    /// Residual RMS per coordinate before the fit, mm.
+    pub rms_before_mm: f64,
+    /// Residual RMS per coordinate after the fit (exact evaluation), mm.
+    pub rms_after_mm: f64,
+    /// Held-out RMS of the model without the effects found (nothing is
+    /// fitted, so it equals `rms_before_mm`), mm.
+    pub holdout_rms_before_mm: f64,
+    /// Held-out RMS with the effects found, from 5 contiguous time folds
+    /// each predicted from a fit on the other four, mm.
+    pub holdout_rms_after_mm: f64,
+    /// Effects found, most important first.
+    pub findings: Vec<Finding>,
+    /// Verdict in words.
+    pub verdict: String,
+    /// Per-coordinate noise floors `[x, y, z]`, mm.
+    pub noise_floor_xyz_mm: [f64; 3],
+    /// Residual χ² per degree of freedom against the noise floor, before.
+    pub chi2_per_dof_before: f64,
+    /// The same after.
+    pub chi2_per_dof_after: f64,
+    /// Recording span `[t0, t1]`, s.
+    pub t_s: [f64; 2],
+    /// First and last block.
+    pub blocks: [Option<u64>; 2],
+    /// Candidates of the first round, best first (effect, axis, ΔBIC).
+    pub candidates: Vec<Candidate>,
+    /// Where the residual departs from noise.
+    pub locate: Locate,
+    /// Selection rule, in words.
+    pub method: String,
+    /// Plot data.
+    #[serde(skip)]
+    pub series: Series,
+}
+
+/// A scored candidate.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Candidate {
+    /// Effect name.
+    pub effect: String,
+    /// Axis label.
+    pub axis: Option<String>,
+    /// BIC decrease it would bring (χ² units; negative: not worth it).
+    pub delta_bic: f64,
+}
+
+fn um(mm: f64) -> String {
+    format!("{:.3} µm", mm * 1000.0)
+}
+
+/// Formats a parameter with its unit from the suffix.
+fn param_text(name: &str, v: f64, sd: Option<f64>) -> String {
+    let (base, unit, scale, dec) = if let Some(b) = name.strip_suffix("_mm") {
+        (b, "µm", 1000.0, 3)
+    } else if let Some(b) = name.strip_suffix("_deg") {
+        (b, "deg", 1.0, 5)
+    } else if let Some(b) = name.strip_suffix("_s") {
+        (b, "s", 1.0, 4)
+    } else if let Some(b) = name.strip_suffix("_urad") {
+        (b, "µrad", 1.0, 2)
+    } else if name == "ppm" {
+        ("scale", "ppm", 1.0, 2)
+    } else {
+        (name, "", 1.0, 6)
+    };
+    // Periods and time constants are not small.
+    let (unit, scale, dec) = if base == "period" && unit == "µm" {
+        ("mm", 1.0, 3)
+    } else {
+        (unit, scale, dec)
+    };
+    // Enough decimals for four significant digits of small values.
+    let mag = (v * scale).abs().max(sd.unwrap_or(0.0) * scale);
+    let dec = if mag > 0.0 && mag.is_finite() {
+        dec.max((3.0 - mag.log10().floor()).clamp(0.0, 12.0) as usize)
+    } else {
+        dec
+    };
+    match sd {
+        Some(s) => format!("{base} = {:.dec$} ± {:.dec$} {unit}", v * scale, s * scale),
+        None => format!("{base} = {:.dec$} {unit}", v * scale),
+    }
+}
+
+impl Report {
+    /// The report as JSON (`formats.md` §3 plus extra fields).
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::to_value(self).unwrap_or(serde_json::Value::Null)
+    }
+
+    /// Pretty-printed JSON text.
+    pub fn to_json_string(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// A readable report; every number carries its unit.
+    pub fn to_text(&self) -> String {
+        let mut s = String::new();
+        s.push_str("Diagnosis: recording versus model\n");
+        s.push_str(&format!(
+            "  {} samples, t = {:.3} … {:.3} s, blocks {} … {}\n",
+            self.samples,
+            self.t_s[0],
+            self.t_s[1],
+            self.blocks[0].map_or("-".into(), |b| b.to_string()),
+            self.blocks[1].map_or("-".into(), |b| b.to_string()),
+        ));
+        s.push_str(&format!(
+            "  noise floor {} per coordinate (x {}, y {}, z {}; robust: MAD of first differences)\n",
+            um(self.noise_floor_mm),
+            um(self.noise_floor_xyz_mm[0]),
+            um(self.noise_floor_xyz_mm[1]),
+            um(self.noise_floor_xyz_mm[2]),
+        ));
+        s.push_str(&format!(
+            "  residual RMS per coordinate: before {}, after {} (χ²/dof {:.3} → {:.3})\n",
+            um(self.rms_before_mm),
+            um(self.rms_after_mm),
+            self.chi2_per_dof_before,
+            self.chi2_per_dof_after
+        ));
+        s.push_str(&format!(
+            "  held-out RMS (5 contiguous time folds): before {}, after {}\n",
+            um(self.holdout_rms_before_mm),
+            um(self.holdout_rms_after_mm)
+        ));
+        let departs: Vec<&Window> = self
+            .locate
+            .windows
+            .iter()
+            .filter(|w| w.excess_sigma_before > 4.0)
+            .collect();
+        if departs.is_empty() {
+            s.push_str("  where: no time window departs from the noise floor\n");
+        } else {
+            s.push_str(&format!(
+                "  where: {} of {} time windows depart from the noise floor:\n",
+                departs.len(),
+                self.locate.windows.len()
+            ));
+            for w in departs.iter().take(8) {
+                s.push_str(&format!(
+                    "    blocks {}…{}, t {:.1}…{:.1} s: RMS {} ({:.1} σ above noise), after the fit {}\n",
+                    w.blocks[0].map_or("-".into(), |b| b.to_string()),
+                    w.blocks[1].map_or("-".into(), |b| b.to_string()),
+                    w.t_s[0],
+                    w.t_s[1],
+                    um(w.rms_before_mm),
+                    w.excess_sigma_before,
+                    um(w.rms_after_mm)
+                ));
+            }
+        }
+        for c in self.locate.conditions.iter().take(6) {
+            s.push_str(&format!(
+                "    {} {}: mean residual along {} {} over {} samples (z = {:.1})\n",
+                c.axis,
+                c.condition,
+                c.axis,
+                um(c.mean_mm),
+                c.samples,
+                c.z
+            ));
+        }
+        if self.findings.is_empty() {
+            s.push_str("  findings: none\n");
+        }
+        for (k, f) in self.findings.iter().enumerate() {
+            s.push_str(&format!(
+                "  {}. {}{}: ",
+                k + 1,
+                f.effect,
+                f.axis.as_deref().map_or(String::new(), |a| format!(" {a}"))
+            ));
+            let ps: Vec<String> = f
+                .parameters
+                .iter()
+                .map(|(n, v)| param_text(n, *v, f.uncertainty.get(n).copied()))
+                .collect();
+            s.push_str(&ps.join(", "));
+            s.push_str(&format!(
+                "\n     acts in blocks {}…{}, t {:.1}…{:.1} s: {}\n     explains {} RMS; ΔBIC {:.1}; held-out RMS {} → {}\n",
+                f.where_.blocks[0].map_or("-".into(), |b| b.to_string()),
+                f.where_.blocks[1].map_or("-".into(), |b| b.to_string()),
+                f.where_.t_s[0],
+                f.where_.t_s[1],
+                f.where_.condition,
+                um(f.rms_explained_mm),
+                f.delta_bic,
+                um(f.holdout_rms_mm[0]),
+                um(f.holdout_rms_mm[1]),
+            ));
+            if let Some(r) = &f.runner_up {
+                s.push_str(&format!(
+                    "     runner-up: {}{} (ΔBIC {:.1} worse)\n",
+                    r.effect,
+                    r.axis.as_deref().map_or(String::new(), |a| format!(" {a}")),
+                    r.delta_bic
+                ));
+            }
+        }
+        s.push_str(&format!("  verdict: {}\n", self.verdict));
+        s
+    }
+
+    /// The effects found, as model-file effects.
+    pub fn effects(&self) -> Vec<EffectSpec> {
+        self.findings.iter().map(|f| f.spec.clone()).collect()
+    }
+
+    /// The improved model: `base` (or an empty model) plus the effects
+    /// found. Static effects act through [`ErrorModel::bind`] and
+    /// [`ErrorModel::apply_fixed`], so `compensate` and `analyze` use them
+    /// unchanged; dynamic ones are applied along a trajectory by
+    /// [`crate::diagnose::compensate_dynamic`]. The model describes the
+    /// machine as it is at the end of the recording: an effect that started
+    /// part-way is kept from then on (its `from_block` is dropped).
+    pub fn improved_model(&self, base: Option<&ErrorModel>) -> ErrorModel {
+        let mut m = base.cloned().unwrap_or_default();
+        for f in &self.findings {
+            let mut spec = f.spec.clone();
+            spec.from_block = None;
+            m.effects.push(spec);
+        }
+        let note = format!(
+            "{} effect(s) added by kinpost diagnose: {}",
+            self.findings.len(),
+            self.findings
+                .iter()
+                .map(|f| format!(
+                    "{}{}",
+                    f.effect,
+                    f.axis.as_deref().map_or(String::new(), |a| format!(" {a}"))
+                ))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        m.meta.description = Some(match &m.meta.description {
+            Some(d) if !d.is_empty() => format!("{d}; {note}"),
+            _ => note,
+        });
+        m.meta.generator = Some(format!("kinpost {}", env!("CARGO_PKG_VERSION")));
+        m
+    }
+}
+
+/// The condition text of an effect.
+pub fn condition_text(effect: &Effect, rotary: bool) -> String {
+    let u = if rotary { "deg" } else { "mm" };
+    match effect {
+        Effect::Backlash { axis, .. } => format!(
+            "at reversals of {axis}: the error changes sign with the direction of its last motion"
+        ),
+        Effect::ServoLag { axis, .. } => {
+            format!("while {axis} moves, proportional to its speed, against the motion")
+        }
+        Effect::ThermalDrift { axis, tau_s, .. } => {
+            format!("grows with time along {axis} (time constant {tau_s:.0} s)")
+        }
+        Effect::Scale { axis, .. } => format!("proportional to the {axis} position"),
+        Effect::Squareness { axes, .. } => format!(
+            "the tool moves along {} in proportion to the {} position",
+            axes[1], axes[0]
+        ),
+        Effect::Cyclic { axis, period, .. } => {
+            format!("periodic in the {axis} position, period {period:.3} {u}")
+        }
+        Effect::ZeroOffset { axis, .. } => format!("everywhere: a constant shift of {axis}"),
+        Effect::RotaryCenterOffset { axis, .. } => {
+            format!("varies with the {axis} angle: {axis} turns about a displaced line")
+        }
+        Effect::PivotLength { .. } => "along the tool axis, showing as the tool tilts".to_string(),
+    }
+}
+
+/// `rotary` for an effect's parameters on `chain`.
+pub fn effect_is_rotary(effect: &Effect, chain: &crate::machine::Chain) -> bool {
+    effect
+        .axis_label()
+        .is_some_and(|a| a.len() == 1 && axis_is_rotary(Some(chain), &a))
+}

@@ -1,0 +1,476 @@
+//! Simulated recordings: a machine model with known errors, effects injected
+//! on top, driven through a list of waypoints with a plain velocity profile,
+//! measured with Gaussian noise. Deterministic for a seed.
+//!
+//! Time comes from the feeds: each segment between two waypoints is one
+//! block, run at its feed F (mm/min) along its path length
+//!
+//! ```text
+//! L = sqrt( Σ Δ(linear axis, mm)² + Σ Δ(rotary axis, deg)² )
+//! ```
+//!
+//! i.e. one degree counts as one millimetre (the usual controller rule for
+//! mixed linear/rotary moves; a pure rotary move runs at F deg/min). The
+//! speed along the path follows a trapezoid with the acceleration limit
+//! [`SimOptions::accel_mm_s2`] (a triangle when the block is too short to
+//! reach F), starting and stopping in every block (exact stop). With no
+//! acceleration limit the speed is F throughout the block.
+
+use nalgebra::Vector3;
+
+use super::effects::{
+    BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionState, chain_with_effects,
+};
+use super::recording::{Recording, Sample};
+use super::rng::Rng;
+use crate::error::{Error, Location, Result};
+use crate::geometric::ErrorModel;
+use crate::machine::chain::{Chain, JointErrors, JointKind, NoErrors};
+
+/// A commanded machine position: the end point of a block.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Waypoint {
+    /// Axis positions in the machine's joint order (mm, deg).
+    pub q: Vec<f64>,
+    /// Feed of the block that ends here, mm/min (deg/min for pure rotary
+    /// moves). Ignored for the first waypoint, the start position.
+    pub feed: f64,
+    /// NC block number of the move that ends here.
+    pub block: u64,
+}
+
+/// Options of [`simulate`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimOptions {
+    /// Standard deviation of the measurement noise of each measured
+    /// coordinate, mm.
+    pub noise_mm: f64,
+    /// Seed of the noise.
+    pub seed: u64,
+    /// Time between samples, s.
+    pub sample_interval_s: f64,
+    /// Acceleration limit along the path, mm/s² (deg/s² for rotary moves);
+    /// `None` for constant feed within each block.
+    pub accel_mm_s2: Option<f64>,
+}
+
+impl Default for SimOptions {
+    fn default() -> Self {
+        SimOptions {
+            noise_mm: 0.001,
+            seed: 1,
+            sample_interval_s: 0.1,
+            accel_mm_s2: Some(200.0),
+        }
+    }
+}
+
+/// One block of the timeline.
+#[derive(Debug, Clone)]
+struct Segment {
+    t_start: f64,
+    duration: f64,
+    length: f64,
+    v_max: f64,
+    accel: Option<f64>,
+    from: Vec<f64>,
+    delta: Vec<f64>,
+    block: u64,
+}
+
+impl Segment {
+    /// Path position and speed `duration` seconds… at local time `tau`.
+    fn s_and_v(&self, tau: f64) -> (f64, f64) {
+        let tau = tau.clamp(0.0, self.duration);
+        match self.accel {
+            None => (self.v_max * tau, self.v_max),
+            Some(a) => {
+                let ta = self.v_max / a; // time to reach v_max (may be cut short)
+                let t_half = 0.5 * self.duration;
+                let t_acc = ta.min(t_half);
+                let v_top = a * t_acc;
+                if tau <= t_acc {
+                    (0.5 * a * tau * tau, a * tau)
+                } else if tau <= self.duration - t_acc {
+                    (0.5 * a * t_acc * t_acc + v_top * (tau - t_acc), v_top)
+                } else {
+                    let r = self.duration - tau;
+                    (self.length - 0.5 * a * r * r, a * r)
+                }
+            }
+        }
+    }
+}
+
+/// Path length of a move (mm, with 1° counted as 1 mm).
+pub fn path_length(chain: &Chain, from: &[f64], to: &[f64]) -> f64 {
+    chain
+        .joints
+        .iter()
+        .zip(from.iter().zip(to))
+        .map(|(_, (a, b))| (b - a) * (b - a))
+        .sum::<f64>()
+        .sqrt()
+}
+
+fn timeline(chain: &Chain, wps: &[Waypoint], accel: Option<f64>) -> Result<Vec<Segment>> {
+    let loc = || Location::new("<waypoints>", 0, 0);
+    let mut segs = Vec::new();
+    let mut t = 0.0;
+    for (k, w) in wps.iter().enumerate() {
+        if w.q.len() != chain.dof() {
+            return Err(Error::input(
+                loc(),
+                format!(
+                    "waypoint {k} (block {}) has {} axis values; the machine has {} joints",
+                    w.block,
+                    w.q.len(),
+                    chain.dof()
+                ),
+            ));
+        }
+        if w.q.iter().any(|v| !v.is_finite()) {
+            return Err(Error::input(
+                loc(),
+                format!(
+                    "waypoint {k} (block {}) has a non-finite axis value",
+                    w.block
+                ),
+            ));
+        }
+        if k == 0 {
+            continue;
+        }
+        let from = &wps[k - 1].q;
+        let length = path_length(chain, from, &w.q);
+        if length == 0.0 {
+            continue;
+        }
+        if !(w.feed.is_finite() && w.feed > 0.0) {
+            return Err(Error::input(
+                loc(),
+                format!(
+                    "waypoint {k} (block {}): feed {} mm/min must be positive",
+                    w.block, w.feed
+                ),
+            ));
+        }
+        let v = w.feed / 60.0;
+        let duration = match accel {
+            None => length / v,
+            Some(a) => {
+                if length >= v * v / a {
+                    length / v + v / a
+                } else {
+                    2.0 * (length / a).sqrt()
+                }
+            }
+        };
+        segs.push(Segment {
+            t_start: t,
+            duration,
+            length,
+            v_max: v,
+            accel,
+            from: from.clone(),
+            delta: w.q.iter().zip(from).map(|(b, a)| b - a).collect(),
+            block: w.block,
+        });
+        t += duration;
+    }
+    Ok(segs)
+}
+
+/// The machine as the model knows it plus what it does not: the chain with
+/// the model's fixed elements, its error motions, and effects.
+pub(crate) struct TrueMachine<'a> {
+    chain: Chain,
+    errors: Option<crate::geometric::BoundErrors<'a>>,
+    /// The model's own dynamic effects first, then the injected ones.
+    pub(crate) effects: Vec<BoundEffect>,
+    variants: std::collections::HashMap<u64, Chain>,
+}
+
+impl<'a> TrueMachine<'a> {
+    pub(crate) fn new(
+        chain: &Chain,
+        model: Option<&'a ErrorModel>,
+        effects: &[EffectSpec],
+    ) -> Result<Self> {
+        let (chain, errors) = match model {
+            Some(m) => {
+                let c = m.apply_fixed(chain)?;
+                let e = m.bind(&c)?;
+                (c, Some(e))
+            }
+            None => (chain.clone(), None),
+        };
+        let model_dynamic = model
+            .map(|m| {
+                m.effects
+                    .iter()
+                    .filter(|e| e.effect.kind().is_dynamic())
+                    .cloned()
+                    .collect::<Vec<_>>()
+            })
+            .unwrap_or_default();
+        let effects = model_dynamic
+            .iter()
+            .chain(effects)
+            .map(|e| BoundEffect::new(e, &chain))
+            .collect::<Result<Vec<_>>>()?;
+        if effects.len() > 63 {
+            return Err(Error::input(
+                Location::new("<effects>", 0, 0),
+                "at most 63 effects can be injected at once",
+            ));
+        }
+        Ok(TrueMachine {
+            chain,
+            errors,
+            effects,
+            variants: Default::default(),
+        })
+    }
+
+    fn errors(&self) -> &dyn JointErrors {
+        match &self.errors {
+            Some(e) => e,
+            None => &NoErrors,
+        }
+    }
+
+    /// Tool tip for commanded `q` (file units) in motion state `state`, with
+    /// the effects flagged in `active`.
+    pub(crate) fn tip(&mut self, state: &MotionState, active: u64) -> Vector3<f64> {
+        let n = self.chain.dof();
+        let mut q = state.q.to_vec();
+        let mut chain_mask = 0u64;
+        for (k, e) in self.effects.iter().enumerate() {
+            if active & (1 << k) == 0 {
+                continue;
+            }
+            if e.modifies_chain() {
+                chain_mask |= 1 << k;
+            } else if let Some(j) = e.joint {
+                q[j] += e.delta_q(state);
+            }
+        }
+        for (j, v) in q.iter_mut().enumerate().take(n) {
+            if self.chain.joints[j].kind == JointKind::Revolute {
+                *v = v.to_radians();
+            }
+        }
+        if chain_mask == 0 {
+            return self.chain.pose(&q, self.errors()).tip;
+        }
+        if !self.variants.contains_key(&chain_mask) {
+            let sel: Vec<&BoundEffect> = self
+                .effects
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| chain_mask & (1 << k) != 0)
+                .map(|(_, e)| e)
+                .collect();
+            let c = chain_with_effects(&self.chain, &sel);
+            self.variants.insert(chain_mask, c);
+        }
+        let c = &self.variants[&chain_mask];
+        let errors: &dyn JointErrors = match &self.errors {
+            Some(e) => e,
+            None => &NoErrors,
+        };
+        c.pose(&q, errors).tip
+    }
+}
+
+/// One sample of a commanded trajectory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrajPoint {
+    /// Time, s.
+    pub t: f64,
+    /// NC block.
+    pub block: u64,
+    /// Commanded positions (mm, deg), chain order.
+    pub q: Vec<f64>,
+    /// Commanded velocities (mm/s, deg/s).
+    pub v: Vec<f64>,
+}
+
+/// Samples the commanded trajectory through `waypoints` every
+/// `sample_interval_s` seconds, with the velocity profile described in the
+/// module documentation.
+pub fn sample_waypoints(
+    chain: &Chain,
+    waypoints: &[Waypoint],
+    sample_interval_s: f64,
+    accel_mm_s2: Option<f64>,
+) -> Result<Vec<TrajPoint>> {
+    let loc = || Location::new("<simulate>", 0, 0);
+    if !(sample_interval_s.is_finite() && sample_interval_s > 0.0) {
+        return Err(Error::input(loc(), "the sample interval must be positive"));
+    }
+    if let Some(a) = accel_mm_s2
+        && !(a.is_finite() && a > 0.0)
+    {
+        return Err(Error::input(
+            loc(),
+            "the acceleration limit must be positive",
+        ));
+    }
+    if waypoints.is_empty() {
+        return Err(Error::input(loc(), "no waypoints to simulate"));
+    }
+    let segs = timeline(chain, waypoints, accel_mm_s2)?;
+    let n = chain.dof();
+    let total = segs.last().map_or(0.0, |s| s.t_start + s.duration);
+    let count = (total / sample_interval_s).floor() as usize + 1;
+    if count > 50_000_000 {
+        return Err(Error::input(loc(), format!("{count} samples are too many")));
+    }
+    let mut out = Vec::with_capacity(count);
+    let mut seg = 0usize;
+    for i in 0..count {
+        // Rounded to 1 ns so that times print cleanly.
+        let t = (i as f64 * sample_interval_s * 1e9).round() / 1e9;
+        while seg + 1 < segs.len() && t >= segs[seg + 1].t_start {
+            seg += 1;
+        }
+        let mut q = vec![0.0; n];
+        let mut v = vec![0.0; n];
+        let block = match segs.get(seg) {
+            Some(s) => {
+                let (p, sp) = s.s_and_v(t - s.t_start);
+                let f = p / s.length;
+                let fv = sp / s.length;
+                for j in 0..n {
+                    q[j] = s.from[j] + f * s.delta[j];
+                    v[j] = fv * s.delta[j];
+                }
+                s.block
+            }
+            None => {
+                q.copy_from_slice(&waypoints[0].q);
+                waypoints[0].block
+            }
+        };
+        out.push(TrajPoint { t, block, q, v });
+    }
+    Ok(out)
+}
+
+/// Fills in the velocities of a trajectory by central differences of its
+/// positions (one-sided at the ends).
+pub fn central_velocities(traj: &mut [TrajPoint]) {
+    let n = traj.len();
+    if n < 2 {
+        return;
+    }
+    for i in 0..n {
+        let (a, b) = if i == 0 {
+            (0, 1)
+        } else if i == n - 1 {
+            (n - 2, n - 1)
+        } else {
+            (i - 1, i + 1)
+        };
+        let dt = traj[b].t - traj[a].t;
+        let v: Vec<f64> = traj[b]
+            .q
+            .iter()
+            .zip(&traj[a].q)
+            .map(|(qb, qa)| if dt > 0.0 { (qb - qa) / dt } else { 0.0 })
+            .collect();
+        traj[i].v = v;
+    }
+}
+
+/// The tool tip (mm, noise-free) of the machine `chain` + `errors` (its
+/// fixed elements, error motions and effects) + `effects`, driven along
+/// `traj`. Directions of motion are tracked along the trajectory; an effect
+/// with `from_block` acts from the first point whose block is at least that.
+pub fn evaluate_trajectory(
+    chain: &Chain,
+    errors: Option<&ErrorModel>,
+    effects: &[EffectSpec],
+    traj: &[TrajPoint],
+) -> Result<Vec<Vector3<f64>>> {
+    let mut machine = TrueMachine::new(chain, errors, effects)?;
+    let n = chain.dof();
+    let mut trackers = vec![DirectionTracker::new(DIRECTION_DEAD_BAND); n];
+    let mut active = 0u64;
+    let mut dir = vec![0.0; n];
+    let mut out = Vec::with_capacity(traj.len());
+    for p in traj {
+        if p.q.len() != n || p.v.len() != n {
+            return Err(Error::input(
+                Location::new("<trajectory>", 0, 0),
+                format!(
+                    "a trajectory point has {} values; the machine has {n} joints",
+                    p.q.len()
+                ),
+            ));
+        }
+        for j in 0..n {
+            dir[j] = trackers[j].update(p.q[j]);
+        }
+        for (k, e) in machine.effects.iter_mut().enumerate() {
+            if active & (1 << k) == 0 && e.spec.from_block.is_none_or(|b| p.block >= b) {
+                active |= 1 << k;
+                e.t0 = p.t;
+            }
+        }
+        let state = MotionState {
+            t: p.t,
+            q: &p.q,
+            v: &p.v,
+            dir: &dir,
+        };
+        out.push(machine.tip(&state, active));
+    }
+    Ok(out)
+}
+
+/// Simulates a recording: the commanded axes sampled along the waypoints,
+/// and the tool tip of the *true* machine (chain + `errors` + `effects`)
+/// plus N(0, σ²) noise on each coordinate. Effects with a `from_block`
+/// act from the first sample whose block is at least that number.
+/// Deterministic for a seed.
+pub fn simulate(
+    chain: &Chain,
+    errors: Option<&ErrorModel>,
+    waypoints: &[Waypoint],
+    effects: &[EffectSpec],
+    opts: &SimOptions,
+) -> Result<Recording> {
+    if !(opts.noise_mm.is_finite() && opts.noise_mm >= 0.0) {
+        return Err(Error::input(
+            Location::new("<simulate>", 0, 0),
+            "the noise must be a non-negative number of mm",
+        ));
+    }
+    let traj = sample_waypoints(chain, waypoints, opts.sample_interval_s, opts.accel_mm_s2)?;
+    let tips = evaluate_trajectory(chain, errors, effects, &traj)?;
+    let mut rng = Rng::new(opts.seed);
+    let samples = traj
+        .into_iter()
+        .zip(tips)
+        .map(|(p, tip)| Sample {
+            t: p.t,
+            block: Some(p.block),
+            q: p.q,
+            meas: [
+                tip.x + opts.noise_mm * rng.normal(),
+                tip.y + opts.noise_mm * rng.normal(),
+                tip.z + opts.noise_mm * rng.normal(),
+            ],
+            meas_axis: None,
+            temps: Vec::new(),
+        })
+        .collect();
+    Ok(Recording {
+        axes: chain.joints.iter().map(|j| j.name.clone()).collect(),
+        temp_names: Vec::new(),
+        samples,
+    })
+}

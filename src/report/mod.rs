@@ -1,0 +1,3 @@
+//! Plots of reports (SVG, via `plotters`).
+
+pub mod svg;

@@ -1,0 +1,170 @@
+//! Shared helpers of the diagnose tests: the two seed machines built in
+//! code, their fixture error models, exercise programs and effect sizes.
+#![allow(dead_code)]
+
+use kinpost::diagnose::programs::{Travel, random_moves};
+use kinpost::diagnose::{EffectSpec, SimOptions, Waypoint, evaluate_trajectory, sample_waypoints};
+use kinpost::geometric::ErrorModel;
+use kinpost::machine::{Chain, JointKind};
+use nalgebra::Vector3;
+
+/// zhao2022-xzbc: C X Z B + translate [0, 0, −20].
+pub fn zhao() -> Chain {
+    let mut c = Chain::new();
+    c.joint("C", JointKind::Revolute, Vector3::new(0.0, 0.0, -1.0));
+    c.joint("X", JointKind::Prismatic, Vector3::x());
+    c.joint("Z", JointKind::Prismatic, Vector3::z());
+    c.joint("B", JointKind::Revolute, Vector3::y());
+    c.translate(Vector3::new(0.0, 0.0, -20.0));
+    c
+}
+
+/// wang2023-xyzab: A X Y Z, translate [0, 0, 265], B, translate [0, 0, −265].
+pub fn wang() -> Chain {
+    let mut c = Chain::new();
+    c.joint("A", JointKind::Revolute, Vector3::new(-1.0, 0.0, 0.0));
+    c.joint("X", JointKind::Prismatic, Vector3::x());
+    c.joint("Y", JointKind::Prismatic, Vector3::y());
+    c.joint("Z", JointKind::Prismatic, Vector3::z());
+    c.translate(Vector3::new(0.0, 0.0, 265.0));
+    c.joint("B", JointKind::Revolute, Vector3::y());
+    c.translate(Vector3::new(0.0, 0.0, -265.0));
+    c
+}
+
+/// Which seed machine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Machine {
+    /// zhao2022-xzbc.
+    Zhao,
+    /// wang2023-xyzab.
+    Wang,
+}
+
+impl Machine {
+    /// Its chain.
+    pub fn chain(self) -> Chain {
+        match self {
+            Machine::Zhao => zhao(),
+            Machine::Wang => wang(),
+        }
+    }
+
+    /// Its fixture error model (fitted from the committed tables).
+    pub fn errors(self) -> ErrorModel {
+        let path = match self {
+            Machine::Zhao => "fixtures/errors/zhao2022-xzbc.csv",
+            Machine::Wang => "fixtures/errors/wang2023-xyzab.csv",
+        };
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(path);
+        ErrorModel::load(&p).expect("fixture error model")
+    }
+
+    /// An exercise program of `blocks` random moves (chain order).
+    pub fn program(self, blocks: usize, seed: u64) -> Vec<Waypoint> {
+        let t = |lo, hi| Travel { lo, hi };
+        match self {
+            // C X Z B
+            Machine::Zhao => random_moves(
+                &[
+                    t(-120.0, 120.0),
+                    t(-80.0, 80.0),
+                    t(-80.0, 80.0),
+                    t(-60.0, 60.0),
+                ],
+                blocks,
+                (600.0, 6000.0),
+                0.7,
+                seed,
+            ),
+            // A X Y Z B
+            Machine::Wang => random_moves(
+                &[
+                    t(-90.0, 90.0),
+                    t(100.0, 400.0),
+                    t(-150.0, 150.0),
+                    t(-300.0, -50.0),
+                    t(-45.0, 45.0),
+                ],
+                blocks,
+                (600.0, 6000.0),
+                0.6,
+                seed,
+            ),
+        }
+    }
+}
+
+/// Default simulation options for the tests: σ = 1 µm, 0.1 s samples.
+pub fn sim_options(seed: u64) -> SimOptions {
+    SimOptions {
+        noise_mm: 0.001,
+        seed,
+        sample_interval_s: 0.1,
+        accel_mm_s2: Some(300.0),
+    }
+}
+
+/// RMS (3-D norm, over all samples) of the tip displacement that `effects`
+/// cause on the machine with `errors`, along `program`.
+pub fn effect_rms(
+    chain: &Chain,
+    errors: Option<&ErrorModel>,
+    program: &[Waypoint],
+    effects: &[EffectSpec],
+    opts: &SimOptions,
+) -> f64 {
+    let traj = sample_waypoints(chain, program, opts.sample_interval_s, opts.accel_mm_s2).unwrap();
+    let a = evaluate_trajectory(chain, errors, &[], &traj).unwrap();
+    let b = evaluate_trajectory(chain, errors, effects, &traj).unwrap();
+    let s: f64 = a.iter().zip(&b).map(|(x, y)| (x - y).norm_squared()).sum();
+    (s / a.len() as f64).sqrt()
+}
+
+/// RMS (3-D norm) of the tip displacement of the geometric errors (model
+/// versus nominal chain) along `program`.
+pub fn geometric_rms(
+    chain: &Chain,
+    errors: &ErrorModel,
+    program: &[Waypoint],
+    opts: &SimOptions,
+) -> f64 {
+    let traj = sample_waypoints(chain, program, opts.sample_interval_s, opts.accel_mm_s2).unwrap();
+    let a = evaluate_trajectory(chain, None, &[], &traj).unwrap();
+    let b = evaluate_trajectory(chain, Some(errors), &[], &traj).unwrap();
+    let s: f64 = a.iter().zip(&b).map(|(x, y)| (x - y).norm_squared()).sum();
+    (s / a.len() as f64).sqrt()
+}
+
+/// Multiplies the amplitude-like parameter of an effect by `k` (the
+/// time constant, period and phase stay).
+pub fn scale_effect(e: &mut kinpost::diagnose::Effect, k: f64) {
+    use kinpost::diagnose::Effect::*;
+    match e {
+        Backlash { value, .. } | ZeroOffset { value, .. } => *value *= k,
+        ServoLag { tau_s, .. } => *tau_s *= k,
+        ThermalDrift { amplitude_mm, .. } => *amplitude_mm *= k,
+        Scale { ppm, .. } => *ppm *= k,
+        Squareness { angle_urad, .. } => *angle_urad *= k,
+        Cyclic { amplitude, .. } => *amplitude *= k,
+        RotaryCenterOffset { offset_mm, .. } => offset_mm.iter_mut().for_each(|v| *v *= k),
+        PivotLength { delta_mm } => *delta_mm *= k,
+    }
+}
+
+/// `spec` with its amplitude scaled so that the effect's tip displacement
+/// has the 3-D RMS `target` (mm) along `program`.
+pub fn calibrated(
+    chain: &Chain,
+    errors: &ErrorModel,
+    program: &[Waypoint],
+    spec: &str,
+    target: f64,
+    opts: &SimOptions,
+) -> EffectSpec {
+    let mut s = kinpost::diagnose::parse_effect_spec(spec).unwrap();
+    let r = effect_rms(chain, Some(errors), program, std::slice::from_ref(&s), opts);
+    assert!(r > 0.0, "{spec} has no effect on this program");
+    scale_effect(&mut s.effect, target / r);
+    s
+}
