@@ -91,29 +91,85 @@ fn pinv(m: &DMatrix<f64>) -> DMatrix<f64> {
         .unwrap_or_else(|_| DMatrix::zeros(m.ncols(), m.nrows()))
 }
 
-/// One step of the chosen method.
-fn step(jac: &Jacobian, rp: &Vector3<f64>, ro: &Vector3<f64>, opts: &Options) -> DVector<f64> {
+/// Damped least-squares solution of `J Δ = r` with joint scaling `scale`
+/// (Δ = S (J S)ᵀ ((J S)(J S)ᵀ + λ² I)⁻¹ r): λ = 0 is the minimum-norm
+/// solution; a larger λ shortens the step along ill-conditioned directions.
+fn damped(j: &DMatrix<f64>, r: &DVector<f64>, scale: &[f64], lambda: f64) -> DVector<f64> {
+    let n = j.ncols();
+    let js = DMatrix::from_fn(j.nrows(), n, |row, c| j[(row, c)] * scale[c]);
+    let sol = if lambda == 0.0 {
+        pinv(&js) * r
+    } else {
+        let a = &js * js.transpose() + DMatrix::identity(j.nrows(), j.nrows()) * (lambda * lambda);
+        match a.lu().solve(r) {
+            Some(y) => js.transpose() * y,
+            None => DVector::zeros(n),
+        }
+    };
+    DVector::from_fn(n, |k, _| sol[k] * scale[k])
+}
+
+/// One step of the chosen method, split into its tip part and its axis part
+/// (the paper's stacked step is all "tip part"). The tip part is damped just
+/// enough to stay inside the trust region `caps` (Levenberg–Marquardt).
+fn step(
+    jac: &Jacobian,
+    rp: &Vector3<f64>,
+    ro: &Vector3<f64>,
+    opts: &Options,
+    caps: &[f64],
+) -> (DVector<f64>, DVector<f64>) {
     let n = jac.ncols();
+    let within = |d: &DVector<f64>| d.iter().zip(caps).all(|(x, c)| x.abs() <= *c);
     if opts.method == Method::Paper {
         let j = DMatrix::from_iterator(6, n, jac.iter().cloned());
         let r = DVector::from_vec(vec![rp.x, rp.y, rp.z, ro.x, ro.y, ro.z]);
-        return pinv(&j) * r;
+        return (pinv(&j) * r, DVector::zeros(n));
     }
     let jp = DMatrix::from_fn(3, n, |r, c| jac[(r, c)]);
     let w = &opts.axis_weights;
     let jo = DMatrix::from_fn(3, n, |r, c| w[r] * jac[(r + 3, c)]);
     let rp = DVector::from_column_slice(rp.as_slice());
     let ro = DVector::from_vec(vec![w[0] * ro.x, w[1] * ro.y, w[2] * ro.z]);
+    let mut dq1 = damped(&jp, &rp, caps, 0.0);
+    if !within(&dq1) {
+        // Smallest damping (in decades) that keeps the tip step in bounds.
+        let mut lambda = 1e-6;
+        while lambda < 1e6 {
+            dq1 = damped(&jp, &rp, caps, lambda);
+            if within(&dq1) {
+                break;
+            }
+            lambda *= 10.0;
+        }
+    }
     let jp_pinv = pinv(&jp);
-    let dq1 = &jp_pinv * rp;
     let null = DMatrix::identity(n, n) - &jp_pinv * &jp;
     let jon = &jo * &null;
     let dq2 = &null * (pinv(&jon) * (ro - &jo * &dq1));
-    dq1 + dq2
+    (dq1, dq2)
 }
+
+/// Largest change of a linear axis per Newton step, mm.
+const STEP_LINEAR_MM: f64 = 0.05;
+/// Largest change of a rotary axis per Newton step, rad.
+const STEP_ROTARY_RAD: f64 = 5e-4;
+/// Largest total compensation of a linear axis, mm: far above any geometric
+/// error compensation (micrometres), low enough to stop a wandering iteration.
+pub const MAX_COMPENSATION_MM: f64 = 0.5;
+/// Largest total compensation of a rotary axis, rad (0.29°).
+pub const MAX_COMPENSATION_RAD: f64 = 5e-3;
 
 /// Refines joint values `q0` so that the actual machine (`chain` with
 /// `errors`) puts the tool on `target`.
+///
+/// Safeguards: each step is scaled into a trust region (0.05 mm, 0.5 mrad
+/// per axis), the axis part of the step is backtracked until it does not
+/// make things worse, and the total compensation is bounded (0.5 mm, 5 mrad):
+/// near the singular poses of a four-axis machine (the tool tip on the C
+/// axis) a tangential tip error would need an unbounded turn of C, and the
+/// refinement then stops with the best compensation within bounds
+/// (`converged == false`).
 pub fn refine(
     chain: &Chain,
     errors: &dyn JointErrors,
@@ -121,42 +177,103 @@ pub fn refine(
     q0: &[f64],
     opts: &Options,
 ) -> Refined {
+    let n = q0.len();
+    let revolute: Vec<bool> = chain
+        .joints
+        .iter()
+        .map(|j| j.kind == crate::machine::chain::JointKind::Revolute)
+        .collect();
+    let step_cap = |k: usize| {
+        if revolute[k] {
+            STEP_ROTARY_RAD
+        } else {
+            STEP_LINEAR_MM
+        }
+    };
+    let total_cap = |k: usize| {
+        if revolute[k] {
+            MAX_COMPENSATION_RAD
+        } else {
+            MAX_COMPENSATION_MM
+        }
+    };
+    let eval = |q: &[f64]| -> (Pose, Jacobian) {
+        match opts.method {
+            Method::Exact => chain.pose_and_jacobian(q, errors),
+            Method::Theoretical | Method::Paper => (
+                chain.pose(q, errors),
+                chain.pose_and_jacobian(q, &NoErrors).1,
+            ),
+        }
+    };
     let mut q = q0.to_vec();
     let mut iterations = 0;
     let mut converged = false;
+    let (mut pose, mut jac) = eval(&q);
+    let mut trial = vec![0.0; n];
     loop {
-        let (pose, jac) = match opts.method {
-            Method::Exact => chain.pose_and_jacobian(&q, errors),
-            Method::Theoretical | Method::Paper => {
-                let pose = chain.pose(&q, errors);
-                (pose, chain.pose_and_jacobian(&q, &NoErrors).1)
-            }
-        };
         let (rp, ro) = residual(target, &pose);
+        let tip = rp.norm();
+        let ax = pose.axis_angle(target);
         if iterations >= opts.max_iterations {
             break;
         }
-        let dq = step(&jac, &rp, &ro, opts);
-        // Converged when the tip is met and the step no longer changes the
-        // joints at floating-point level (the axis has reached its optimum).
-        let negligible = dq
-            .iter()
-            .zip(&q)
-            .all(|(d, qi)| d.abs() <= 1e-14 * (1.0 + qi.abs()));
-        if negligible && (rp.norm() <= opts.tip_tolerance_mm || opts.method == Method::Paper) {
+        let caps: Vec<f64> = (0..n).map(step_cap).collect();
+        let (d1, d2) = step(&jac, &rp, &ro, opts, &caps);
+        // Trust region: scale the whole step so no axis moves too far.
+        let mut scale = 1.0f64;
+        for k in 0..n {
+            let d = (d1[k] + d2[k]).abs();
+            if d > step_cap(k) {
+                scale = scale.min(step_cap(k) / d);
+            }
+        }
+        // Backtrack the axis part until the move is no worse (tip first).
+        let mut accepted = None;
+        let mut s2 = 1.0;
+        for _ in 0..12 {
+            for k in 0..n {
+                trial[k] = q[k] + scale * (d1[k] + s2 * d2[k]);
+            }
+            let within = (0..n).all(|k| (trial[k] - q0[k]).abs() <= total_cap(k));
+            if within {
+                let (p2, j2) = eval(&trial);
+                let tip2 = p2.tip_distance(target);
+                let ax2 = p2.axis_angle(target);
+                // The paper's step is taken as printed (no safeguard but the bounds).
+                let tip_ok = opts.method == Method::Paper
+                    || tip2 <= tip.max(opts.tip_tolerance_mm) * (1.0 + 1e-9) + 1e-15;
+                let ax_ok = opts.method == Method::Paper || ax2 <= ax + 1e-15 || tip2 < 0.5 * tip;
+                if tip_ok && ax_ok {
+                    accepted = Some((p2, j2, tip2, ax2));
+                    break;
+                }
+            }
+            s2 *= 0.5;
+        }
+        let Some((p2, j2, tip2, ax2)) = accepted else {
+            // No step improves within the bounds: this is the best there is.
+            converged = tip <= opts.tip_tolerance_mm;
+            break;
+        };
+        iterations += 1;
+        q.copy_from_slice(&trial);
+        pose = p2;
+        jac = j2;
+        // Converged when the tip is met and neither the tip nor the axis
+        // improves any more at floating-point level.
+        let tip_settled = tip2 <= opts.tip_tolerance_mm && tip - tip2 <= 1e-15 + 1e-9 * tip;
+        let ax_settled = ax - ax2 <= 1e-15 + 1e-9 * ax;
+        if opts.method == Method::Paper {
+            if (tip - tip2).abs() <= 1e-16 + 1e-9 * tip && ax_settled {
+                converged = true;
+                break;
+            }
+        } else if tip_settled && ax_settled {
             converged = true;
             break;
         }
-        if negligible {
-            // Fixed point of the step that does not meet the tip: stalled.
-            break;
-        }
-        iterations += 1;
-        for (qi, d) in q.iter_mut().zip(dq.iter()) {
-            *qi += d;
-        }
     }
-    let pose = chain.pose(&q, errors);
     Refined {
         tip_residual_mm: pose.tip_distance(target),
         axis_residual_rad: pose.axis_angle(target),
@@ -192,6 +309,8 @@ pub enum OnFail {
     Error,
     /// Keep the theoretical axes for that block and warn.
     Theoretical,
+    /// Keep the best compensation found within bounds and warn.
+    Best,
 }
 
 /// A [`crate::post::PoseSolver`] that starts from the analytic IK and refines
@@ -245,6 +364,18 @@ impl crate::post::PoseSolver for CompensatingSolver<'_> {
                 OnFail::Theoretical => {
                     self.warnings
                         .push(format!("line {line}: {msg}; theoretical axes kept"));
+                    th.q.clone()
+                }
+                OnFail::Best if self.ik.check_limits(&r.q).is_ok() => {
+                    self.warnings.push(format!(
+                        "line {line}: {msg}; best compensation within bounds kept"
+                    ));
+                    r.q.clone()
+                }
+                OnFail::Best => {
+                    self.warnings.push(format!(
+                        "line {line}: {msg}; theoretical axes kept (limits)"
+                    ));
                     th.q.clone()
                 }
             },

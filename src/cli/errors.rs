@@ -338,6 +338,8 @@ pub enum OnFailArg {
     Error,
     /// Keep the theoretical axes for that block, with a warning.
     Theoretical,
+    /// Keep the best compensation within bounds (tip error reported), with a warning.
+    Best,
 }
 
 /// `kinpost compensate`.
@@ -416,6 +418,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         on_fail: match a.on_fail {
             OnFailArg::Error => OnFail::Error,
             OnFailArg::Theoretical => OnFail::Theoretical,
+            OnFailArg::Best => OnFail::Best,
         },
         accept_tip_mm: a.tip_tolerance_mm,
         records: Vec::new(),
