@@ -228,6 +228,13 @@ pub fn refine(
                 scale = scale.min(step_cap(k) / d);
             }
         }
+        // Already there: the tip is met and the step is at floating-point level.
+        let negligible =
+            (0..n).all(|k| (scale * (d1[k] + d2[k])).abs() <= 1e-14 * (1.0 + q[k].abs()));
+        if negligible && (tip <= opts.tip_tolerance_mm || opts.method == Method::Paper) {
+            converged = true;
+            break;
+        }
         // Backtrack the axis part until the move is no worse (tip first).
         let mut accepted = None;
         let mut s2 = 1.0;
@@ -262,10 +269,12 @@ pub fn refine(
         jac = j2;
         // Converged when the tip is met and neither the tip nor the axis
         // improves any more at floating-point level.
-        let tip_settled = tip2 <= opts.tip_tolerance_mm && tip - tip2 <= 1e-15 + 1e-9 * tip;
+        // Floating-point floor of the tip: a few ulps of the coordinates.
+        let floor = 1e-14 * (1.0 + target.tip.amax());
+        let tip_settled = tip2 <= opts.tip_tolerance_mm && tip - tip2 <= floor + 1e-9 * tip;
         let ax_settled = ax - ax2 <= 1e-15 + 1e-9 * ax;
         if opts.method == Method::Paper {
-            if (tip - tip2).abs() <= 1e-16 + 1e-9 * tip && ax_settled {
+            if (tip - tip2).abs() <= floor + 1e-9 * tip && (ax - ax2).abs() <= 1e-15 + 1e-9 * ax {
                 converged = true;
                 break;
             }
