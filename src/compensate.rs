@@ -343,6 +343,45 @@ pub struct CompensatingSolver<'a> {
     pub records: Vec<BlockRecord>,
     /// Warnings.
     pub warnings: Vec<String>,
+    /// Backlash to pre-compensate: (joint, reversal value in mm / rad).
+    pub backlash: Vec<(usize, f64)>,
+    /// Direction of the last motion of each joint (+1, −1, 0 before any).
+    pub last_direction: Vec<f64>,
+    /// The last joint values before backlash pre-compensation.
+    pub last_target: Option<Vec<f64>>,
+}
+
+impl CompensatingSolver<'_> {
+    /// Backlash of the model's diagnosed effects, for pre-compensation, and
+    /// a warning for the dynamic effects a block-wise post cannot apply.
+    pub fn dynamic_effects(
+        model: &crate::geometric::model::ErrorModel,
+        chain: &Chain,
+    ) -> (Vec<(usize, f64)>, Vec<String>) {
+        use crate::diagnose::effects::Effect;
+        let mut backlash = Vec::new();
+        let mut warnings = Vec::new();
+        for e in &model.effects {
+            match &e.effect {
+                Effect::Backlash { axis, value } => {
+                    if let Some(j) = chain.joint_index(axis) {
+                        let v = if chain.joints[j].kind == crate::machine::chain::JointKind::Revolute {
+                            value.to_radians()
+                        } else {
+                            *value
+                        };
+                        backlash.push((j, v));
+                    }
+                }
+                Effect::ServoLag { axis, .. } | Effect::ThermalDrift { axis, .. } => warnings.push(format!(
+                    "the model's {} of {axis} depends on speed or time along the run; compensate does not apply it (it is a controller feed-forward or a thermal model's job)",
+                    e.effect.kind().name()
+                )),
+                _ => {}
+            }
+        }
+        (backlash, warnings)
+    }
 }
 
 impl crate::post::PoseSolver for CompensatingSolver<'_> {
@@ -389,9 +428,29 @@ impl crate::post::PoseSolver for CompensatingSolver<'_> {
                 }
             },
         };
+        // Backlash: the axis lags its command by value/2 against the direction
+        // of its last motion, so command value/2 further in that direction.
+        // Where the machine really goes (after its backlash): what the record reports.
+        let after = self.actual_chain.pose(&q, self.errors);
+        let mut q = q;
+        if !self.backlash.is_empty() {
+            if self.last_direction.len() != q.len() {
+                self.last_direction = vec![0.0; q.len()];
+            }
+            let target = q.clone();
+            for &(j, value) in &self.backlash {
+                if let Some(prev) = &self.last_target {
+                    let d = target[j] - prev[j];
+                    if d.abs() > 1e-12 {
+                        self.last_direction[j] = d.signum();
+                    }
+                }
+                q[j] += 0.5 * value * self.last_direction[j];
+            }
+            self.last_target = Some(target);
+        }
         let ext_c = self.machine.to_external(&q);
         let ext_t = self.machine.to_external(&th.q);
-        let after = self.actual_chain.pose(&q, self.errors);
         self.records.push(BlockRecord {
             line,
             iterations: r.iterations,

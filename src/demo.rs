@@ -142,3 +142,50 @@ fn pose_program(header: &[String], poses: &[Pose], feed: &str) -> String {
     s.push_str("G49\nM30\n%\n");
     s
 }
+
+/// An exercise program in machine axes for `machine` (random point-to-point
+/// moves that reverse every axis many times at varied feeds; see
+/// `diagnose::programs::random_moves`), for simulated recordings. The first
+/// block sits on line 2, so block `k` of the simulation is line `k + 1`.
+pub fn exercise_program(machine: &crate::machine::Machine, blocks: usize, seed: u64) -> String {
+    use crate::diagnose::programs::{Travel, random_moves};
+    use crate::machine::JointKind;
+    // Travels in the chain's joint order, kept inside the limits.
+    let travels: Vec<Travel> = machine
+        .chain
+        .joints
+        .iter()
+        .map(|j| {
+            let spec = machine.axes.iter().find(|a| a.name == j.name);
+            let (lo, hi) = match (spec.and_then(|a| a.min), spec.and_then(|a| a.max)) {
+                (Some(lo), Some(hi)) => (lo, hi),
+                _ if j.kind == JointKind::Revolute => (-180.0, 180.0),
+                _ => (-100.0, 100.0),
+            };
+            // Stay clear of the ends: 60 % of the travel around its middle.
+            let (mid, half) = (0.5 * (lo + hi), 0.3 * (hi - lo).min(400.0));
+            Travel {
+                lo: mid - half,
+                hi: mid + half,
+            }
+        })
+        .collect();
+    let wps = random_moves(&travels, blocks, (600.0, 6000.0), 0.7, seed);
+    let mut s = format!(
+        "(kinpost exercise program for {}: {} random moves, seed {seed})\n",
+        machine.name, blocks
+    );
+    for (k, w) in wps.iter().enumerate() {
+        s.push_str(if k == 0 { "G90 G94 G21 G1" } else { "G1" });
+        for a in &machine.axes {
+            s.push(' ');
+            s.push_str(&a.name);
+            push_fixed(&mut s, w.q[a.joint], 4);
+        }
+        s.push_str(" F");
+        push_fixed(&mut s, w.feed, 0);
+        s.push('\n');
+    }
+    s.push_str("M30\n");
+    s
+}

@@ -1,7 +1,8 @@
 //! The committed demo programs equal their deterministic generators' output.
 //! Regenerate with `KINPOST_UPDATE_FIXTURES=1 cargo test --test demo_fixtures`.
 
-use kinpost::demo::{OffAxisLens, impeller_program, lens_program};
+use kinpost::demo::{OffAxisLens, exercise_program, impeller_program, lens_program};
+use kinpost::machine::Machine;
 
 fn check(path: &str, text: &str) {
     let full = format!("{}/{path}", env!("CARGO_MANIFEST_DIR"));
@@ -27,4 +28,13 @@ fn impeller_program_fixture_is_generated() {
     let text = impeller_program(600);
     assert_eq!(text.lines().filter(|l| l.contains(" I")).count(), 601);
     check("fixtures/programs/wang2023-impeller.nc", &text);
+}
+
+#[test]
+fn exercise_program_fixtures_are_generated() {
+    for (name, seed) in [("zhao2022-xzbc", 11), ("wang2023-xyzab", 12)] {
+        let m = Machine::embedded(name).unwrap();
+        let text = exercise_program(&m, 120, seed);
+        check(&format!("fixtures/programs/{name}-exercise.nc"), &text);
+    }
 }

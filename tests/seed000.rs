@@ -45,6 +45,9 @@ fn run_method(
         accept_tip_mm: 1.0,
         records: Vec::new(),
         warnings: Vec::new(),
+        backlash: Vec::new(),
+        last_direction: Vec::new(),
+        last_target: None,
     };
     let mut prev: Option<Vec<f64>> = None;
     let mut qs = Vec::new();

@@ -404,6 +404,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         MethodArg::Theoretical => Method::Theoretical,
         MethodArg::Paper => Method::Paper,
     };
+    let (backlash, dynamic_warnings) = CompensatingSolver::dynamic_effects(&model, &machine.chain);
     let mut solver = CompensatingSolver {
         machine: &machine,
         actual_chain: model.apply_fixed(&machine.chain)?,
@@ -422,7 +423,10 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         },
         accept_tip_mm: a.tip_tolerance_mm,
         records: Vec::new(),
-        warnings: Vec::new(),
+        warnings: dynamic_warnings,
+        backlash,
+        last_direction: Vec::new(),
+        last_target: None,
     };
     let mut inp = input::open(a.input.as_deref())?;
     let kind = super::resolve_kind(a.input_kind, &mut *inp.reader)?;

@@ -1,5 +1,6 @@
 //! The command line: clap definitions and dispatch into the library.
 
+pub mod diagnose;
 pub mod errors;
 pub mod linkage;
 
@@ -50,6 +51,12 @@ pub enum Command {
     /// Rewrite a five-axis linkage program so that no block moves more than
     /// four axes, with the exact nonlinear error of every segment bounded (seed 003).
     Linkage(linkage::LinkageArgs),
+    /// Make a recording: run a program on the model machine with chosen
+    /// effects injected (backlash, servo lag, thermal drift, …) and noise.
+    Simulate(diagnose::SimulateArgs),
+    /// Find where a recording and the model disagree, name the physics the
+    /// model left out, fit it, and show the fit improve on held-out data.
+    Diagnose(diagnose::DiagnoseArgs),
 }
 
 /// Choosing a machine.
@@ -171,6 +178,8 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Analyze(a) => errors::analyze(a),
         Command::Compensate(a) => errors::compensate(a),
         Command::Linkage(a) => linkage::linkage(a),
+        Command::Simulate(a) => diagnose::simulate(a),
+        Command::Diagnose(a) => diagnose::diagnose(a),
     }
 }
 

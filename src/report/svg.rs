@@ -179,7 +179,10 @@ impl Report {
     /// Writes the plots as an SVG file.
     pub fn write_svg(&self, path: &std::path::Path) -> Result<()> {
         let svg = render(self)?;
-        std::fs::write(path, svg).map_err(|e| Error::io(path.display().to_string(), e))
+        crate::output::write_atomically(Some(path), |w| {
+            w.write_all(svg.as_bytes())
+                .map_err(|e| Error::io(path.display().to_string(), e))
+        })
     }
 
     /// The plots as SVG text.

@@ -1,0 +1,254 @@
+//! `kinpost simulate` and `kinpost diagnose`: recordings, and the missing
+//! physics found in them.
+
+use super::{MachineChoice, PoseStartArg};
+use crate::diagnose::{
+    DiagOptions, Recording, SimOptions, Waypoint, diagnose as run_diagnose, parse_effect_spec,
+    simulate as run_simulate,
+};
+use crate::error::{Error, Location, Result};
+use crate::input;
+use crate::machine::{IkSolver, JointKind, Machine};
+use crate::output::write_atomically;
+use crate::program::PoseStart;
+use crate::program::source::{cl_poses, gcode_poses, looks_like_poses, machine_axis_blocks};
+use clap::Args;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// `kinpost simulate`.
+#[derive(Debug, Args)]
+pub struct SimulateArgs {
+    #[command(flatten)]
+    pub machine: MachineChoice,
+    /// Known geometric errors of the machine (model JSON or error table CSV).
+    #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
+    pub errors: Option<PathBuf>,
+    /// Program to run: tool poses (G-code or APT CL) or machine axes.
+    #[arg(long, short = 'p', value_name = "PROGRAM")]
+    pub program: PathBuf,
+    /// Effect to inject, e.g. `backlash:X=0.003`, `servo_lag:X=0.02`,
+    /// `thermal_drift:Z=0.01,tau=600`, `scale:X=50`, `squareness:XZ=20`,
+    /// `cyclic:X=0.002,period=20,phase=0`, `zero_offset:Z=0.005`,
+    /// `rotary_center_offset:C=0.002,0.001,0`, `pivot_length:0.01`; append
+    /// `@block=N` to start it at line N. Repeat for several effects.
+    #[arg(long, value_name = "SPEC")]
+    pub inject: Vec<String>,
+    /// Measurement noise, standard deviation per measured coordinate, mm.
+    #[arg(long, value_name = "MM", default_value_t = 0.001)]
+    pub noise: f64,
+    /// Seed of the noise (deterministic).
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub seed: u64,
+    /// Time between samples, s.
+    #[arg(long, value_name = "S", default_value_t = 0.1)]
+    pub sample_interval: f64,
+    /// Acceleration limit along the path, mm/s² (0: constant feed per block).
+    #[arg(long, value_name = "MM/S2", default_value_t = 200.0)]
+    pub accel: f64,
+    /// Feed of rapid moves and of moves without a programmed feed, mm/min.
+    #[arg(long, value_name = "MM/MIN", default_value_t = 3000.0)]
+    pub rapid_feed: f64,
+    /// When pose mode starts (pose programs).
+    #[arg(long, value_enum, default_value = "on")]
+    pub pose_start: PoseStartArg,
+    /// Write the recording here (atomically). Default: standard output.
+    #[arg(long, short = 'o', value_name = "REC.csv")]
+    pub output: Option<PathBuf>,
+}
+
+/// Waypoints of a program: its commanded axes per block (joint order, mm/deg).
+pub fn program_waypoints(
+    machine: &Machine,
+    path: &std::path::Path,
+    start: PoseStart,
+    rapid_feed: f64,
+) -> Result<Vec<Waypoint>> {
+    let mut inp = input::open(Some(path))?;
+    let head = input::peek(&mut *inp.reader)?;
+    let name = inp.name.clone();
+    let ext = |q: &[f64]| -> Vec<f64> {
+        q.iter()
+            .zip(&machine.chain.joints)
+            .map(|(v, j)| {
+                if j.kind == JointKind::Revolute {
+                    v.to_degrees()
+                } else {
+                    *v
+                }
+            })
+            .collect()
+    };
+    let mut wps = Vec::new();
+    if looks_like_poses(&head) {
+        let ik = IkSolver::new(machine);
+        let mut prev: Option<Vec<f64>> = None;
+        let mut on_pose = |ev: crate::program::source::PoseEvent| -> Result<()> {
+            let q = ik
+                .solve(&ev.pose, prev.as_deref())
+                .map_err(|e| Error::input(Location::new(&name, ev.line, 0), e.to_string()))?
+                .q;
+            let feed = if ev.rapid {
+                rapid_feed
+            } else {
+                ev.feed_mm_min.unwrap_or(rapid_feed)
+            };
+            wps.push(Waypoint {
+                q: ext(&q),
+                feed,
+                block: ev.line as u64,
+            });
+            prev = Some(q);
+            Ok(())
+        };
+        if crate::cl::looks_like_cl(&head) {
+            cl_poses(&mut inp.reader, &name, &mut on_pose)?;
+        } else {
+            gcode_poses(&mut inp.reader, &name, start, &mut on_pose)?;
+        }
+    } else {
+        machine_axis_blocks(machine, &mut inp.reader, &name, |ev| {
+            let feed = if ev.rapid {
+                rapid_feed
+            } else {
+                ev.feed_mm_min.unwrap_or(rapid_feed)
+            };
+            wps.push(Waypoint {
+                q: ext(&ev.q),
+                feed,
+                block: ev.line as u64,
+            });
+            Ok(())
+        })?;
+    }
+    if wps.len() < 2 {
+        return Err(Error::input(
+            Location::new(&name, 0, 0),
+            "the program has fewer than two positions to move between",
+        ));
+    }
+    Ok(wps)
+}
+
+/// Runs `kinpost simulate`.
+pub fn simulate(a: SimulateArgs) -> Result<()> {
+    let machine = a.machine.load()?;
+    if !(a.sample_interval.is_finite() && a.sample_interval > 0.0) {
+        return Err(Error::Usage("--sample-interval must be > 0 s".into()));
+    }
+    if !(a.rapid_feed.is_finite() && a.rapid_feed > 0.0) {
+        return Err(Error::Usage("--rapid-feed must be > 0 mm/min".into()));
+    }
+    let model = match &a.errors {
+        Some(p) => Some(super::errors::load_errors(p)?),
+        None => None,
+    };
+    let effects = a
+        .inject
+        .iter()
+        .map(|s| parse_effect_spec(s))
+        .collect::<Result<Vec<_>>>()?;
+    let start = match a.pose_start {
+        PoseStartArg::On => PoseStart::On,
+        PoseStartArg::Tcp => PoseStart::Off,
+    };
+    let wps = program_waypoints(&machine, &a.program, start, a.rapid_feed)?;
+    let opts = SimOptions {
+        noise_mm: a.noise,
+        seed: a.seed,
+        sample_interval_s: a.sample_interval,
+        accel_mm_s2: (a.accel > 0.0).then_some(a.accel),
+    };
+    let rec = run_simulate(&machine.chain, model.as_ref(), &wps, &effects, &opts)?;
+    let n = rec.samples.len();
+    write_atomically(a.output.as_deref(), |w| {
+        rec.write_csv(&mut *w).map_err(|e| Error::io("<output>", e))
+    })?;
+    eprintln!(
+        "kinpost simulate: {n} samples over {:.1} s from {} blocks of {}, noise σ = {} µm, {} effect(s) injected",
+        rec.samples.last().map(|s| s.t).unwrap_or(0.0),
+        wps.len(),
+        a.program.display(),
+        a.noise * 1e3,
+        effects.len()
+    );
+    Ok(())
+}
+
+/// `kinpost diagnose`.
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    #[command(flatten)]
+    pub machine: MachineChoice,
+    /// Known geometric errors of the machine (model JSON or error table CSV).
+    #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
+    pub errors: Option<PathBuf>,
+    /// The recording (formats.md §2): commanded axes and measured tool tip.
+    #[arg(long, short = 'r', value_name = "REC.csv")]
+    pub recording: PathBuf,
+    /// Print the report as JSON (formats.md §3).
+    #[arg(long)]
+    pub json: bool,
+    /// Plot the residual before and after (SVG).
+    #[arg(long, value_name = "FILE.svg")]
+    pub svg: Option<PathBuf>,
+    /// Write the improved model (error model + effects found) here.
+    #[arg(long, value_name = "MODEL.json")]
+    pub write_model: Option<PathBuf>,
+    /// Largest number of effects to report.
+    #[arg(long, value_name = "N", default_value_t = 4)]
+    pub max_effects: usize,
+    /// Noise floor per measured coordinate, mm (default: estimated robustly).
+    #[arg(long, value_name = "MM")]
+    pub noise_floor: Option<f64>,
+}
+
+/// Runs `kinpost diagnose`.
+pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
+    let machine = a.machine.load()?;
+    let model = match &a.errors {
+        Some(p) => Some(super::errors::load_errors(p)?),
+        None => None,
+    };
+    if a.noise_floor
+        .is_some_and(|nf| !(nf.is_finite() && nf > 0.0))
+    {
+        return Err(Error::Usage("--noise-floor must be > 0 mm".into()));
+    }
+    let axes: Vec<String> = machine
+        .chain
+        .joints
+        .iter()
+        .map(|j| j.name.clone())
+        .collect();
+    let rec = Recording::load(&a.recording, &axes)?;
+    let opts = DiagOptions {
+        max_effects: a.max_effects,
+        noise_floor_mm: a.noise_floor,
+        ..DiagOptions::default()
+    };
+    let report = run_diagnose(&machine.chain, model.as_ref(), &rec, &opts)?;
+    if let Some(svg) = &a.svg {
+        let text = report.to_svg()?;
+        write_atomically(Some(svg), |w| {
+            w.write_all(text.as_bytes())
+                .map_err(|e| Error::io(svg.display().to_string(), e))
+        })?;
+    }
+    if let Some(out) = &a.write_model {
+        let improved = report.improved_model(model.as_ref());
+        let text = serde_json::to_string_pretty(&improved.to_json()).unwrap_or_default();
+        write_atomically(Some(out), |w| {
+            w.write_all(text.as_bytes())
+                .and_then(|_| w.write_all(b"\n"))
+                .map_err(|e| Error::io(out.display().to_string(), e))
+        })?;
+    }
+    let mut o = std::io::stdout().lock();
+    let text = if a.json {
+        report.to_json_string()
+    } else {
+        report.to_text()
+    };
+    writeln!(o, "{}", text.trim_end()).map_err(|e| Error::io("<stdout>", e))
+}
