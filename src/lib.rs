@@ -16,6 +16,7 @@ pub mod geometric;
 pub mod input;
 pub mod linkage;
 pub mod machine;
+pub mod numeric;
 pub mod output;
 pub mod plot;
 pub mod post;

@@ -11,7 +11,7 @@ use crate::input;
 use crate::machine::{IkSolver, JointKind, Machine};
 use crate::output::write_atomically;
 use crate::program::PoseStart;
-use crate::program::source::{cl_poses, gcode_poses, looks_like_poses, machine_axis_blocks};
+use crate::program::source::{looks_like_poses, machine_axis_blocks, program_poses};
 use clap::Args;
 use std::io::Write;
 use std::path::PathBuf;
@@ -101,11 +101,7 @@ pub fn program_waypoints(
             prev = Some(q);
             Ok(())
         };
-        if crate::cl::looks_like_cl(&head) {
-            cl_poses(&mut inp.reader, &name, &mut on_pose)?;
-        } else {
-            gcode_poses(&mut inp.reader, &name, start, &mut on_pose)?;
-        }
+        program_poses(&mut inp.reader, &head, &name, start, &mut on_pose)?;
     } else {
         machine_axis_blocks(machine, &mut inp.reader, &name, |ev| {
             let feed = if ev.rapid {

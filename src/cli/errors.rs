@@ -15,7 +15,7 @@ use crate::output::write_atomically;
 use crate::plot::{Panel, write_panels};
 use crate::post::{PostOptions, post_cl, post_gcode};
 use crate::program::PoseStart;
-use crate::program::source::{cl_poses, gcode_poses, looks_like_poses, machine_axis_blocks};
+use crate::program::source::{looks_like_poses, machine_axis_blocks, program_poses};
 use clap::{Args, ValueEnum};
 use std::io::Write;
 use std::path::PathBuf;
@@ -192,11 +192,7 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
             step(ev.line, q);
             Ok(())
         };
-        if crate::cl::looks_like_cl(&head) {
-            cl_poses(&mut inp.reader, &name, &mut on_pose)?;
-        } else {
-            gcode_poses(&mut inp.reader, &name, start, &mut on_pose)?;
-        }
+        program_poses(&mut inp.reader, &head, &name, start, &mut on_pose)?;
     } else {
         if analyzer.is_some() {
             return Err(Error::Usage(

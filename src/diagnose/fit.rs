@@ -545,30 +545,6 @@ fn choose_onset(profile: &[f64], ctx: &SearchCtx, n_onsets: usize) -> (usize, f6
     }
 }
 
-fn golden_max(mut lo: f64, mut hi: f64, iters: usize, f: &mut dyn FnMut(f64) -> f64) -> (f64, f64) {
-    let g = 0.618_033_988_749_894_9;
-    let mut x1 = hi - g * (hi - lo);
-    let mut x2 = lo + g * (hi - lo);
-    let mut f1 = f(x1);
-    let mut f2 = f(x2);
-    for _ in 0..iters {
-        if f1 < f2 {
-            lo = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = lo + g * (hi - lo);
-            f2 = f(x2);
-        } else {
-            hi = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = hi - g * (hi - lo);
-            f1 = f(x1);
-        }
-    }
-    if f1 > f2 { (x1, f1) } else { (x2, f2) }
-}
-
 /// Searches one family: non-linear parameter (grid + golden section) and
 /// onset (profile over all block starts). `None` if the family has no
 /// support in the data (joint never moves, …).
@@ -607,7 +583,7 @@ pub fn search_family(
             }
             let a = (best.4 - step).max(lo);
             let b = (best.4 + step).min(hi);
-            let (x, _) = golden_max(a, b, 14, &mut |x| eval(x).0);
+            let (x, _) = crate::numeric::golden_section_max(&mut |x| eval(x).0, a, b, 14);
             let (sc, k, d, pen) = eval(x);
             let (x, k, d, pen) = if sc >= best.0 {
                 (x, k, d, pen)
@@ -720,11 +696,11 @@ pub fn search_family(
                 .collect();
             vals.sort_by(|a, b| b.0.total_cmp(&a.0));
             let f_best = vals[0].1;
-            let (f, _) = golden_max(
+            let (f, _) = crate::numeric::golden_section_max(
+                &mut full,
                 (f_best - step).max(f_lo),
                 (f_best + step).min(f_hi),
                 16,
-                &mut full,
             );
             let p = 1.0 / f;
             let base = base_columns(prep, fam, p);

@@ -86,7 +86,8 @@ pub fn nonlinear_error(
         if samples[i] >= samples[i - 1] && samples[i] >= samples[i + 1] {
             let lo = (i - 1) as f64 / SAMPLES as f64;
             let hi = (i + 1) as f64 / SAMPLES as f64;
-            let (t, d) = golden_max(&mut dist, lo, hi);
+            // 55 steps shrink the bracket (1/24 wide) below 1e-12 in t.
+            let (t, d) = crate::numeric::golden_section_max(&mut dist, lo, hi, 55);
             if d > best.0 {
                 best = (d, t);
             }
@@ -101,32 +102,6 @@ pub fn nonlinear_error(
 
 fn errors_are_linear_free(errors: &dyn JointErrors) -> bool {
     errors.is_empty()
-}
-
-/// Golden-section search for the maximum of `f` on `[lo, hi]` (to 1e-12 in t).
-fn golden_max(f: &mut impl FnMut(f64) -> f64, mut lo: f64, mut hi: f64) -> (f64, f64) {
-    let g = (5f64.sqrt() - 1.0) / 2.0;
-    let mut x1 = hi - g * (hi - lo);
-    let mut x2 = lo + g * (hi - lo);
-    let mut f1 = f(x1);
-    let mut f2 = f(x2);
-    while hi - lo > 1e-12 {
-        if f1 < f2 {
-            lo = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = lo + g * (hi - lo);
-            f2 = f(x2);
-        } else {
-            hi = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = hi - g * (hi - lo);
-            f1 = f(x1);
-        }
-    }
-    let t = 0.5 * (lo + hi);
-    (t, f(t))
 }
 
 /// The `r·Δθ²/8` estimate (seed 003, Eqs. 26–27), combined over rotaries as

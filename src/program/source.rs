@@ -80,6 +80,22 @@ pub fn gcode_poses<R: BufRead>(
     Ok(())
 }
 
+/// Reads the poses of a program whose start is `head`: APT CL data or
+/// G-code poses.
+pub fn program_poses<R: BufRead>(
+    input: R,
+    head: &[u8],
+    file: &str,
+    start: PoseStart,
+    f: impl FnMut(PoseEvent) -> Result<()>,
+) -> Result<()> {
+    if crate::cl::looks_like_cl(head) {
+        cl_poses(input, file, f)
+    } else {
+        gcode_poses(input, file, start, f)
+    }
+}
+
 /// Reads the poses of APT CL data.
 pub fn cl_poses<R: BufRead>(
     input: R,

@@ -1,0 +1,44 @@
+//! Small numerical building blocks shared by several features.
+
+/// Golden-section search for the maximum of a unimodal `f` on `[lo, hi]`:
+/// `iters` steps (each shrinks the bracket by 0.618); returns the better of
+/// the two final interior points and its value.
+pub fn golden_section_max(
+    f: &mut dyn FnMut(f64) -> f64,
+    mut lo: f64,
+    mut hi: f64,
+    iters: usize,
+) -> (f64, f64) {
+    let g = 0.618_033_988_749_894_9;
+    let mut x1 = hi - g * (hi - lo);
+    let mut x2 = lo + g * (hi - lo);
+    let mut f1 = f(x1);
+    let mut f2 = f(x2);
+    for _ in 0..iters {
+        if f1 < f2 {
+            lo = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = lo + g * (hi - lo);
+            f2 = f(x2);
+        } else {
+            hi = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = hi - g * (hi - lo);
+            f1 = f(x1);
+        }
+    }
+    if f1 > f2 { (x1, f1) } else { (x2, f2) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn finds_the_peak_of_a_parabola() {
+        let (x, y) = golden_section_max(&mut |x| 1.0 - (x - 0.3) * (x - 0.3), 0.0, 1.0, 60);
+        assert!((x - 0.3).abs() < 1e-7 && (y - 1.0).abs() < 1e-14);
+    }
+}
