@@ -189,6 +189,9 @@ pub struct GcodeConverter<'a> {
     modal: ModalState,
     writer: AxisWriter<'a>,
     previous: Option<Vec<f64>>,
+    /// Machine axis positions (output order, mm / deg) followed through
+    /// blocks in machine coordinates (pose mode off); unknown axes are 0.
+    machine_ext: Vec<f64>,
     /// What has been done so far.
     pub stats: PostStats,
 }
@@ -207,6 +210,7 @@ impl<'a> GcodeConverter<'a> {
             modal: ModalState::new(opts.pose_start),
             writer: AxisWriter::new(machine, opts.decimals),
             previous: None,
+            machine_ext: vec![0.0; machine.axes.len()],
             stats: PostStats::default(),
         }
     }
@@ -249,6 +253,9 @@ impl<'a> GcodeConverter<'a> {
             ));
         }
         let Some((tip, axis)) = meaning.pose else {
+            if !self.modal.pose_mode {
+                self.follow_machine_words(line, &meaning);
+            }
             if meaning.tcp_codes.is_empty() {
                 out.extend_from_slice(&line.bytes);
             } else {
@@ -308,11 +315,44 @@ impl<'a> GcodeConverter<'a> {
             &meaning.tcp_offset_items,
             out,
         );
+        self.machine_ext = self.machine.to_external(&solved.q);
         self.previous = Some(solved.q.clone());
         Ok(Some(Converted {
             q: solved.q,
             meaning,
         }))
+    }
+}
+
+impl GcodeConverter<'_> {
+    /// A block in machine coordinates (pose mode off): follow its axis words
+    /// and tell the modal state where the tool tip now is, so that a pose
+    /// block after `G43.4`/`TRAORI` that gives only some coordinates
+    /// continues from the machine's position.
+    fn follow_machine_words(&mut self, line: &Line, meaning: &crate::program::BlockMeaning) {
+        let mut moved = false;
+        for w in line.words() {
+            if let Some(k) = self.machine.axes.iter().position(|a| a.name == w.address) {
+                let scale = if self.machine.axes[k].kind == crate::machine::JointKind::Prismatic {
+                    meaning.units.mm_per_unit()
+                } else {
+                    1.0
+                };
+                let v = w.value * scale;
+                self.machine_ext[k] = if meaning.absolute {
+                    v
+                } else {
+                    self.machine_ext[k] + v
+                };
+                moved = true;
+            }
+        }
+        if moved {
+            let q = self.machine.to_internal(&self.machine_ext);
+            let pose = self.machine.chain.pose(&q, &crate::machine::NoErrors);
+            self.modal.seed_from_machine(pose.tip, pose.axis);
+            self.previous = Some(q);
+        }
     }
 }
 

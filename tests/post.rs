@@ -365,3 +365,28 @@ fn unreachable_axis_on_four_axis_machine_is_an_error() {
     assert_eq!(code, 1);
     assert!(err.contains("off.nc:1:4") && err.contains("µrad"), "{err}");
 }
+
+#[test]
+fn tcp_switched_on_after_machine_moves_continues_from_the_machine_position() {
+    // A Fanuc header cancels TCP (G49), moves in machine coordinates, then
+    // switches TCP on with only Z: X and Y come from the machine's position.
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("fanuc.nc");
+    std::fs::write(
+        &p,
+        "G90 G94 G17 G49 G40 G80\nG0 X100. Y0. A0. C0.\nG43.4 H1 Z60.\nG1 X90. Y5. Z40. I0. J0. K1. F500.\nG49\nM30\n",
+    )
+    .unwrap();
+    let (code, out, err) = run(&["post", "-q", "--machine", "xyzac-trt", p.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(
+        lines[1], "G0 X100. Y0. A0. C0.",
+        "machine-coordinate block untouched"
+    );
+    assert_eq!(lines[2], "G49 X100.0000 Y0.0000 Z60.0000 A0.0000 C0.0000");
+    assert_eq!(
+        lines[3],
+        "G1 X90.0000 Y5.0000 Z40.0000 A0.0000 C0.0000 F500."
+    );
+}

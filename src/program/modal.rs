@@ -152,6 +152,9 @@ pub struct ModalState {
     pub tip: [Option<f64>; 3],
     /// Modal tool axis (programmed components, not normalised).
     pub axis: Vector3<f64>,
+    /// Whether the program has set the tool axis (else it is (0, 0, 1) or
+    /// seeded from the machine position).
+    pub axis_set: bool,
 }
 
 impl ModalState {
@@ -166,7 +169,18 @@ impl ModalState {
             pose_mode: start == PoseStart::On,
             tip: [None; 3],
             axis: Vector3::z(),
+            axis_set: false,
         }
+    }
+
+    /// The machine moved in machine coordinates (pose mode off) to where the
+    /// tool tip is `tip` and the tool axis `axis`: a later pose block that
+    /// gives only some coordinates continues from there, as a controller
+    /// switching TCP on continues from its current position.
+    pub fn seed_from_machine(&mut self, tip: Vector3<f64>, axis: Vector3<f64>) {
+        self.tip = [Some(tip.x), Some(tip.y), Some(tip.z)];
+        self.axis = axis;
+        self.axis_set = false;
     }
 
     /// Applies one block and says what it means.
@@ -303,6 +317,12 @@ impl ModalState {
                 _ => None,
             };
             if let Some(i) = comp {
+                if !self.axis_set {
+                    // The first programmed component starts a fresh vector:
+                    // the others default to 0 unless also given.
+                    self.axis = Vector3::zeros();
+                    self.axis_set = true;
+                }
                 self.axis[i] = w.value;
                 meaning.pose_items.push(w.item);
             }
