@@ -14,6 +14,7 @@ pub mod error;
 pub mod gcode;
 pub mod geometric;
 pub mod input;
+pub mod linalg;
 pub mod linkage;
 pub mod machine;
 pub mod output;
