@@ -666,6 +666,79 @@ impl crate::post::PoseSolver for CompensatingSolver<'_> {
     }
 }
 
+/// Writes the JSON report of a compensation run block by block, in the
+/// layout of `serde_json::to_string_pretty` of
+/// `{"blocks": [...], "summary": {...}, "warnings": [...]}` (keys in
+/// alphabetical order): the blocks stream out as they are computed, the
+/// summary and the warnings follow at the end, so memory stays flat.
+pub struct ReportWriter<W: std::io::Write> {
+    out: W,
+    blocks: usize,
+    buf: Vec<u8>,
+}
+
+impl<W: std::io::Write> ReportWriter<W> {
+    /// Starts the report (writes the opening of the blocks array).
+    pub fn new(mut out: W) -> std::io::Result<Self> {
+        out.write_all(b"{\n  \"blocks\": [")?;
+        Ok(ReportWriter {
+            out,
+            blocks: 0,
+            buf: Vec::with_capacity(512),
+        })
+    }
+
+    /// Appends one block.
+    pub fn block(&mut self, r: &BlockRecord) -> std::io::Result<()> {
+        self.buf.clear();
+        self.buf
+            .extend_from_slice(if self.blocks == 0 { b"\n" } else { b",\n" });
+        let v = serde_json::to_value(r).map_err(std::io::Error::other)?;
+        let text = serde_json::to_string_pretty(&v).map_err(std::io::Error::other)?;
+        indent(&mut self.buf, &text, "    ", true);
+        self.out.write_all(&self.buf)?;
+        self.blocks += 1;
+        Ok(())
+    }
+
+    /// Closes the blocks array and writes the summary and the warnings;
+    /// returns the writer.
+    pub fn finish(mut self, summary: &RunSummary, warnings: &[String]) -> std::io::Result<W> {
+        let mut tail = Vec::new();
+        tail.extend_from_slice(if self.blocks == 0 {
+            b"]".as_slice()
+        } else {
+            b"\n  ]".as_slice()
+        });
+        for (key, v) in [
+            ("summary", serde_json::to_value(summary)),
+            ("warnings", serde_json::to_value(warnings)),
+        ] {
+            let v = v.map_err(std::io::Error::other)?;
+            let text = serde_json::to_string_pretty(&v).map_err(std::io::Error::other)?;
+            tail.extend_from_slice(format!(",\n  \"{key}\": ").as_bytes());
+            indent(&mut tail, &text, "  ", false);
+        }
+        tail.extend_from_slice(b"\n}");
+        self.out.write_all(&tail)?;
+        Ok(self.out)
+    }
+}
+
+/// Appends `text` with every line indented by `pad` (the first line too when
+/// `first`).
+fn indent(out: &mut Vec<u8>, text: &str, pad: &str, first: bool) {
+    for (i, line) in text.split('\n').enumerate() {
+        if i > 0 {
+            out.push(b'\n');
+        }
+        if i > 0 || first {
+            out.extend_from_slice(pad.as_bytes());
+        }
+        out.extend_from_slice(line.as_bytes());
+    }
+}
+
 /// Summary of a compensation run.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct RunSummary {
@@ -698,11 +771,21 @@ pub struct RunSummary {
 impl RunSummary {
     /// Summarises per-block records.
     pub fn new(machine: &crate::machine::Machine, method: Method, records: &[BlockRecord]) -> Self {
-        let n = machine.axes.len();
-        let mut s = RunSummary {
+        let mut s = RunSummary::start(machine, method);
+        for r in records {
+            s.add(r);
+        }
+        s.finish()
+    }
+
+    /// An empty summary, to be fed block by block with [`RunSummary::add`]
+    /// and closed with [`RunSummary::finish`] (memory does not grow with the
+    /// length of the program).
+    pub fn start(machine: &crate::machine::Machine, method: Method) -> Self {
+        RunSummary {
             machine: machine.name.clone(),
             method,
-            poses: records.len(),
+            poses: 0,
             tip_error_before_max_mm: 0.0,
             tip_residual_max_mm: 0.0,
             orientation_error_before_max_urad: 0.0,
@@ -710,34 +793,42 @@ impl RunSummary {
             orientation_worse_blocks: 0,
             iterations_max: 0,
             iterations_mean: 0.0,
-            compensation_range: vec![[f64::INFINITY, f64::NEG_INFINITY]; n],
+            compensation_range: vec![[f64::INFINITY, f64::NEG_INFINITY]; machine.axes.len()],
             axes: machine.axes.iter().map(|a| a.name.clone()).collect(),
-        };
-        for r in records {
-            s.tip_error_before_max_mm = s.tip_error_before_max_mm.max(r.tip_error_before_mm);
-            s.tip_residual_max_mm = s.tip_residual_max_mm.max(r.tip_residual_mm);
-            s.orientation_error_before_max_urad = s
-                .orientation_error_before_max_urad
-                .max(r.orientation_error_before_urad);
-            s.orientation_residual_max_urad = s
-                .orientation_residual_max_urad
-                .max(r.orientation_residual_urad);
-            if r.orientation_residual_urad > r.orientation_error_before_urad + 1e-9 {
-                s.orientation_worse_blocks += 1;
-            }
-            s.iterations_max = s.iterations_max.max(r.iterations);
-            s.iterations_mean += r.iterations as f64;
-            for (k, c) in r.compensation.iter().enumerate() {
-                s.compensation_range[k][0] = s.compensation_range[k][0].min(*c);
-                s.compensation_range[k][1] = s.compensation_range[k][1].max(*c);
-            }
         }
-        if !records.is_empty() {
-            s.iterations_mean /= records.len() as f64;
+    }
+
+    /// Adds one block (while open, `iterations_mean` holds the sum).
+    pub fn add(&mut self, r: &BlockRecord) {
+        let s = self;
+        s.poses += 1;
+        s.tip_error_before_max_mm = s.tip_error_before_max_mm.max(r.tip_error_before_mm);
+        s.tip_residual_max_mm = s.tip_residual_max_mm.max(r.tip_residual_mm);
+        s.orientation_error_before_max_urad = s
+            .orientation_error_before_max_urad
+            .max(r.orientation_error_before_urad);
+        s.orientation_residual_max_urad = s
+            .orientation_residual_max_urad
+            .max(r.orientation_residual_urad);
+        if r.orientation_residual_urad > r.orientation_error_before_urad + 1e-9 {
+            s.orientation_worse_blocks += 1;
+        }
+        s.iterations_max = s.iterations_max.max(r.iterations);
+        s.iterations_mean += r.iterations as f64;
+        for (k, c) in r.compensation.iter().enumerate() {
+            s.compensation_range[k][0] = s.compensation_range[k][0].min(*c);
+            s.compensation_range[k][1] = s.compensation_range[k][1].max(*c);
+        }
+    }
+
+    /// Closes the summary (the mean iteration count, empty ranges).
+    pub fn finish(mut self) -> Self {
+        if self.poses > 0 {
+            self.iterations_mean /= self.poses as f64;
         } else {
-            s.compensation_range = vec![[0.0, 0.0]; n];
+            self.compensation_range = vec![[0.0, 0.0]; self.axes.len()];
         }
-        s
+        self
     }
 
     /// A report a person can read.

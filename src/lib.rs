@@ -21,6 +21,7 @@ pub mod output;
 pub mod plot;
 pub mod post;
 pub mod program;
+pub mod progress;
 pub mod report;
 
 pub use error::{Error, Location, Result};
