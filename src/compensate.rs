@@ -22,8 +22,9 @@
 //! trades tip accuracy for axis accuracy and stalls at a tip residual of tens
 //! of nanometres (see `docs/error-model.md`).
 
-use crate::machine::chain::{Chain, Jacobian, JointErrors, NoErrors, Pose};
-use nalgebra::{DMatrix, DVector, Vector3};
+use crate::linalg::{self, Col, Qr};
+use crate::machine::chain::{Chain, JacobianColumns, JointErrors, MAX_JOINTS, NoErrors, Pose};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 /// Which Jacobian (and which step) to use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -109,26 +110,204 @@ fn damped(j: &DMatrix<f64>, r: &DVector<f64>, scale: &[f64], lambda: f64) -> DVe
     DVector::from_fn(n, |k, _| sol[k] * scale[k])
 }
 
-/// One step of the chosen method, split into its tip part and its axis part
-/// (the paper's stacked step is all "tip part"). The tip part is damped just
-/// enough to stay inside the trust region `caps` (Levenberg–Marquardt).
-fn step(
-    jac: &Jacobian,
+/// Joint-space vectors of the refinement (entries past the dof unused).
+type Joints = [f64; MAX_JOINTS];
+
+/// Problems whose (small) matrices have a condition number above this are
+/// handed to the SVD path; below it the Householder QR solution is accurate
+/// to far better than the next Newton step needs.
+const QR_CONDITION_LIMIT: f64 = 1e8;
+
+/// Smallest damping (in decades from 1e-6) of the tip step `S (J S)ᵀ ((J S)
+/// (J S)ᵀ + λ² I)⁻¹ r` that keeps it within `caps`, starting from the
+/// undamped step `dq1`; `jp` holds the three tip rows. 3×3 solves on the stack.
+fn damp_into_caps(jp: &[Col], rp: &Vector3<f64>, caps: &Joints, n: usize, dq1: &mut Joints) {
+    let within = |d: &Joints| (0..n).all(|k| d[k].abs() <= caps[k]);
+    if within(dq1) {
+        return;
+    }
+    // J S, 3×n.
+    let js = nalgebra::Matrix3xX::from_fn(n, |r, c| jp[r][c] * caps[c]);
+    let jjt = &js * js.transpose();
+    let mut lambda = 1e-6;
+    while lambda < 1e6 {
+        let a = jjt + Matrix3::identity() * (lambda * lambda);
+        let sol = match a.lu().solve(rp) {
+            Some(y) => js.transpose() * y,
+            None => nalgebra::DVector::zeros(n),
+        };
+        for k in 0..n {
+            dq1[k] = sol[k] * caps[k];
+        }
+        if within(dq1) {
+            break;
+        }
+        lambda *= 10.0;
+    }
+}
+
+/// One step of the chosen method on the stack, or `None` when a matrix is
+/// too ill-conditioned for the QR path (the caller then uses [`step_svd`]).
+///
+/// Tip part: the minimum-norm solution of `J_p S x = r_p` by QR of
+/// `(J_p S)ᵀ`, `Δ₁ = S x`. Axis part: with `Z` an orthonormal basis of the
+/// null space of `J_p` (trailing columns of the QR of `J_pᵀ`),
+/// `N (W J_o N)⁺ = Z (W J_o Z)⁺`, so `Δ₂ = Z (W J_o Z)⁺ W (r_o − J_o Δ₁)`,
+/// the same step as the SVD form with `N = I − J_p⁺ J_p` and every vector
+/// exactly in the null space up to rounding. Paper: least squares on the
+/// stacked 6×n Jacobian by QR.
+fn step_qr(
+    jac: &JacobianColumns,
+    n: usize,
+    rp: &Vector3<f64>,
+    ro: &Vector3<f64>,
+    opts: &Options,
+    caps: &Joints,
+) -> Option<(Joints, Joints)> {
+    let mut d1 = [0.0; MAX_JOINTS];
+    let mut d2 = [0.0; MAX_JOINTS];
+    if opts.method == Method::Paper {
+        if n > linalg::COLS {
+            return None;
+        }
+        let cols: [Col; linalg::COLS] = std::array::from_fn(|c| {
+            let mut col = [0.0; linalg::ROWS];
+            if c < n {
+                col[..6].copy_from_slice(&jac[c]);
+            }
+            col
+        });
+        let qr = Qr::new(&cols[..n], 6);
+        if qr.condition() > QR_CONDITION_LIMIT {
+            return None;
+        }
+        let mut r = [0.0; linalg::ROWS];
+        r[..6].copy_from_slice(&[rp.x, rp.y, rp.z, ro.x, ro.y, ro.z]);
+        let x = qr.least_squares(&r);
+        d1[..n].copy_from_slice(&x[..n]);
+        return Some((d1, d2));
+    }
+    if !(3..=linalg::ROWS).contains(&n) {
+        return None;
+    }
+    // The tip rows, as columns of J_pᵀ (n×3), unscaled and scaled by caps.
+    let mut jpt = [[0.0; linalg::ROWS]; 3];
+    let mut jpst = [[0.0; linalg::ROWS]; 3];
+    for (r, (col, cols)) in jpt.iter_mut().zip(jpst.iter_mut()).enumerate() {
+        for c in 0..n {
+            col[c] = jac[c][r];
+            cols[c] = jac[c][r] * caps[c];
+        }
+    }
+    let scaled = Qr::new(&jpst, n);
+    if scaled.condition() > QR_CONDITION_LIMIT {
+        return None;
+    }
+    let x = scaled.min_norm_transposed(&[rp.x, rp.y, rp.z, 0.0, 0.0, 0.0]);
+    for k in 0..n {
+        d1[k] = x[k] * caps[k];
+    }
+    let jp_rows: [Col; 3] = std::array::from_fn(|r| {
+        let mut row = [0.0; linalg::ROWS];
+        for c in 0..n {
+            row[c] = jac[c][r];
+        }
+        row
+    });
+    damp_into_caps(&jp_rows, rp, caps, n, &mut d1);
+    // Null space of J_p and the weighted axis rows on it.
+    let plain = Qr::new(&jpt, n);
+    if plain.condition() > QR_CONDITION_LIMIT {
+        return None;
+    }
+    let w = &opts.axis_weights;
+    let jo =
+        |r: usize, v: &Col| -> f64 { w[r] * (0..n).map(|c| jac[c][r + 3] * v[c]).sum::<f64>() };
+    let free = n - 3;
+    if free == 0 {
+        return Some((d1, d2));
+    }
+    if free > 3 {
+        return None;
+    }
+    let z: [Col; 3] = std::array::from_fn(|i| {
+        if i < free {
+            plain.q_column(3 + i)
+        } else {
+            [0.0; linalg::ROWS]
+        }
+    });
+    // B = W J_o Z (3 × free), v = W r_o − W J_o Δ₁.
+    let b: [Col; 3] = std::array::from_fn(|i| {
+        let mut col = [0.0; linalg::ROWS];
+        if i < free {
+            for (r, x) in col.iter_mut().take(3).enumerate() {
+                *x = jo(r, &z[i]);
+            }
+        }
+        col
+    });
+    let mut v = [0.0; linalg::ROWS];
+    for (r, x) in v.iter_mut().take(3).enumerate() {
+        *x = w[r] * ro[r] - jo(r, &d1);
+    }
+    let scale = b[..free]
+        .iter()
+        .flat_map(|c| c[..3].iter())
+        .fold(0.0f64, |m, x| m.max(x.abs()));
+    if scale == 0.0 {
+        // The axis cannot move in the null space (or all weights are 0).
+        return Some((d1, d2));
+    }
+    let y: [f64; linalg::COLS] = if free == 1 {
+        // B⁺ v = Bᵀ v / |B|² for a single column.
+        let c = &b[0];
+        let nn: f64 = c[..3].iter().map(|x| x * x).sum();
+        let mut y = [0.0; linalg::COLS];
+        y[0] = (c[0] * v[0] + c[1] * v[1] + c[2] * v[2]) / nn;
+        y
+    } else {
+        let qb = Qr::new(&b[..free], 3);
+        if qb.condition() > QR_CONDITION_LIMIT {
+            return None;
+        }
+        qb.least_squares(&v)
+    };
+    for (i, zi) in z.iter().enumerate().take(free) {
+        for k in 0..n {
+            d2[k] += zi[k] * y[i];
+        }
+    }
+    Some((d1, d2))
+}
+
+/// One step of the chosen method with heap matrices and SVD pseudo-inverses,
+/// split into its tip part and its axis part (the paper's stacked step is
+/// all "tip part"). The tip part is damped just enough to stay inside the
+/// trust region `caps` (Levenberg–Marquardt). The reference form of
+/// [`step_qr`], used where that one declines (ill-conditioned matrices).
+fn step_svd(
+    jac: &JacobianColumns,
+    n: usize,
     rp: &Vector3<f64>,
     ro: &Vector3<f64>,
     opts: &Options,
     caps: &[f64],
-) -> (DVector<f64>, DVector<f64>) {
-    let n = jac.ncols();
+) -> (Joints, Joints) {
     let within = |d: &DVector<f64>| d.iter().zip(caps).all(|(x, c)| x.abs() <= *c);
+    let out = |d: &DVector<f64>| -> Joints {
+        let mut a = [0.0; MAX_JOINTS];
+        a[..n].copy_from_slice(d.as_slice());
+        a
+    };
     if opts.method == Method::Paper {
-        let j = DMatrix::from_iterator(6, n, jac.iter().cloned());
+        let j = DMatrix::from_fn(6, n, |r, c| jac[c][r]);
         let r = DVector::from_vec(vec![rp.x, rp.y, rp.z, ro.x, ro.y, ro.z]);
-        return (pinv(&j) * r, DVector::zeros(n));
+        return (out(&(pinv(&j) * r)), [0.0; MAX_JOINTS]);
     }
-    let jp = DMatrix::from_fn(3, n, |r, c| jac[(r, c)]);
+    let jp = DMatrix::from_fn(3, n, |r, c| jac[c][r]);
     let w = &opts.axis_weights;
-    let jo = DMatrix::from_fn(3, n, |r, c| w[r] * jac[(r + 3, c)]);
+    let jo = DMatrix::from_fn(3, n, |r, c| w[r] * jac[c][r + 3]);
     let rp = DVector::from_column_slice(rp.as_slice());
     let ro = DVector::from_vec(vec![w[0] * ro.x, w[1] * ro.y, w[2] * ro.z]);
     let mut dq1 = damped(&jp, &rp, caps, 0.0);
@@ -147,7 +326,7 @@ fn step(
     let null = DMatrix::identity(n, n) - &jp_pinv * &jp;
     let jon = &jo * &null;
     let dq2 = &null * (pinv(&jon) * (ro - &jo * &dq1));
-    (dq1, dq2)
+    (out(&dq1), out(&dq2))
 }
 
 /// Largest change of a linear axis per Newton step, mm.
@@ -170,6 +349,10 @@ pub const MAX_COMPENSATION_RAD: f64 = 5e-3;
 /// axis) a tangential tip error would need an unbounded turn of C, and the
 /// refinement then stops with the best compensation within bounds
 /// (`converged == false`).
+///
+/// The steps are computed on the stack (Householder QR of the 3×n and 6×n
+/// problems, chains of at most [`MAX_JOINTS`] joints); a problem whose
+/// matrices are ill-conditioned is solved with SVD pseudo-inverses instead.
 pub fn refine(
     chain: &Chain,
     errors: &dyn JointErrors,
@@ -178,39 +361,43 @@ pub fn refine(
     opts: &Options,
 ) -> Refined {
     let n = q0.len();
-    let revolute: Vec<bool> = chain
-        .joints
-        .iter()
-        .map(|j| j.kind == crate::machine::chain::JointKind::Revolute)
-        .collect();
-    let step_cap = |k: usize| {
-        if revolute[k] {
+    assert!(
+        n <= MAX_JOINTS && n == chain.dof(),
+        "refine: {n} joint values for a chain of {} joints (at most {MAX_JOINTS})",
+        chain.dof()
+    );
+    let mut step_cap = [0.0; MAX_JOINTS];
+    let mut total_cap = [0.0; MAX_JOINTS];
+    for (k, j) in chain.joints.iter().enumerate() {
+        let revolute = j.kind == crate::machine::chain::JointKind::Revolute;
+        step_cap[k] = if revolute {
             STEP_ROTARY_RAD
         } else {
             STEP_LINEAR_MM
-        }
-    };
-    let total_cap = |k: usize| {
-        if revolute[k] {
+        };
+        total_cap[k] = if revolute {
             MAX_COMPENSATION_RAD
         } else {
             MAX_COMPENSATION_MM
-        }
-    };
-    let eval = |q: &[f64]| -> (Pose, Jacobian) {
+        };
+    }
+    let eval = |q: &[f64], jac: &mut JacobianColumns| -> Pose {
         match opts.method {
-            Method::Exact => chain.pose_and_jacobian(q, errors),
-            Method::Theoretical | Method::Paper => (
-                chain.pose(q, errors),
-                chain.pose_and_jacobian(q, &NoErrors).1,
-            ),
+            Method::Exact => chain.pose_and_jacobian_into(q, errors, jac),
+            Method::Theoretical | Method::Paper => {
+                chain.pose_and_jacobian_into(q, &NoErrors, jac);
+                chain.pose(q, errors)
+            }
         }
     };
-    let mut q = q0.to_vec();
+    let mut q = [0.0; MAX_JOINTS];
+    q[..n].copy_from_slice(q0);
     let mut iterations = 0;
     let mut converged = false;
-    let (mut pose, mut jac) = eval(&q);
-    let mut trial = vec![0.0; n];
+    let mut jac = [[0.0; 6]; MAX_JOINTS];
+    let mut pose = eval(&q[..n], &mut jac);
+    let mut trial = [0.0; MAX_JOINTS];
+    let mut jac2 = [[0.0; 6]; MAX_JOINTS];
     loop {
         let (rp, ro) = residual(target, &pose);
         let tip = rp.norm();
@@ -218,14 +405,14 @@ pub fn refine(
         if iterations >= opts.max_iterations {
             break;
         }
-        let caps: Vec<f64> = (0..n).map(step_cap).collect();
-        let (d1, d2) = step(&jac, &rp, &ro, opts, &caps);
+        let (d1, d2) = step_qr(&jac, n, &rp, &ro, opts, &step_cap)
+            .unwrap_or_else(|| step_svd(&jac, n, &rp, &ro, opts, &step_cap[..n]));
         // Trust region: scale the whole step so no axis moves too far.
         let mut scale = 1.0f64;
         for k in 0..n {
             let d = (d1[k] + d2[k]).abs();
-            if d > step_cap(k) {
-                scale = scale.min(step_cap(k) / d);
+            if d > step_cap[k] {
+                scale = scale.min(step_cap[k] / d);
             }
         }
         // Already there: the tip is met and the step is at floating-point level.
@@ -242,9 +429,9 @@ pub fn refine(
             for k in 0..n {
                 trial[k] = q[k] + scale * (d1[k] + s2 * d2[k]);
             }
-            let within = (0..n).all(|k| (trial[k] - q0[k]).abs() <= total_cap(k));
+            let within = (0..n).all(|k| (trial[k] - q0[k]).abs() <= total_cap[k]);
             if within {
-                let (p2, j2) = eval(&trial);
+                let p2 = eval(&trial[..n], &mut jac2);
                 let tip2 = p2.tip_distance(target);
                 let ax2 = p2.axis_angle(target);
                 // The paper's step is taken as printed (no safeguard but the bounds).
@@ -252,21 +439,21 @@ pub fn refine(
                     || tip2 <= tip.max(opts.tip_tolerance_mm) * (1.0 + 1e-9) + 1e-15;
                 let ax_ok = opts.method == Method::Paper || ax2 <= ax + 1e-15 || tip2 < 0.5 * tip;
                 if tip_ok && ax_ok {
-                    accepted = Some((p2, j2, tip2, ax2));
+                    accepted = Some((p2, tip2, ax2));
                     break;
                 }
             }
             s2 *= 0.5;
         }
-        let Some((p2, j2, tip2, ax2)) = accepted else {
+        let Some((p2, tip2, ax2)) = accepted else {
             // No step improves within the bounds: this is the best there is.
             converged = tip <= opts.tip_tolerance_mm;
             break;
         };
         iterations += 1;
-        q.copy_from_slice(&trial);
+        q[..n].copy_from_slice(&trial[..n]);
         pose = p2;
-        jac = j2;
+        std::mem::swap(&mut jac, &mut jac2);
         // Converged when the tip is met and neither the tip nor the axis
         // improves any more at floating-point level.
         // Floating-point floor of the tip: a few ulps of the coordinates.
@@ -286,7 +473,7 @@ pub fn refine(
     Refined {
         tip_residual_mm: pose.tip_distance(target),
         axis_residual_rad: pose.axis_angle(target),
-        q,
+        q: q[..n].to_vec(),
         iterations,
         converged,
     }
@@ -479,6 +666,79 @@ impl crate::post::PoseSolver for CompensatingSolver<'_> {
     }
 }
 
+/// Writes the JSON report of a compensation run block by block, in the
+/// layout of `serde_json::to_string_pretty` of
+/// `{"blocks": [...], "summary": {...}, "warnings": [...]}` (keys in
+/// alphabetical order): the blocks stream out as they are computed, the
+/// summary and the warnings follow at the end, so memory stays flat.
+pub struct ReportWriter<W: std::io::Write> {
+    out: W,
+    blocks: usize,
+    buf: Vec<u8>,
+}
+
+impl<W: std::io::Write> ReportWriter<W> {
+    /// Starts the report (writes the opening of the blocks array).
+    pub fn new(mut out: W) -> std::io::Result<Self> {
+        out.write_all(b"{\n  \"blocks\": [")?;
+        Ok(ReportWriter {
+            out,
+            blocks: 0,
+            buf: Vec::with_capacity(512),
+        })
+    }
+
+    /// Appends one block.
+    pub fn block(&mut self, r: &BlockRecord) -> std::io::Result<()> {
+        self.buf.clear();
+        self.buf
+            .extend_from_slice(if self.blocks == 0 { b"\n" } else { b",\n" });
+        let v = serde_json::to_value(r).map_err(std::io::Error::other)?;
+        let text = serde_json::to_string_pretty(&v).map_err(std::io::Error::other)?;
+        indent(&mut self.buf, &text, "    ", true);
+        self.out.write_all(&self.buf)?;
+        self.blocks += 1;
+        Ok(())
+    }
+
+    /// Closes the blocks array and writes the summary and the warnings;
+    /// returns the writer.
+    pub fn finish(mut self, summary: &RunSummary, warnings: &[String]) -> std::io::Result<W> {
+        let mut tail = Vec::new();
+        tail.extend_from_slice(if self.blocks == 0 {
+            b"]".as_slice()
+        } else {
+            b"\n  ]".as_slice()
+        });
+        for (key, v) in [
+            ("summary", serde_json::to_value(summary)),
+            ("warnings", serde_json::to_value(warnings)),
+        ] {
+            let v = v.map_err(std::io::Error::other)?;
+            let text = serde_json::to_string_pretty(&v).map_err(std::io::Error::other)?;
+            tail.extend_from_slice(format!(",\n  \"{key}\": ").as_bytes());
+            indent(&mut tail, &text, "  ", false);
+        }
+        tail.extend_from_slice(b"\n}");
+        self.out.write_all(&tail)?;
+        Ok(self.out)
+    }
+}
+
+/// Appends `text` with every line indented by `pad` (the first line too when
+/// `first`).
+fn indent(out: &mut Vec<u8>, text: &str, pad: &str, first: bool) {
+    for (i, line) in text.split('\n').enumerate() {
+        if i > 0 {
+            out.push(b'\n');
+        }
+        if i > 0 || first {
+            out.extend_from_slice(pad.as_bytes());
+        }
+        out.extend_from_slice(line.as_bytes());
+    }
+}
+
 /// Summary of a compensation run.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct RunSummary {
@@ -511,11 +771,21 @@ pub struct RunSummary {
 impl RunSummary {
     /// Summarises per-block records.
     pub fn new(machine: &crate::machine::Machine, method: Method, records: &[BlockRecord]) -> Self {
-        let n = machine.axes.len();
-        let mut s = RunSummary {
+        let mut s = RunSummary::start(machine, method);
+        for r in records {
+            s.add(r);
+        }
+        s.finish()
+    }
+
+    /// An empty summary, to be fed block by block with [`RunSummary::add`]
+    /// and closed with [`RunSummary::finish`] (memory does not grow with the
+    /// length of the program).
+    pub fn start(machine: &crate::machine::Machine, method: Method) -> Self {
+        RunSummary {
             machine: machine.name.clone(),
             method,
-            poses: records.len(),
+            poses: 0,
             tip_error_before_max_mm: 0.0,
             tip_residual_max_mm: 0.0,
             orientation_error_before_max_urad: 0.0,
@@ -523,34 +793,42 @@ impl RunSummary {
             orientation_worse_blocks: 0,
             iterations_max: 0,
             iterations_mean: 0.0,
-            compensation_range: vec![[f64::INFINITY, f64::NEG_INFINITY]; n],
+            compensation_range: vec![[f64::INFINITY, f64::NEG_INFINITY]; machine.axes.len()],
             axes: machine.axes.iter().map(|a| a.name.clone()).collect(),
-        };
-        for r in records {
-            s.tip_error_before_max_mm = s.tip_error_before_max_mm.max(r.tip_error_before_mm);
-            s.tip_residual_max_mm = s.tip_residual_max_mm.max(r.tip_residual_mm);
-            s.orientation_error_before_max_urad = s
-                .orientation_error_before_max_urad
-                .max(r.orientation_error_before_urad);
-            s.orientation_residual_max_urad = s
-                .orientation_residual_max_urad
-                .max(r.orientation_residual_urad);
-            if r.orientation_residual_urad > r.orientation_error_before_urad + 1e-9 {
-                s.orientation_worse_blocks += 1;
-            }
-            s.iterations_max = s.iterations_max.max(r.iterations);
-            s.iterations_mean += r.iterations as f64;
-            for (k, c) in r.compensation.iter().enumerate() {
-                s.compensation_range[k][0] = s.compensation_range[k][0].min(*c);
-                s.compensation_range[k][1] = s.compensation_range[k][1].max(*c);
-            }
         }
-        if !records.is_empty() {
-            s.iterations_mean /= records.len() as f64;
+    }
+
+    /// Adds one block (while open, `iterations_mean` holds the sum).
+    pub fn add(&mut self, r: &BlockRecord) {
+        let s = self;
+        s.poses += 1;
+        s.tip_error_before_max_mm = s.tip_error_before_max_mm.max(r.tip_error_before_mm);
+        s.tip_residual_max_mm = s.tip_residual_max_mm.max(r.tip_residual_mm);
+        s.orientation_error_before_max_urad = s
+            .orientation_error_before_max_urad
+            .max(r.orientation_error_before_urad);
+        s.orientation_residual_max_urad = s
+            .orientation_residual_max_urad
+            .max(r.orientation_residual_urad);
+        if r.orientation_residual_urad > r.orientation_error_before_urad + 1e-9 {
+            s.orientation_worse_blocks += 1;
+        }
+        s.iterations_max = s.iterations_max.max(r.iterations);
+        s.iterations_mean += r.iterations as f64;
+        for (k, c) in r.compensation.iter().enumerate() {
+            s.compensation_range[k][0] = s.compensation_range[k][0].min(*c);
+            s.compensation_range[k][1] = s.compensation_range[k][1].max(*c);
+        }
+    }
+
+    /// Closes the summary (the mean iteration count, empty ranges).
+    pub fn finish(mut self) -> Self {
+        if self.poses > 0 {
+            self.iterations_mean /= self.poses as f64;
         } else {
-            s.compensation_range = vec![[0.0, 0.0]; n];
+            self.compensation_range = vec![[0.0, 0.0]; self.axes.len()];
         }
-        s
+        self
     }
 
     /// A report a person can read.

@@ -14,6 +14,7 @@ pub mod error;
 pub mod gcode;
 pub mod geometric;
 pub mod input;
+pub mod linalg;
 pub mod linkage;
 pub mod machine;
 pub mod numeric;
@@ -21,6 +22,7 @@ pub mod output;
 pub mod plot;
 pub mod post;
 pub mod program;
+pub mod progress;
 pub mod report;
 
 pub use error::{Error, Location, Result};

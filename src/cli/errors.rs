@@ -3,19 +3,20 @@
 
 use super::{InputKind, MachineChoice, PoseStartArg};
 use crate::analyze::Analyzer;
-use crate::compensate::{CompensatingSolver, Method, OnFail, Options, RunSummary};
+use crate::compensate::{CompensatingSolver, Method, OnFail, Options, ReportWriter, RunSummary};
 use crate::error::{Error, Result};
 use crate::geometric::bspline::{Extrapolation, KnotChoice};
 use crate::geometric::model::{ErrorModel, FitOptions};
 use crate::geometric::table::read_tables;
-use crate::input::{self, FilterProgress};
+use crate::input;
 use crate::linkage::nonlinear_error;
-use crate::machine::{IkSolver, Machine, NoErrors};
+use crate::machine::{IkSolver, Machine, NoErrors, Pose};
 use crate::output::write_atomically;
 use crate::plot::{Panel, write_panels};
-use crate::post::{PostOptions, post_cl, post_gcode};
+use crate::post::{PoseSolver, PostOptions, SolvedPose, post_cl, post_gcode};
 use crate::program::PoseStart;
 use crate::program::source::{looks_like_poses, machine_axis_blocks, program_poses};
+use crate::progress::RunProgress;
 use clap::{Args, ValueEnum};
 use std::io::Write;
 use std::path::PathBuf;
@@ -384,6 +385,37 @@ pub struct CompensateArgs {
     pub quiet: bool,
 }
 
+/// The compensating solver with its per-block records taken out as they
+/// come: added to the running summary and written to the report.
+struct Streaming<'s, 'm, 'w> {
+    inner: &'s mut CompensatingSolver<'m>,
+    summary: RunSummary,
+    report: Option<ReportWriter<&'w mut dyn Write>>,
+    /// The first error writing the report (the run stops reporting there).
+    error: Option<std::io::Error>,
+}
+
+impl PoseSolver for Streaming<'_, '_, '_> {
+    fn solve(
+        &mut self,
+        pose: &Pose,
+        previous: Option<&[f64]>,
+        line: usize,
+    ) -> std::result::Result<SolvedPose, String> {
+        let solved = self.inner.solve(pose, previous, line)?;
+        for r in self.inner.records.drain(..) {
+            self.summary.add(&r);
+            if let Some(w) = &mut self.report
+                && self.error.is_none()
+                && let Err(e) = w.block(&r)
+            {
+                self.error = Some(e);
+            }
+        }
+        Ok(solved)
+    }
+}
+
 /// Runs `kinpost compensate`.
 pub fn compensate(a: CompensateArgs) -> Result<()> {
     if a.tip_tolerance_mm.is_nan() || a.tip_tolerance_mm <= 0.0 {
@@ -424,6 +456,11 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         last_direction: Vec::new(),
         last_target: None,
     };
+    let report_name = a
+        .report
+        .as_ref()
+        .map(|r| r.display().to_string())
+        .unwrap_or_default();
     let mut inp = input::open(a.input.as_deref())?;
     let kind = super::resolve_kind(a.input_kind, &mut *inp.reader)?;
     let opts = PostOptions {
@@ -436,27 +473,47 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         modal_axes: false,
         file_name: inp.name.clone(),
     };
-    let mut progress = FilterProgress::new(inp.size);
-    write_atomically(a.output.as_deref(), |out| {
-        if kind == InputKind::Cl {
-            post_cl(&machine, &mut solver, &mut inp.reader, out, &opts, |n| {
-                progress.update(n)
-            })
-        } else {
-            post_gcode(&machine, &mut solver, &mut inp.reader, out, &opts, |n| {
-                progress.update(n)
-            })
-        }
-    })?;
-    let summary = RunSummary::new(&machine, method, &solver.records);
-    if let Some(r) = &a.report {
-        let v = serde_json::json!({ "summary": summary, "blocks": solver.records, "warnings": solver.warnings });
-        let text = serde_json::to_string_pretty(&v).unwrap_or_default();
-        write_atomically(Some(r), |w| {
-            w.write_all(text.as_bytes())
-                .map_err(|e| Error::io(r.display().to_string(), e))
+    let mut progress = RunProgress::new(inp.size, a.quiet, "compensate");
+    // The per-block records stream into the summary and (with --report) into
+    // the report file as they are computed: memory stays flat.
+    let mut run = |report: Option<&mut dyn Write>| -> Result<RunSummary> {
+        let mut streaming = Streaming {
+            inner: &mut solver,
+            summary: RunSummary::start(&machine, method),
+            report: match report {
+                Some(w) => {
+                    Some(ReportWriter::new(w).map_err(|e| Error::io(report_name.clone(), e))?)
+                }
+                None => None,
+            },
+            error: None,
+        };
+        write_atomically(a.output.as_deref(), |out| {
+            if kind == InputKind::Cl {
+                post_cl(&machine, &mut streaming, &mut inp.reader, out, &opts, |n| {
+                    progress.update(n)
+                })
+            } else {
+                post_gcode(&machine, &mut streaming, &mut inp.reader, out, &opts, |n| {
+                    progress.update(n)
+                })
+            }
         })?;
-    }
+        if let Some(e) = streaming.error.take() {
+            return Err(Error::io(report_name.clone(), e));
+        }
+        let summary = streaming.summary.finish();
+        if let Some(r) = streaming.report.take() {
+            r.finish(&summary, &streaming.inner.warnings)
+                .map_err(|e| Error::io(report_name.clone(), e))?;
+        }
+        Ok(summary)
+    };
+    let summary = match &a.report {
+        Some(r) => write_atomically(Some(r), |w| run(Some(w)))?,
+        None => run(None)?,
+    };
+    progress.finish();
     if !a.quiet {
         let mut e = std::io::stderr().lock();
         for w in &solver.warnings {

@@ -5,11 +5,12 @@ pub mod errors;
 pub mod linkage;
 
 use crate::error::{Error, Result};
-use crate::input::{self, FilterProgress};
+use crate::input;
 use crate::machine::{IkSolver, Machine};
 use crate::output::write_atomically;
 use crate::post::{PostOptions, post_cl, post_gcode};
 use crate::program::PoseStart;
+use crate::progress::RunProgress;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use std::io::Write;
 use std::path::PathBuf;
@@ -203,7 +204,7 @@ fn post(a: PostArgs) -> Result<()> {
         modal_axes: a.modal_axes,
         file_name: inp.name.clone(),
     };
-    let mut progress = FilterProgress::new(inp.size);
+    let mut progress = RunProgress::new(inp.size, a.quiet, "post");
     let stats = write_atomically(a.output.as_deref(), |out| {
         if kind == InputKind::Cl {
             post_cl(&machine, &mut solver, &mut inp.reader, out, &opts, |n| {
@@ -215,6 +216,7 @@ fn post(a: PostArgs) -> Result<()> {
             })
         }
     })?;
+    progress.finish();
     if !a.quiet {
         let mut e = std::io::stderr().lock();
         for w in &stats.warnings {

@@ -237,30 +237,96 @@ impl BSpline {
 
     /// Value and derivative for `x` within `[lo, hi]` (de Boor).
     fn inside(&self, x: f64) -> (f64, f64) {
-        let (span, vals, ders) = basis_at(&self.knots, self.degree, self.coef.len(), x);
+        self.combine(&self.basis(x, true))
+    }
+
+    /// Whether `other` has the same basis functions (degree and knots), so
+    /// that one [`BSpline::basis`] serves both.
+    pub fn same_basis(&self, other: &BSpline) -> bool {
+        self.degree == other.degree && self.knots == other.knots
+    }
+
+    /// The non-zero basis functions at `x` (and, with `derivative`, their
+    /// derivatives), for [`BSpline::combine`] on this spline or on any spline
+    /// with the [same basis](BSpline::same_basis). Only meaningful for `x`
+    /// inside the range of a spline that is not a constant.
+    pub fn basis(&self, x: f64, derivative: bool) -> Basis {
+        let (span, vals, ders) = basis_at(&self.knots, self.degree, self.coef.len(), x, derivative);
+        Basis { span, vals, ders }
+    }
+
+    /// Value and derivative from basis functions of this spline's basis
+    /// (the derivative is 0 when the basis was computed without).
+    pub fn combine(&self, b: &Basis) -> (f64, f64) {
         let k = self.degree;
         let mut v = 0.0;
         let mut d = 0.0;
         for r in 0..=k {
-            let c = self.coef[span - k + r];
-            v += c * vals[r];
-            d += c * ders[r];
+            let c = self.coef[b.span - k + r];
+            v += c * b.vals[r];
+            d += c * b.ders[r];
         }
         (v, d)
     }
+
+    /// Value and derivative at `x` using `b`, the basis at `x` of a spline
+    /// with the same basis: the same numbers as
+    /// [`BSpline::value_and_derivative`], with the basis computed once for
+    /// several splines. `b` is computed lazily (not at all outside the range).
+    pub fn value_and_derivative_with(
+        &self,
+        x: f64,
+        b: &mut Option<Basis>,
+        derivative: bool,
+    ) -> (f64, f64) {
+        if self.degree == 0 && self.coef.len() == 1 || !(self.lo..=self.hi).contains(&x) {
+            return self.value_and_derivative(x);
+        }
+        let b = b.get_or_insert_with(|| self.basis(x, derivative));
+        self.combine(b)
+    }
+}
+
+/// The non-zero basis functions of a spline at one position (see
+/// [`BSpline::basis`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Basis {
+    span: usize,
+    vals: [f64; 4],
+    ders: [f64; 4],
 }
 
 /// The non-zero basis functions of degree `k` at `x` and their derivatives.
 ///
 /// Returns the knot span `i` (`t_i ≤ x < t_{i+1}`, `k ≤ i < n`) and the values
 /// of `N_{i−k,k} … N_{i,k}` and their first derivatives. `x` must lie within
-/// `[t_k, t_n]`; it is clamped to that range otherwise.
-fn basis_at(knots: &[f64], k: usize, n: usize, x: f64) -> (usize, [f64; 4], [f64; 4]) {
+/// `[t_k, t_n]`; it is clamped to that range otherwise. Without
+/// `derivative` the derivatives are left at 0.
+///
+/// The span is the largest `i` in `k..n` with `t_i ≤ x`: guessed from the
+/// position of `x` in the range as if the knots were uniform (exact for the
+/// fitted splines), then corrected by stepping, so any knot vector works.
+fn basis_at(
+    knots: &[f64],
+    k: usize,
+    n: usize,
+    x: f64,
+    derivative: bool,
+) -> (usize, [f64; 4], [f64; 4]) {
     let x = x.clamp(knots[k], knots[n]);
-    let span = knots
-        .partition_point(|&t| t <= x)
-        .saturating_sub(1)
-        .clamp(k, n - 1);
+    let (lo, hi) = (knots[k], knots[n]);
+    let guess = if hi > lo {
+        k + ((x - lo) / (hi - lo) * (n - k) as f64) as usize
+    } else {
+        k
+    };
+    let mut span = guess.clamp(k, n - 1);
+    while span > k && knots[span] > x {
+        span -= 1;
+    }
+    while span < n - 1 && knots[span + 1] <= x {
+        span += 1;
+    }
     let mut vals = [0.0; 4];
     let mut low = [0.0; 4]; // degree k − 1 values
     let mut left = [0.0; 4];
@@ -283,6 +349,9 @@ fn basis_at(knots: &[f64], k: usize, n: usize, x: f64) -> (usize, [f64; 4], [f64
             saved = left[j - r] * temp;
         }
         vals[j] = saved;
+    }
+    if !derivative {
+        return (span, vals, [0.0; 4]);
     }
     // N'_{i,k} = k (N_{i,k−1}/(t_{i+k} − t_i) − N_{i+1,k−1}/(t_{i+k+1} − t_{i+1})),
     // with i = span − k + r; low[s] holds N_{span−k+1+s, k−1}.
@@ -407,7 +476,7 @@ fn solve_rows(
     let mut b = DVector::<f64>::zeros(rows.len());
     for (r, &i) in rows.iter().enumerate() {
         let w = (g.count[i] as f64).sqrt();
-        let (span, vals, _) = basis_at(knots, k, n, g.x[i]);
+        let (span, vals, _) = basis_at(knots, k, n, g.x[i], false);
         for s in 0..=k {
             a[(r, span - k + s)] = w * vals[s];
         }

@@ -170,13 +170,289 @@ impl Pose {
 /// rows 0–2 are d(tip)/dq (mm per mm or mm per rad), rows 3–5 d(axis)/dq.
 pub type Jacobian = OMatrix<f64, U6, nalgebra::Dyn>;
 
+/// Columns of the 6×n Jacobian on the stack (`[tip; axis]` per joint, chain
+/// order; entries past the chain's dof are unused): the allocation-free form
+/// of [`Jacobian`] filled by [`Chain::pose_and_jacobian_into`].
+pub type JacobianColumns = [[f64; 6]; MAX_JOINTS];
+
 /// A serial kinematic chain from workpiece to tool tip.
+///
+/// Build and change a chain through its methods ([`Chain::joint`],
+/// [`Chain::translate`], [`Chain::rotate`], [`Chain::fixed_error`],
+/// [`Chain::with_fixed_inserted`]): they keep a precomputed form of the
+/// chain (consecutive fixed elements multiplied out, per-joint constants)
+/// that the evaluators use. A chain whose element or joint list was edited
+/// directly with a different length is evaluated element by element.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Chain {
     /// Elements in order from the workpiece frame to the tool-tip frame.
     pub elements: Vec<Element>,
     /// Joints in chain order (the order of `q`).
     pub joints: Vec<Joint>,
+    compiled: Compiled,
+}
+
+/// An affine transform `[R | t]` (row-major, the last row `0 0 0 1`
+/// implied). Products and point maps sum in the same order as nalgebra's
+/// 4×4 products (k = 0, 1, 2, then the translation), skipping only the
+/// terms that are exactly zero.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Affine {
+    m: [[f64; 4]; 3],
+}
+
+impl Affine {
+    const IDENTITY: Affine = Affine {
+        m: [
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+        ],
+    };
+
+    /// The affine part of `m`, if its last row is exactly `0 0 0 1`.
+    fn from_matrix4(m: &Matrix4<f64>) -> Option<Affine> {
+        if m[(3, 0)] != 0.0 || m[(3, 1)] != 0.0 || m[(3, 2)] != 0.0 || m[(3, 3)] != 1.0 {
+            return None;
+        }
+        let mut a = Affine::IDENTITY;
+        for (i, row) in a.m.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = m[(i, j)];
+            }
+        }
+        Some(a)
+    }
+
+    fn to_matrix4(self) -> Matrix4<f64> {
+        let m = &self.m;
+        Matrix4::new(
+            m[0][0], m[0][1], m[0][2], m[0][3], //
+            m[1][0], m[1][1], m[1][2], m[1][3], //
+            m[2][0], m[2][1], m[2][2], m[2][3], //
+            0.0, 0.0, 0.0, 1.0,
+        )
+    }
+
+    /// `self · b`.
+    #[inline]
+    fn mul(&self, b: &Affine) -> Affine {
+        let (a, b) = (&self.m, &b.m);
+        let mut c = [[0.0; 4]; 3];
+        for i in 0..3 {
+            for j in 0..4 {
+                c[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
+            }
+            c[i][3] += a[i][3];
+        }
+        Affine { m: c }
+    }
+
+    /// `R p + t`.
+    #[inline]
+    fn point(&self, p: &[f64; 3]) -> [f64; 3] {
+        let m = &self.m;
+        std::array::from_fn(|i| m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3])
+    }
+
+    /// `R d`.
+    #[inline]
+    fn dir(&self, d: &[f64; 3]) -> [f64; 3] {
+        let m = &self.m;
+        std::array::from_fn(|i| m[i][0] * d[0] + m[i][1] * d[1] + m[i][2] * d[2])
+    }
+}
+
+/// `a · b` for 3×3 matrices (row-major), nalgebra's summation order.
+#[inline]
+fn mul3(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j])
+    })
+}
+
+/// `a · [r | t]` for a 3×3 `a` and an affine `[r | t]`.
+#[inline]
+fn mul3_affine(a: &[[f64; 3]; 3], b: &Affine) -> Affine {
+    let b = &b.m;
+    Affine {
+        m: std::array::from_fn(|i| {
+            std::array::from_fn(|j| a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j])
+        }),
+    }
+}
+
+/// Per-joint constants: the axis, its cross matrix `K = [u]ₓ` and `K²`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct JointConst {
+    kind: JointKind,
+    u: [f64; 3],
+    k: [[f64; 3]; 3],
+    kk: [[f64; 3]; 3],
+}
+
+impl JointConst {
+    fn new(joint: &Joint) -> Self {
+        let u = joint.axis.into_inner();
+        let k = joint.axis.cross_matrix();
+        let kk = k * k;
+        let arr = |m: &Matrix3<f64>| std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]));
+        JointConst {
+            kind: joint.kind,
+            u: [u.x, u.y, u.z],
+            k: arr(&k),
+            kk: arr(&kk),
+        }
+    }
+
+    /// Rodrigues `I + sinθ K + (1 − cosθ) K²`, as [`rotation3`] computes it.
+    #[inline]
+    fn rotation(&self, theta: f64) -> [[f64; 3]; 3] {
+        let (s, c) = theta.sin_cos();
+        let omc = 1.0 - c;
+        std::array::from_fn(|i| {
+            std::array::from_fn(|j| {
+                let id = if i == j { 1.0 } else { 0.0 };
+                (id + self.k[i][j] * s) + self.kk[i][j] * omc
+            })
+        })
+    }
+
+    /// `G = M(q) · E` and, with `de`, `G' = M'(q) · E + M(q) · E'`.
+    #[inline]
+    fn transform(
+        &self,
+        q: f64,
+        err: Option<(&ErrorMotion, Option<&ErrorMotion>)>,
+    ) -> (Affine, Affine) {
+        let e_aff = |e: &ErrorMotion, identity: f64| Affine {
+            m: [
+                [identity, -e[5], e[4], e[0]],
+                [e[5], identity, -e[3], e[1]],
+                [-e[4], e[3], identity, e[2]],
+            ],
+        };
+        match self.kind {
+            JointKind::Prismatic => {
+                let t = [self.u[0] * q, self.u[1] * q, self.u[2] * q];
+                match err {
+                    None => {
+                        let mut g = Affine::IDENTITY;
+                        let mut dg = Affine { m: [[0.0; 4]; 3] };
+                        for ((g, dg), (t, u)) in
+                            g.m.iter_mut().zip(&mut dg.m).zip(t.iter().zip(self.u))
+                        {
+                            g[3] = *t;
+                            dg[3] = u;
+                        }
+                        (g, dg)
+                    }
+                    Some((e, de)) => {
+                        let mut g = e_aff(e, 1.0);
+                        for (row, ti) in g.m.iter_mut().zip(t) {
+                            row[3] += ti;
+                        }
+                        let mut dg = match de {
+                            Some(de) => e_aff(de, 0.0),
+                            None => Affine { m: [[0.0; 4]; 3] },
+                        };
+                        for (row, ui) in dg.m.iter_mut().zip(self.u) {
+                            row[3] += ui;
+                        }
+                        (g, dg)
+                    }
+                }
+            }
+            JointKind::Revolute => {
+                let r = self.rotation(q);
+                let kr = mul3(&self.k, &r);
+                let lift = |m: [[f64; 3]; 3]| Affine {
+                    m: std::array::from_fn(|i| [m[i][0], m[i][1], m[i][2], 0.0]),
+                };
+                match err {
+                    None => (lift(r), lift(kr)),
+                    Some((e, de)) => {
+                        let ea = e_aff(e, 1.0);
+                        let g = mul3_affine(&r, &ea);
+                        let mut dg = mul3_affine(&kr, &ea);
+                        if let Some(de) = de {
+                            let d2 = mul3_affine(&r, &e_aff(de, 0.0));
+                            for (a, b) in dg.m.iter_mut().zip(d2.m) {
+                                for (x, y) in a.iter_mut().zip(b) {
+                                    *x += y;
+                                }
+                            }
+                        }
+                        (g, dg)
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// One step of the precomputed chain.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Step {
+    /// Consecutive fixed elements multiplied out.
+    Fixed(Affine),
+    /// A joint (index into the joints).
+    Joint(usize),
+}
+
+/// The precomputed form of a chain (see [`Chain`]).
+#[derive(Clone, Default)]
+struct Compiled {
+    steps: Vec<Step>,
+    joints: Vec<JointConst>,
+    /// Number of elements it was built from (a staleness check).
+    elements: usize,
+    /// Some fixed element is not affine: evaluate with full 4×4 matrices.
+    general: bool,
+}
+
+impl std::fmt::Debug for Compiled {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Compiled")
+    }
+}
+
+impl PartialEq for Compiled {
+    /// Derived data: equal elements give equal compiled forms.
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl Compiled {
+    fn new(elements: &[Element], joints: &[Joint]) -> Self {
+        let mut c = Compiled {
+            steps: Vec::with_capacity(elements.len()),
+            joints: joints.iter().map(JointConst::new).collect(),
+            elements: elements.len(),
+            general: false,
+        };
+        for el in elements {
+            match el {
+                Element::Fixed(m) => match Affine::from_matrix4(m) {
+                    Some(a) => match c.steps.last_mut() {
+                        Some(Step::Fixed(prev)) => *prev = prev.mul(&a),
+                        _ => c.steps.push(Step::Fixed(a)),
+                    },
+                    None => c.general = true,
+                },
+                Element::Joint(j) => c.steps.push(Step::Joint(*j)),
+            }
+        }
+        c
+    }
+
+    fn fits(&self, chain: &Chain) -> bool {
+        !self.general
+            && self.elements == chain.elements.len()
+            && self.joints.len() == chain.joints.len()
+            && chain.joints.len() <= MAX_JOINTS
+    }
 }
 
 /// Homogeneous translation.
@@ -209,12 +485,29 @@ impl Chain {
         Chain {
             elements: Vec::new(),
             joints: Vec::new(),
+            compiled: Compiled::default(),
         }
+    }
+
+    /// Rebuilds the precomputed form after a change.
+    fn recompile(&mut self) {
+        self.compiled = Compiled::new(&self.elements, &self.joints);
+    }
+
+    /// Runs `f` with the precomputed form, rebuilding it when the chain was
+    /// edited directly; `None` when the chain needs the general 4×4 path.
+    fn with_compiled<T>(&self, f: impl FnOnce(&Compiled) -> T) -> Option<T> {
+        if self.compiled.fits(self) {
+            return Some(f(&self.compiled));
+        }
+        let c = Compiled::new(&self.elements, &self.joints);
+        c.fits(self).then(|| f(&c))
     }
 
     /// Appends a fixed translation (mm).
     pub fn translate(&mut self, v: Vector3<f64>) -> &mut Self {
         self.elements.push(Element::Fixed(translation(&v)));
+        self.recompile();
         self
     }
 
@@ -222,6 +515,7 @@ impl Chain {
     pub fn rotate(&mut self, axis: Vector3<f64>, angle: f64) -> &mut Self {
         self.elements
             .push(Element::Fixed(rotation(&Unit::new_normalize(axis), angle)));
+        self.recompile();
         self
     }
 
@@ -229,6 +523,7 @@ impl Chain {
     /// squareness or an axis location error) of the small-angle form.
     pub fn fixed_error(&mut self, e: ErrorMotion) -> &mut Self {
         self.elements.push(Element::Fixed(error_matrix(&e)));
+        self.recompile();
         self
     }
 
@@ -242,6 +537,7 @@ impl Chain {
             element: self.elements.len(),
         });
         self.elements.push(Element::Joint(index));
+        self.recompile();
         index
     }
 
@@ -268,6 +564,7 @@ impl Chain {
                 j.element += 1;
             }
         }
+        c.recompile();
         c
     }
 
@@ -314,6 +611,12 @@ impl Chain {
     /// internal units) on the machine described by `errors`.
     pub fn transform(&self, q: &[f64], errors: &dyn JointErrors) -> Matrix4<f64> {
         debug_assert_eq!(q.len(), self.joints.len());
+        self.with_compiled(|c| Self::forward(c, q, errors).to_matrix4())
+            .unwrap_or_else(|| self.transform_general(q, errors))
+    }
+
+    /// [`Chain::transform`] with full 4×4 matrices, element by element.
+    fn transform_general(&self, q: &[f64], errors: &dyn JointErrors) -> Matrix4<f64> {
         let mut t = Matrix4::identity();
         for el in &self.elements {
             match el {
@@ -324,12 +627,43 @@ impl Chain {
         t
     }
 
+    /// The forward product on the precomputed chain.
+    fn forward(c: &Compiled, q: &[f64], errors: &dyn JointErrors) -> Affine {
+        let skip = errors.is_empty();
+        let mut t: Option<Affine> = None;
+        for step in &c.steps {
+            let m = match step {
+                Step::Fixed(m) => *m,
+                Step::Joint(j) => {
+                    let e = if skip { None } else { errors.error(*j, q[*j]) };
+                    c.joints[*j]
+                        .transform(q[*j], e.as_ref().map(|e| (e, None)))
+                        .0
+                }
+            };
+            t = Some(match t {
+                None => m,
+                Some(t) => t.mul(&m),
+            });
+        }
+        t.unwrap_or(Affine::IDENTITY)
+    }
+
     /// Forward kinematics: tool tip `T·[0,0,0,1]` and tool axis `T·[0,0,1,0]`.
     pub fn pose(&self, q: &[f64], errors: &dyn JointErrors) -> Pose {
-        let t = self.transform(q, errors);
-        Pose {
-            tip: Vector3::new(t[(0, 3)], t[(1, 3)], t[(2, 3)]),
-            axis: Vector3::new(t[(0, 2)], t[(1, 2)], t[(2, 2)]),
+        debug_assert_eq!(q.len(), self.joints.len());
+        match self.with_compiled(|c| Self::forward(c, q, errors)) {
+            Some(t) => Pose {
+                tip: Vector3::new(t.m[0][3], t.m[1][3], t.m[2][3]),
+                axis: Vector3::new(t.m[0][2], t.m[1][2], t.m[2][2]),
+            },
+            None => {
+                let t = self.transform_general(q, errors);
+                Pose {
+                    tip: Vector3::new(t[(0, 3)], t[(1, 3)], t[(2, 3)]),
+                    axis: Vector3::new(t[(0, 2)], t[(1, 2)], t[(2, 2)]),
+                }
+            }
         }
     }
 
@@ -337,9 +671,111 @@ impl Chain {
     ///
     /// For joint `k` with `T = P · G_k(q_k) · S`, `dT/dq_k = P · G_k' · S`
     /// where `G_k' = M_k' E_k + M_k E_k'`. The suffix is only needed applied to
-    /// the tip point and the axis direction, so one backward pass of 4-vectors
-    /// and one forward pass of 4×4 prefixes suffice.
+    /// the tip point and the axis direction, so one backward pass of vectors
+    /// and one forward pass of prefixes suffice. See
+    /// [`Chain::pose_and_jacobian_into`] for the allocation-free form.
     pub fn pose_and_jacobian(&self, q: &[f64], errors: &dyn JointErrors) -> (Pose, Jacobian) {
+        let n = self.joints.len();
+        let mut cols = [[0.0; 6]; MAX_JOINTS];
+        match self.with_compiled(|c| Self::pose_jacobian_compiled(c, q, errors, &mut cols)) {
+            Some(pose) => {
+                let jac = Jacobian::from_fn(n, |r, c| cols[c][r]);
+                (pose, jac)
+            }
+            None => self.pose_and_jacobian_general(q, errors),
+        }
+    }
+
+    /// [`Chain::pose_and_jacobian`] without allocating: column `k` of
+    /// `jac` receives `d[tip; axis]/dq_k` (columns past the dof are left
+    /// as they are). Needs a chain of at most [`MAX_JOINTS`] joints.
+    pub fn pose_and_jacobian_into(
+        &self,
+        q: &[f64],
+        errors: &dyn JointErrors,
+        jac: &mut JacobianColumns,
+    ) -> Pose {
+        match self.with_compiled(|c| Self::pose_jacobian_compiled(c, q, errors, jac)) {
+            Some(pose) => pose,
+            None => {
+                let (pose, j) = self.pose_and_jacobian_general(q, errors);
+                for (k, col) in jac.iter_mut().enumerate().take(j.ncols()) {
+                    for (r, v) in col.iter_mut().enumerate() {
+                        *v = j[(r, k)];
+                    }
+                }
+                pose
+            }
+        }
+    }
+
+    fn pose_jacobian_compiled(
+        c: &Compiled,
+        q: &[f64],
+        errors: &dyn JointErrors,
+        jac: &mut JacobianColumns,
+    ) -> Pose {
+        let n = c.joints.len();
+        debug_assert_eq!(q.len(), n);
+        let skip = errors.is_empty();
+        let mut g = [Affine::IDENTITY; MAX_JOINTS];
+        let mut dg = [Affine::IDENTITY; MAX_JOINTS];
+        for j in 0..n {
+            let e = if skip {
+                None
+            } else {
+                errors.error_and_derivative(j, q[j])
+            };
+            (g[j], dg[j]) = c.joints[j].transform(q[j], e.as_ref().map(|(e, d)| (e, Some(d))));
+        }
+        // Backward pass: the suffix after each joint applied to the tip
+        // point and the axis direction.
+        let mut s_tip = [0.0, 0.0, 0.0];
+        let mut s_ax = [0.0, 0.0, 1.0];
+        let mut suffix = [([0.0; 3], [0.0; 3]); MAX_JOINTS];
+        for step in c.steps.iter().rev() {
+            let m = match step {
+                Step::Fixed(m) => m,
+                Step::Joint(j) => {
+                    suffix[*j] = (s_tip, s_ax);
+                    &g[*j]
+                }
+            };
+            s_tip = m.point(&s_tip);
+            s_ax = m.dir(&s_ax);
+        }
+        // Forward pass: prefix products; column k = P_k · (G_k' · S_k).
+        let mut prefix: Option<Affine> = None;
+        for step in &c.steps {
+            let m = match step {
+                Step::Fixed(m) => m,
+                Step::Joint(j) => {
+                    let (st, sa) = &suffix[*j];
+                    let d = &dg[*j];
+                    let (mut dt, mut da) = (d.point(st), d.dir(sa));
+                    if let Some(p) = &prefix {
+                        dt = p.dir(&dt);
+                        da = p.dir(&da);
+                    }
+                    jac[*j] = [dt[0], dt[1], dt[2], da[0], da[1], da[2]];
+                    &g[*j]
+                }
+            };
+            prefix = Some(match prefix {
+                None => *m,
+                Some(p) => p.mul(m),
+            });
+        }
+        let t = prefix.unwrap_or(Affine::IDENTITY);
+        Pose {
+            tip: Vector3::new(t.m[0][3], t.m[1][3], t.m[2][3]),
+            axis: Vector3::new(t.m[0][2], t.m[1][2], t.m[2][2]),
+        }
+    }
+
+    /// [`Chain::pose_and_jacobian`] with full 4×4 matrices, element by element
+    /// (chains with a fixed element that is not affine).
+    fn pose_and_jacobian_general(&self, q: &[f64], errors: &dyn JointErrors) -> (Pose, Jacobian) {
         let n = self.joints.len();
         debug_assert_eq!(q.len(), n);
         // Per-joint transforms and derivatives.

@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Peak memory (RSS) of post and compensate on a long program, default
+# 2,000,000 blocks (about 160 MB of G-code). Not part of CI.
+#
+#   bash bench/memory.sh [POSES]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+POSES="${1:-2000000}"
+WORK="${BENCH_DIR:-${TMPDIR:-/tmp}/kinpost-bench}"
+mkdir -p "$WORK"
+command -v /usr/bin/time >/dev/null || { apt-get update -qq && apt-get install -y -qq time; }
+cargo build --release --quiet --bin kinpost --example bench_program
+PROGRAM="$WORK/poses-$POSES.nc"
+[ -s "$PROGRAM" ] || target/release/examples/bench_program "$POSES" > "$PROGRAM"
+echo "== $POSES blocks ($(du -h "$PROGRAM" | cut -f1))"
+run() {
+  local name=$1; shift
+  /usr/bin/time -v "$@" 2> "$WORK/time.log" >/dev/null
+  printf '%-40s peak RSS %6d KB   wall %s\n' "$name" \
+    "$(sed -n 's/.*Maximum resident set size (kbytes): //p' "$WORK/time.log")" \
+    "$(sed -n 's/.*Elapsed (wall clock) time (h:mm:ss or m:ss): //p' "$WORK/time.log")"
+}
+run "post -o FILE" target/release/kinpost post -q "$PROGRAM" -o "$WORK/post.nc"
+run "post (stdout)" target/release/kinpost post -q "$PROGRAM"
+run "compensate -o FILE" target/release/kinpost compensate -q --errors fixtures/errors/zhao2022-xzbc.csv "$PROGRAM" -o "$WORK/comp.nc"
+run "compensate --report FILE -o FILE" target/release/kinpost compensate -q --errors fixtures/errors/zhao2022-xzbc.csv --report "$WORK/report.json" "$PROGRAM" -o "$WORK/comp.nc"
+rm -f "$WORK/post.nc" "$WORK/comp.nc" "$WORK/report.json"
