@@ -21,5 +21,6 @@ pub mod plot;
 pub mod post;
 pub mod program;
 pub mod report;
+pub mod text;
 
 pub use error::{Error, Location, Result};
