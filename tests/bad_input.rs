@@ -175,10 +175,18 @@ fn incremental_moves_that_overflow() {
     assert!(line.len() < 200, "{line}");
     // The same on the other IK family and for APT CL.
     let r = post("p.nc", text.as_bytes(), &["-m", "wang2023-xyzab"]);
-    expect(&r, 1, &["p.nc:3:4: pose unreachable: the tool tip coordinate 1.000e308 mm"]);
+    expect(
+        &r,
+        1,
+        &["p.nc:3:4: pose unreachable: the tool tip coordinate 1.000e308 mm"],
+    );
     let cl = format!("GOTO/0,0,0,0,0,1\nGOTO/{nines},0,0\n");
     let r = post("p.cls", cl.as_bytes(), &["-m", "xyzac-trt"]);
-    expect(&r, 1, &["p.cls:2:1: pose unreachable: the tool tip coordinate 1.000e308 mm"]);
+    expect(
+        &r,
+        1,
+        &["p.cls:2:1: pose unreachable: the tool tip coordinate 1.000e308 mm"],
+    );
 }
 
 #[test]

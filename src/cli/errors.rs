@@ -362,7 +362,7 @@ pub struct CompensateArgs {
     /// inch and degrees), overriding the machine file.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=12))]
     pub decimals: Option<u32>,
-    /// Newton step.
+    /// How the Newton step is computed (the Jacobian it uses).
     #[arg(long, value_enum, default_value = "exact")]
     pub method: MethodArg,
     /// Weights of the tool-axis residual (x,y,z of the workpiece frame),
