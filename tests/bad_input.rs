@@ -1035,5 +1035,35 @@ fn simulate_and_analyze_errors_leave_outputs_untouched() {
 fn output_into_a_missing_directory_is_an_io_error() {
     let d = dir_with(&[("p.nc", b"G1 X1 Y0 Z0 I0 J0 K1\n")]);
     let r = run_in(d.path(), &["post", "p.nc", "-o", "nodir/out.nc"]);
-    expect(&r, 3, &["kinpost: error: nodir/out.nc: "]);
+    expect(
+        &r,
+        3,
+        &["kinpost: error: nodir/out.nc: cannot be written: its directory does not exist"],
+    );
+    // Checked before any work: the first output is not committed when the
+    // second cannot be written.
+    let errors = fixture("errors/zhao2022-xzbc.csv");
+    let r = assert_outputs_untouched(
+        d.path(),
+        &[
+            "compensate",
+            "-e",
+            &errors,
+            "p.nc",
+            "-o",
+            "out.nc",
+            "--report",
+            "nodir/r.json",
+        ],
+        &["out.nc"],
+        3,
+    );
+    expect(&r, 3, &["nodir/r.json: cannot be written"]);
+    std::fs::create_dir(d.path().join("sub")).unwrap();
+    let r = run_in(d.path(), &["post", "p.nc", "-o", "sub"]);
+    expect(
+        &r,
+        3,
+        &["kinpost: error: sub: is a directory; expected a file to write"],
+    );
 }

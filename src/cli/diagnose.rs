@@ -133,6 +133,7 @@ pub fn program_waypoints(
 
 /// Runs `kinpost simulate`.
 pub fn simulate(a: SimulateArgs) -> Result<()> {
+    super::check_outputs(&[a.output.as_deref()])?;
     let machine = a.machine.load()?;
     if !(a.sample_interval.is_finite() && a.sample_interval > 0.0) {
         return Err(Error::Usage("--sample-interval must be > 0 s".into()));
@@ -220,6 +221,7 @@ pub struct DiagnoseArgs {
 
 /// Runs `kinpost diagnose`.
 pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
+    super::check_outputs(&[a.svg.as_deref(), a.write_model.as_deref()])?;
     let machine = a.machine.load()?;
     let model = match &a.errors {
         Some(p) => Some(super::errors::load_errors(p)?),

@@ -57,6 +57,7 @@ pub fn load_errors(path: &std::path::Path) -> Result<ErrorModel> {
 
 /// Runs `kinpost fit`.
 pub fn fit(a: FitArgs) -> Result<()> {
+    super::check_outputs(&[a.output.as_deref()])?;
     let tables = read_tables(&a.table)?;
     let mut opts = match a.knots {
         Some(n) => FitOptions::fixed_knots(n),
@@ -133,6 +134,7 @@ pub struct NonlinearBlock {
 
 /// Runs `kinpost analyze`.
 pub fn analyze(a: AnalyzeArgs) -> Result<()> {
+    super::check_outputs(&[a.svg.as_deref()])?;
     let machine = a.machine.load()?;
     if a.errors.is_none() && !a.nonlinear {
         return Err(Error::Usage(
@@ -415,6 +417,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     if a.tip_tolerance_mm.is_nan() || a.tip_tolerance_mm <= 0.0 {
         return Err(Error::Usage("--tip-tolerance-mm must be > 0".into()));
     }
+    super::check_outputs(&[a.output.as_deref(), a.report.as_deref()])?;
     let machine: Machine = a.machine.load()?;
     let model = load_errors(&a.errors)?;
     let bound = model.bind(&machine.chain)?;

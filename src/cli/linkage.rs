@@ -69,6 +69,7 @@ fn parse_insert(s: &str) -> std::result::Result<usize, String> {
 
 /// Runs `kinpost linkage`.
 pub fn linkage(a: LinkageArgs) -> Result<()> {
+    super::check_outputs(&[a.output.as_deref(), a.report.as_deref()])?;
     let machine = a.machine.load()?;
     let mode = match (a.insert, a.tolerance) {
         (Some(n), _) => Mode::Insert(n),

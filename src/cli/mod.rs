@@ -228,6 +228,7 @@ fn post(a: PostArgs) -> Result<()> {
             "--axis-tolerance-urad must be a number ≥ 0".into(),
         ));
     }
+    check_outputs(&[a.output.as_deref()])?;
     let machine = a.machine.load()?;
     let mut solver = IkSolver::new(&machine);
     let mut inp = input::open(a.input.as_deref())?;
@@ -268,6 +269,32 @@ fn post(a: PostArgs) -> Result<()> {
             stats.lines,
             stats.max_axis_miss_rad * 1e6
         );
+    }
+    Ok(())
+}
+
+/// Checks before any work that every output path can be written: its
+/// directory exists and the path is not a directory. A command with several
+/// outputs (`-o` and `--report`, `--svg` and `--write-model`) then does not
+/// commit the first and fail on the second for a mistyped directory.
+pub fn check_outputs(paths: &[Option<&std::path::Path>]) -> Result<()> {
+    for p in paths.iter().flatten() {
+        let name = p.display().to_string();
+        let fail = |what: &str| {
+            Err(Error::io(
+                &name,
+                std::io::Error::new(std::io::ErrorKind::NotFound, what.to_string()),
+            ))
+        };
+        if p.is_dir() {
+            return fail("is a directory; expected a file to write");
+        }
+        match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() && !d.is_dir() => {
+                return fail("cannot be written: its directory does not exist");
+            }
+            _ => {}
+        }
     }
     Ok(())
 }
