@@ -14,7 +14,8 @@ fuzz_target!(|data: &[u8]| {
     let line = parse_line(&data[..end], 1);
     assert!(line.is_tiled(), "items do not tile the line");
     let mut out = Vec::new();
-    line.write_to(&mut out).expect("writing to a Vec cannot fail");
+    line.write_to(&mut out)
+        .expect("writing to a Vec cannot fail");
     assert_eq!(out, &data[..end], "echo differs from the input line");
     for w in line.words() {
         assert!(w.value.is_finite(), "non-finite word value {:?}", w.value);
