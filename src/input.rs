@@ -22,6 +22,7 @@ pub fn open(path: Option<&Path>) -> Result<Input> {
         Some(p) if p.as_os_str() == "-" => Ok(stdin()),
         Some(p) => {
             let name = p.display().to_string();
+            crate::text::check_not_dir(p)?;
             let f = std::fs::File::open(p).map_err(|e| Error::io(&name, e))?;
             let size = f.metadata().ok().map(|m| m.len());
             Ok(Input {

@@ -24,5 +24,6 @@ pub mod post;
 pub mod program;
 pub mod progress;
 pub mod report;
+pub mod text;
 
 pub use error::{Error, Location, Result};

@@ -237,8 +237,21 @@ impl<'a> GcodeConverter<'a> {
                 _ => {}
             }
         }
+        let opaque_error = |i: usize| {
+            Error::input_with(
+                loc(Some(i)),
+                crate::program::opaque::describe_opaque(line.item_bytes(&line.items[i])),
+                String::from_utf8_lossy(&line.bytes),
+            )
+        };
         let meaning = self.modal.apply(&words, &keywords).map_err(|e| {
-            Error::input_with(loc(e.item), e.message, String::from_utf8_lossy(&line.bytes))
+            // Text not understood in the block explains the failure best.
+            match opaque_in_pose_block(line, true, true) {
+                Some(i) => opaque_error(i),
+                None => {
+                    Error::input_with(loc(e.item), e.message, String::from_utf8_lossy(&line.bytes))
+                }
+            }
         })?;
         for w in &meaning.warnings {
             self.stats
@@ -246,11 +259,7 @@ impl<'a> GcodeConverter<'a> {
                 .push(format!("{}: {w}", loc(meaning.pose_items.first().copied())));
         }
         if let Some(i) = opaque_in_pose_block(line, self.modal.pose_mode, meaning.pose.is_some()) {
-            return Err(Error::input_with(
-                loc(Some(i)),
-                "this block must be converted but holds syntax kinpost does not evaluate (an expression, parameter or macro call); expected plain numeric words",
-                String::from_utf8_lossy(&line.bytes),
-            ));
+            return Err(opaque_error(i));
         }
         let Some((tip, axis)) = meaning.pose else {
             if !self.modal.pose_mode {
@@ -526,8 +535,16 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                 {
                     return Err(Error::input_with(
                         loc,
-                        format!("tool axis of length {norm:.6}: expected a unit vector"),
+                        format!(
+                            "tool axis of length {norm:.6}, not 1 (tolerance {}): expected a unit vector",
+                            crate::program::modal::TOOL_VECTOR_TOLERANCE
+                        ),
                         text,
+                    ));
+                }
+                if (norm - 1.0).abs() > 1e-9 {
+                    stats.warnings.push(format!(
+                        "{loc}: tool axis of length {norm:.9} normalised to unit length"
                     ));
                 }
                 let pose = Pose::new(tip, axis / norm);

@@ -533,6 +533,7 @@ fn bind_rejects_unknown_axes_and_kind_mismatch() {
             axis: "X".into(),
             rotary: true,
             columns: vec![],
+            origin: Default::default(),
         }],
         ..Default::default()
     };

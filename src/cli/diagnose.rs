@@ -34,19 +34,20 @@ pub struct SimulateArgs {
     /// `@block=N` to start it at line N. Repeat for several effects.
     #[arg(long, value_name = "SPEC")]
     pub inject: Vec<String>,
-    /// Measurement noise, standard deviation per measured coordinate, mm.
+    /// Measurement noise, standard deviation per measured coordinate, in mm.
     #[arg(long, value_name = "MM", default_value_t = 0.001)]
     pub noise: f64,
-    /// Seed of the noise (deterministic).
+    /// Seed of the noise (an integer, no unit; the same seed gives the same
+    /// recording).
     #[arg(long, value_name = "N", default_value_t = 1)]
     pub seed: u64,
-    /// Time between samples, s.
+    /// Time between samples, in s.
     #[arg(long, value_name = "S", default_value_t = 0.1)]
     pub sample_interval: f64,
-    /// Acceleration limit along the path, mm/s² (0: constant feed per block).
+    /// Acceleration limit along the path, in mm/s² (0: constant feed per block).
     #[arg(long, value_name = "MM/S2", default_value_t = 200.0)]
     pub accel: f64,
-    /// Feed of rapid moves and of moves without a programmed feed, mm/min.
+    /// Feed of rapid moves and of moves without a programmed feed, in mm/min.
     #[arg(long, value_name = "MM/MIN", default_value_t = 3000.0)]
     pub rapid_feed: f64,
     /// When pose mode starts (pose programs).
@@ -128,12 +129,25 @@ pub fn program_waypoints(
 
 /// Runs `kinpost simulate`.
 pub fn simulate(a: SimulateArgs) -> Result<()> {
+    super::check_outputs(&[a.output.as_deref()])?;
     let machine = a.machine.load()?;
     if !(a.sample_interval.is_finite() && a.sample_interval > 0.0) {
         return Err(Error::Usage("--sample-interval must be > 0 s".into()));
     }
     if !(a.rapid_feed.is_finite() && a.rapid_feed > 0.0) {
         return Err(Error::Usage("--rapid-feed must be > 0 mm/min".into()));
+    }
+    if !(a.noise.is_finite() && a.noise >= 0.0) {
+        return Err(Error::Usage(format!(
+            "--noise {}: expected a standard deviation ≥ 0 mm",
+            a.noise
+        )));
+    }
+    if !(a.accel.is_finite() && a.accel >= 0.0) {
+        return Err(Error::Usage(format!(
+            "--accel {}: expected an acceleration ≥ 0 mm/s² (0: constant feed per block)",
+            a.accel
+        )));
     }
     let model = match &a.errors {
         Some(p) => Some(super::errors::load_errors(p)?),
@@ -143,7 +157,9 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         .inject
         .iter()
         .map(|s| parse_effect_spec(s))
-        .collect::<Result<Vec<_>>>()?;
+        .collect::<Result<Vec<_>>>()
+        // A bad --inject is a bad command line (exit 2), not bad input.
+        .map_err(|e| Error::Usage(e.to_string()))?;
     let start = match a.pose_start {
         PoseStartArg::On => PoseStart::On,
         PoseStartArg::Tcp => PoseStart::Off,
@@ -191,16 +207,17 @@ pub struct DiagnoseArgs {
     /// Write the improved model (error model + effects found) here.
     #[arg(long, value_name = "MODEL.json")]
     pub write_model: Option<PathBuf>,
-    /// Largest number of effects to report.
+    /// Largest number of effects to report (a count, no unit).
     #[arg(long, value_name = "N", default_value_t = 4)]
     pub max_effects: usize,
-    /// Noise floor per measured coordinate, mm (default: estimated robustly).
+    /// Noise floor per measured coordinate, in mm (default: estimated robustly).
     #[arg(long, value_name = "MM")]
     pub noise_floor: Option<f64>,
 }
 
 /// Runs `kinpost diagnose`.
 pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
+    super::check_outputs(&[a.svg.as_deref(), a.write_model.as_deref()])?;
     let machine = a.machine.load()?;
     let model = match &a.errors {
         Some(p) => Some(super::errors::load_errors(p)?),
@@ -218,12 +235,29 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
         .map(|j| j.name.clone())
         .collect();
     let rec = Recording::load(&a.recording, &axes)?;
+    let rec_name = a.recording.display().to_string();
+    // Problems found after reading name the recording, not a placeholder.
+    let named = |e: Error| match e {
+        Error::Input {
+            mut loc,
+            message,
+            snippet,
+        } if loc.file == "<recording>" => {
+            loc.file = rec_name.clone();
+            Error::Input {
+                loc,
+                message,
+                snippet,
+            }
+        }
+        e => e,
+    };
     let opts = DiagOptions {
         max_effects: a.max_effects,
         noise_floor_mm: a.noise_floor,
         ..DiagOptions::default()
     };
-    let report = run_diagnose(&machine.chain, model.as_ref(), &rec, &opts)?;
+    let report = run_diagnose(&machine.chain, model.as_ref(), &rec, &opts).map_err(named)?;
     if let Some(svg) = &a.svg {
         let text = report.to_svg()?;
         write_atomically(Some(svg), |w| {

@@ -36,7 +36,8 @@ pub struct FitArgs {
     /// Error table (CSV, formats.md §1): one block per axis, ISO 230-1 names.
     #[arg(value_name = "TABLE.csv")]
     pub table: PathBuf,
-    /// Interior knots per spline (default: chosen by cross-validation).
+    /// Interior knots per spline (a count, no unit; default: chosen by
+    /// cross-validation).
     #[arg(long, value_name = "N")]
     pub knots: Option<usize>,
     /// Behaviour outside the measured travel.
@@ -57,6 +58,7 @@ pub fn load_errors(path: &std::path::Path) -> Result<ErrorModel> {
 
 /// Runs `kinpost fit`.
 pub fn fit(a: FitArgs) -> Result<()> {
+    super::check_outputs(&[a.output.as_deref()])?;
     let tables = read_tables(&a.table)?;
     let mut opts = match a.knots {
         Some(n) => FitOptions::fixed_knots(n),
@@ -133,6 +135,7 @@ pub struct NonlinearBlock {
 
 /// Runs `kinpost analyze`.
 pub fn analyze(a: AnalyzeArgs) -> Result<()> {
+    super::check_outputs(&[a.svg.as_deref()])?;
     let machine = a.machine.load()?;
     if a.errors.is_none() && !a.nonlinear {
         return Err(Error::Usage(
@@ -148,6 +151,7 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         None => None,
     };
     let mut inp = input::open(a.input.as_deref())?;
+    super::require_program(&mut inp)?;
     let head = input::peek(&mut *inp.reader)?;
     let poses = looks_like_poses(&head);
     let name = inp.name.clone();
@@ -353,19 +357,22 @@ pub struct CompensateArgs {
     /// Write the output here (atomically). Default: standard output.
     #[arg(long, short = 'o', value_name = "FILE")]
     pub output: Option<PathBuf>,
-    /// Decimals of every axis word, overriding the machine file.
+    /// Decimals of every axis word (a count, 0–12; the words are in mm or
+    /// inch and degrees), overriding the machine file.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=12))]
     pub decimals: Option<u32>,
-    /// Newton step.
+    /// How the Newton step is computed (the Jacobian it uses).
     #[arg(long, value_enum, default_value = "exact")]
     pub method: MethodArg,
-    /// Weights of the tool-axis residual (x,y,z of the workpiece frame).
-    #[arg(long, value_name = "WX,WY,WZ", value_delimiter = ',', num_args = 3, default_values_t = [1.0, 1.0, 1.0])]
-    pub axis_weights: Vec<f64>,
-    /// Largest Newton iterations per pose.
+    /// Weights of the tool-axis residual (x,y,z of the workpiece frame),
+    /// dimensionless, each ≥ 0.
+    #[arg(long, value_name = "WX,WY,WZ", default_value = "1,1,1", allow_hyphen_values = true, value_parser = parse_weights)]
+    pub axis_weights: [f64; 3],
+    /// Largest number of Newton iterations per pose (a count, no unit).
     #[arg(long, value_name = "N", default_value_t = 30)]
     pub max_iterations: usize,
-    /// Largest accepted tool-tip residual, mm; beyond it a block has not converged.
+    /// Largest accepted tool-tip residual, in mm (1e-9 mm = 1 pm); beyond it a
+    /// block has not converged.
     #[arg(long, value_name = "MM", default_value_t = 1e-9)]
     pub tip_tolerance_mm: f64,
     /// What to do with a block that does not converge or breaks a limit.
@@ -416,14 +423,29 @@ impl PoseSolver for Streaming<'_, '_, '_> {
     }
 }
 
+/// `WX,WY,WZ`: three finite weights ≥ 0.
+fn parse_weights(s: &str) -> std::result::Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|e| format!("{e}; expected three numbers WX,WY,WZ such as 1,1,0.5"))?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|w| w.is_finite() && *w >= 0.0) => Ok([x, y, z]),
+        [_, _, _] => Err("weights must be finite and ≥ 0".into()),
+        _ => Err(format!(
+            "{} values; expected three numbers WX,WY,WZ such as 1,1,0.5",
+            v.len()
+        )),
+    }
+}
+
 /// Runs `kinpost compensate`.
 pub fn compensate(a: CompensateArgs) -> Result<()> {
     if a.tip_tolerance_mm.is_nan() || a.tip_tolerance_mm <= 0.0 {
         return Err(Error::Usage("--tip-tolerance-mm must be > 0".into()));
     }
-    if a.axis_weights.iter().any(|w| !w.is_finite() || *w < 0.0) {
-        return Err(Error::Usage("--axis-weights must be finite and ≥ 0".into()));
-    }
+    super::check_outputs(&[a.output.as_deref(), a.report.as_deref()])?;
     let machine: Machine = a.machine.load()?;
     let model = load_errors(&a.errors)?;
     let bound = model.bind(&machine.chain)?;
@@ -442,7 +464,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             method,
             max_iterations: a.max_iterations,
             tip_tolerance_mm: 1e-12,
-            axis_weights: [a.axis_weights[0], a.axis_weights[1], a.axis_weights[2]],
+            axis_weights: a.axis_weights,
         },
         on_fail: match a.on_fail {
             OnFailArg::Error => OnFail::Error,
@@ -462,6 +484,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         .map(|r| r.display().to_string())
         .unwrap_or_default();
     let mut inp = input::open(a.input.as_deref())?;
+    super::require_program(&mut inp)?;
     let kind = super::resolve_kind(a.input_kind, &mut *inp.reader)?;
     let opts = PostOptions {
         decimals: a.decimals,

@@ -20,17 +20,17 @@ pub struct LinkageArgs {
     pub input: Option<PathBuf>,
     #[command(flatten)]
     pub machine: MachineChoice,
-    /// Seed 003 exactly: insert this many points (2) into every block that
+    /// Seed 003 exactly: insert this many points (a count, even; 2) into every block that
     /// moves both rotaries — tips at 1/3 and 2/3 of the line, the split rotary
     /// (A) half way with the other (B) held, then B, then A.
     #[arg(long, value_name = "N", conflicts_with = "tolerance", value_parser = parse_insert)]
     pub insert: Option<usize>,
     /// Insert the fewest points such that every segment's exact nonlinear
-    /// error is within this tolerance, mm (default 0.001 mm unless --insert).
+    /// error is within this tolerance, in mm (default 0.001 mm unless --insert).
     #[arg(long, value_name = "MM")]
     pub tolerance: Option<f64>,
-    /// Largest number of axes one block may move: 4 (four-axis linkage) or 5
-    /// (plain linearisation within --tolerance).
+    /// Largest number of axes one block may move (a count, no unit): 4
+    /// (four-axis linkage) or 5 (plain linearisation within --tolerance).
     #[arg(long, value_name = "N", default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..=6))]
     pub max_axes: u32,
     /// The rotary that moves in half steps around the other (default: the one
@@ -40,7 +40,8 @@ pub struct LinkageArgs {
     /// Write the output here (atomically). Default: standard output.
     #[arg(long, short = 'o', value_name = "FILE")]
     pub output: Option<PathBuf>,
-    /// Decimals of every axis word, overriding the machine file.
+    /// Decimals of every axis word (a count, 0–12; the words are in mm or
+    /// inch and degrees), overriding the machine file.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=12))]
     pub decimals: Option<u32>,
     /// Write the report (blocks, nonlinear error, cycle time) as JSON here.
@@ -68,6 +69,7 @@ fn parse_insert(s: &str) -> std::result::Result<usize, String> {
 
 /// Runs `kinpost linkage`.
 pub fn linkage(a: LinkageArgs) -> Result<()> {
+    super::check_outputs(&[a.output.as_deref(), a.report.as_deref()])?;
     let machine = a.machine.load()?;
     let mode = match (a.insert, a.tolerance) {
         (Some(n), _) => Mode::Insert(n),
@@ -101,6 +103,7 @@ pub fn linkage(a: LinkageArgs) -> Result<()> {
         }
     };
     let mut inp = input::open(a.input.as_deref())?;
+    super::require_program(&mut inp)?;
     let poses = looks_like_poses(&input::peek(&mut *inp.reader)?);
     if poses && crate::cl::looks_like_cl(&input::peek(&mut *inp.reader)?) {
         return Err(Error::Usage(

@@ -58,6 +58,17 @@ pub enum Command {
     /// Find where a recording and the model disagree, name the physics the
     /// model left out, fit it, and show the fit improve on held-out data.
     Diagnose(diagnose::DiagnoseArgs),
+    /// Print a shell completion script on standard output, e.g.
+    /// `kinpost completions bash > /etc/bash_completion.d/kinpost`.
+    Completions(CompletionsArgs),
+}
+
+/// `kinpost completions`.
+#[derive(Debug, Args)]
+pub struct CompletionsArgs {
+    /// The shell to write the completion script for.
+    #[arg(value_enum, value_name = "SHELL")]
+    pub shell: clap_complete::Shell,
 }
 
 /// Choosing a machine.
@@ -80,6 +91,20 @@ impl MachineChoice {
                     Machine::load(&p)
                 } else if let Some(machine) = Machine::embedded(m) {
                     Ok(machine)
+                } else if m.contains(std::path::MAIN_SEPARATOR)
+                    || m.contains('/')
+                    || m.ends_with(".json")
+                {
+                    Err(Error::io(
+                        m.clone(),
+                        std::io::Error::new(
+                            std::io::ErrorKind::NotFound,
+                            format!(
+                                "no such machine file (embedded machines: {})",
+                                Machine::embedded_names().join(", ")
+                            ),
+                        ),
+                    ))
                 } else {
                     Err(Error::Usage(format!(
                         "--machine {m}: no such file, and no embedded machine of that name (embedded: {})",
@@ -124,14 +149,16 @@ pub struct PostArgs {
     /// Default: standard output.
     #[arg(long, short = 'o', value_name = "FILE")]
     pub output: Option<PathBuf>,
-    /// Decimals of every axis word, overriding the machine file.
+    /// Decimals of every axis word (a count, 0–12; the words are in mm or
+    /// inch and degrees), overriding the machine file.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=12))]
     pub decimals: Option<u32>,
     /// When pose mode starts.
     #[arg(long, value_enum, default_value = "on")]
     pub pose_start: PoseStartArg,
     /// Largest tool-axis miss accepted on a machine that cannot reach every
-    /// tool axis (four-axis machines), µrad. Poses beyond it are an error.
+    /// tool axis (four-axis machines), in µrad (1 µrad ≈ 0.2 arcsec). Poses
+    /// beyond it are an error.
     #[arg(long, value_name = "URAD", default_value_t = 100.0)]
     pub axis_tolerance_urad: f64,
     /// Write only the axes whose value changed (modal), not all axes.
@@ -181,7 +208,19 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Linkage(a) => linkage::linkage(a),
         Command::Simulate(a) => diagnose::simulate(a),
         Command::Diagnose(a) => diagnose::diagnose(a),
+        Command::Completions(a) => completions(a),
     }
+}
+
+fn completions(a: CompletionsArgs) -> Result<()> {
+    use clap::CommandFactory;
+    let mut cmd = Cli::command();
+    let mut script = Vec::new();
+    clap_complete::generate(a.shell, &mut cmd, "kinpost", &mut script);
+    let mut out = std::io::stdout().lock();
+    out.write_all(&script)
+        .and_then(|_| out.flush())
+        .map_err(|e| Error::io("<stdout>", e))
 }
 
 fn post(a: PostArgs) -> Result<()> {
@@ -190,9 +229,11 @@ fn post(a: PostArgs) -> Result<()> {
             "--axis-tolerance-urad must be a number ≥ 0".into(),
         ));
     }
+    check_outputs(&[a.output.as_deref()])?;
     let machine = a.machine.load()?;
     let mut solver = IkSolver::new(&machine);
     let mut inp = input::open(a.input.as_deref())?;
+    require_program(&mut inp)?;
     let kind = resolve_kind(a.input_kind, &mut *inp.reader)?;
     let opts = PostOptions {
         decimals: a.decimals,
@@ -230,6 +271,50 @@ fn post(a: PostArgs) -> Result<()> {
             stats.lines,
             stats.max_axis_miss_rad * 1e6
         );
+    }
+    Ok(())
+}
+
+/// Checks before any work that every output path can be written: its
+/// directory exists and the path is not a directory. A command with several
+/// outputs (`-o` and `--report`, `--svg` and `--write-model`) then does not
+/// commit the first and fail on the second for a mistyped directory.
+pub fn check_outputs(paths: &[Option<&std::path::Path>]) -> Result<()> {
+    for p in paths.iter().flatten() {
+        let name = p.display().to_string();
+        let fail = |what: &str| {
+            Err(Error::io(
+                &name,
+                std::io::Error::new(std::io::ErrorKind::NotFound, what.to_string()),
+            ))
+        };
+        if p.is_dir() {
+            return fail("is a directory; expected a file to write");
+        }
+        match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() && !d.is_dir() => {
+                return fail("cannot be written: its directory does not exist");
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// Fails with an input error if the program `inp` is empty (no byte at all):
+/// an empty program in a filter chain is almost surely a failed stage
+/// before, and passing it on would lose that.
+pub fn require_program(inp: &mut input::Input) -> Result<()> {
+    let empty = inp
+        .reader
+        .fill_buf()
+        .map_err(|e| Error::io(&inp.name, e))?
+        .is_empty();
+    if empty {
+        return Err(Error::input(
+            crate::error::Location::new(&inp.name, 1, 0),
+            "the program is empty: expected G-code blocks or APT CL statements",
+        ));
     }
     Ok(())
 }

@@ -74,6 +74,8 @@ pub struct RecordingReader<R: BufRead> {
     temp_names: Vec<String>,
     last_t: Option<f64>,
     buf: String,
+    /// The raw bytes of the current line (checked to be UTF-8 into `buf`).
+    bytes: Vec<u8>,
     done: bool,
 }
 
@@ -113,10 +115,11 @@ impl<R: BufRead> RecordingReader<R> {
     pub fn new(mut input: R, file: &str, axes: &[String]) -> Result<Self> {
         let mut line_no = 0;
         let mut buf = String::new();
+        let mut bytes = Vec::new();
         loop {
-            buf.clear();
+            bytes.clear();
             let n = input
-                .read_line(&mut buf)
+                .read_until(b'\n', &mut bytes)
                 .map_err(|e| Error::io(file.to_string(), e))?;
             if n == 0 {
                 return Err(Error::input(
@@ -125,6 +128,8 @@ impl<R: BufRead> RecordingReader<R> {
                 ));
             }
             line_no += 1;
+            buf.clear();
+            buf.push_str(crate::text::line_utf8(&bytes, file, line_no)?);
             strip_eol(&mut buf);
             if line_no == 1 && buf.starts_with('\u{feff}') {
                 buf.drain(..3);
@@ -216,6 +221,7 @@ impl<R: BufRead> RecordingReader<R> {
             temp_names,
             last_t: None,
             buf: String::new(),
+            bytes: Vec::new(),
             done: false,
         })
     }
@@ -342,8 +348,8 @@ impl<R: BufRead> Iterator for RecordingReader<R> {
             return None;
         }
         loop {
-            self.buf.clear();
-            match self.input.read_line(&mut self.buf) {
+            self.bytes.clear();
+            match self.input.read_until(b'\n', &mut self.bytes) {
                 Ok(0) => {
                     self.done = true;
                     return None;
@@ -355,6 +361,14 @@ impl<R: BufRead> Iterator for RecordingReader<R> {
                 }
             }
             self.line_no += 1;
+            self.buf.clear();
+            match crate::text::line_utf8(&self.bytes, &self.file, self.line_no) {
+                Ok(s) => self.buf.push_str(s),
+                Err(e) => {
+                    self.done = true;
+                    return Some(Err(e));
+                }
+            }
             strip_eol(&mut self.buf);
             if is_skippable(&self.buf) {
                 continue;
@@ -392,6 +406,7 @@ impl Recording {
     /// Loads a recording from a file.
     pub fn load(path: &Path, axes: &[String]) -> Result<Recording> {
         let name = path.display().to_string();
+        crate::text::check_not_dir(path)?;
         let f = std::fs::File::open(path).map_err(|e| Error::io(name.clone(), e))?;
         Self::read(std::io::BufReader::new(f), &name, axes)
     }

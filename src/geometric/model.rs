@@ -67,6 +67,30 @@ pub struct AxisErrors {
     pub rotary: bool,
     /// Fitted columns, at most one per component.
     pub columns: Vec<ColumnSpline>,
+    /// Where the axis was given (table header or model JSON), for messages.
+    pub origin: Origin,
+}
+
+/// Where something was read from: a location and the text found there.
+/// Only for messages: two origins always compare equal, so a model read
+/// back from JSON equals the model fitted from its tables.
+#[derive(Debug, Clone, Default)]
+pub struct Origin(pub Option<(Location, String)>);
+
+impl PartialEq for Origin {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl Origin {
+    /// An input error at this origin (or at `fallback` when unknown).
+    fn error(&self, fallback: &str, message: String) -> Error {
+        match &self.0 {
+            Some((loc, text)) => Error::input_with(loc.clone(), message, text.clone()),
+            None => Error::input(Location::new(fallback, 0, 0), message),
+        }
+    }
 }
 
 impl AxisErrors {
@@ -436,10 +460,16 @@ impl ErrorModel {
                     report.iso230_2.push(iso);
                 }
             }
+            let origin = Origin(
+                of_axis
+                    .first()
+                    .map(|t| (table_loc(t), t.header_text.clone())),
+            );
             model.axes.push(AxisErrors {
                 axis,
                 rotary,
                 columns,
+                origin,
             });
         }
         Ok((model, report))
@@ -559,10 +589,17 @@ impl ErrorModel {
                     spline,
                 });
             }
+            let needle = format!("\"{}\"", a.axis);
+            let loc = locate(text, file, &needle);
+            let origin = Origin((loc.line > 0).then(|| {
+                let line = text.lines().nth(loc.line - 1).unwrap_or("").to_string();
+                (loc, line)
+            }));
             axes.push(AxisErrors {
                 axis,
                 rotary: a.rotary,
                 columns,
+                origin,
             });
         }
         for f in &doc.fixed {
@@ -595,7 +632,13 @@ impl ErrorModel {
     /// `{`) or an error-table CSV, fitted on the fly with default options.
     pub fn load(path: &Path) -> Result<ErrorModel> {
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(name.clone(), e))?;
+        let text = crate::text::read_text_file(path)?;
+        if text.trim_start_matches('\u{feff}').trim().is_empty() {
+            return Err(crate::text::empty_file(
+                &name,
+                "an error model (JSON from `kinpost fit`) or an error table (CSV)",
+            ));
+        }
         Self::from_str_auto(&text, &name)
     }
 
@@ -621,10 +664,10 @@ impl ErrorModel {
             .unwrap_or_else(|| "<error model>".into());
         for a in &self.axes {
             let j = chain.joint_index(&a.axis).ok_or_else(|| {
-                Error::input(
-                    Location::new(source.clone(), 0, 0),
+                a.origin.error(
+                    &source,
                     format!(
-                        "the error model has errors for axis {}, which is not a joint of the machine (joints: {})",
+                        "the error model has errors for axis {}, which is not a joint of the machine (joints: {}); expected only the machine's axes",
                         a.axis,
                         joint_names(chain)
                     ),
@@ -632,8 +675,8 @@ impl ErrorModel {
             })?;
             let revolute = chain.joints[j].kind == JointKind::Revolute;
             if revolute != a.rotary {
-                return Err(Error::input(
-                    Location::new(source.clone(), 0, 0),
+                return Err(a.origin.error(
+                    &source,
                     format!(
                         "axis {} is {} in the error model but {} in the machine",
                         a.axis,
@@ -647,8 +690,8 @@ impl ErrorModel {
                 ));
             }
             if per_joint[j].is_some() {
-                return Err(Error::input(
-                    Location::new(source.clone(), 0, 0),
+                return Err(a.origin.error(
+                    &source,
                     format!("axis {} is given twice in the error model", a.axis),
                 ));
             }

@@ -177,6 +177,8 @@ pub struct ErrorTable {
     pub file: String,
     /// 1-based line of the table's header.
     pub header_line: usize,
+    /// The header line as written (for messages).
+    pub header_text: String,
 }
 
 impl ErrorTable {
@@ -204,7 +206,7 @@ impl ErrorTable {
 /// Reads and parses an error-table file.
 pub fn read_tables(path: &Path) -> Result<Vec<ErrorTable>> {
     let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(name.clone(), e))?;
+    let text = crate::text::read_text_file(path)?;
     parse_tables(&text, &name)
 }
 
@@ -692,6 +694,7 @@ fn finish_block(b: Block, file: &str) -> Result<ErrorTable> {
         source_line: b.source_line,
         file: file.to_string(),
         header_line: b.header_line,
+        header_text: b.header_text,
     })
 }
 

@@ -130,7 +130,10 @@ impl Machine {
     /// Reads and parses a machine file.
     pub fn load(path: &Path) -> Result<Machine> {
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(&name, e))?;
+        let text = crate::text::read_text_file(path)?;
+        if text.trim().is_empty() {
+            return Err(crate::text::empty_file(&name, "a machine file (JSON)"));
+        }
         Machine::from_json_str(&text, &name)
     }
 

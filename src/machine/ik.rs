@@ -116,6 +116,18 @@ pub struct IkSolution {
     pub branch: u8,
 }
 
+/// Largest tool-tip coordinate the solver accepts, mm.
+const MAX_COORDINATE_MM: f64 = 1e9;
+
+/// A value for a message: 6 decimals, or scientific notation when huge.
+fn shown(v: f64) -> String {
+    if v.abs() < 1e9 {
+        format!("{v:.6}")
+    } else {
+        format!("{v:.6e}")
+    }
+}
+
 /// Why a pose has no acceptable solution.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum IkError {
@@ -128,7 +140,8 @@ pub enum IkError {
     /// Every branch needs an axis beyond its travel; the nearest branch's
     /// first violation is reported (file units).
     #[error(
-        "axis {axis} would have to move to {value:.6} {unit}, outside its limits {min} … {max} {unit} (no solution branch stays within the limits)"
+        "axis {axis} would have to move to {} {unit}, outside its limits {min} … {max} {unit} (no solution branch stays within the limits)",
+        shown(*.value)
     )]
     Limit {
         /// Axis name.
@@ -574,6 +587,15 @@ impl IkSolver {
         {
             return Err(IkError::Unreachable {
                 reason: "the pose is not finite or its tool axis is a zero vector".into(),
+            });
+        }
+        // Far beyond any travel the chain's arithmetic overflows (NaN in the
+        // SVD below); 1e9 mm = 1000 km is no machine's work space.
+        if let Some(v) = pose.tip.iter().find(|v| v.abs() > MAX_COORDINATE_MM) {
+            return Err(IkError::Unreachable {
+                reason: format!(
+                    "the tool tip coordinate {v:.3e} mm is beyond any machine's travel (|coordinate| ≤ {MAX_COORDINATE_MM:.0e} mm)"
+                ),
             });
         }
         let n = self.chain.dof();

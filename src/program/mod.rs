@@ -2,6 +2,7 @@
 
 pub mod format;
 pub mod modal;
+pub mod opaque;
 pub mod source;
 
 pub use modal::{

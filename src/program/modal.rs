@@ -345,8 +345,42 @@ impl ModalState {
                 }
             }
         }
+        if let Some(i) = (0..3).find(|&i| !tip[i].is_finite()) {
+            return Err(BlockError {
+                item: meaning.pose_items.first().copied(),
+                message: format!(
+                    "the tool tip {} is out of range ({}): the incremental moves add up beyond ±1.8e308; expected coordinates in mm or inch",
+                    names[i], tip[i]
+                ),
+            });
+        }
+        // `X1E5` is X1 and E5: G-code has no exponent. In a pose block an E
+        // word glued to a pose word is almost surely meant as one.
+        for w in words.iter().filter(|w| w.address == "E") {
+            if let Some(p) = words
+                .iter()
+                .find(|p| p.item + 1 == w.item && (is_tip(p.address) || is_axis(p.address)))
+            {
+                return Err(BlockError {
+                    item: Some(p.item),
+                    message: format!(
+                        "`{}{}` is followed directly by `E{}`: G-code numbers have no exponent (E is a word of its own), so this is not {}{}e{}; expected a plain decimal number (e.g. 0.0015, not 1.5E-3)",
+                        p.address, p.value, w.value, p.address, p.value, w.value
+                    ),
+                });
+            }
+        }
         let norm = self.axis.norm();
         let axis_item = words.iter().find(|w| is_axis(w.address)).map(|w| w.item);
+        if norm.is_infinite() {
+            return Err(BlockError {
+                item: axis_item,
+                message: format!(
+                    "the tool vector ({}, {}, {}) is out of range: expected a unit vector",
+                    self.axis.x, self.axis.y, self.axis.z
+                ),
+            });
+        }
         if !norm.is_finite() || norm < 1e-12 {
             return Err(BlockError {
                 item: axis_item,

@@ -1,0 +1,124 @@
+//! Messages for text the G-code parser did not understand (an opaque item)
+//! in a block that must be converted: a malformed number, a number that is
+//! not finite or does not fit, or syntax kinpost does not evaluate.
+
+/// The longest piece of offending text quoted in a message.
+const QUOTE_MAX: usize = 48;
+
+/// What is wrong with the opaque text `bytes` (the not-understood rest of a
+/// block), naming the offending text and what was expected.
+pub fn describe_opaque(bytes: &[u8]) -> String {
+    let text = String::from_utf8_lossy(bytes);
+    let text = text.trim_end_matches(['\r', '\n']);
+    let token: &str = token(text);
+    let quoted = quote(token);
+    let letters = token
+        .bytes()
+        .take_while(|b| b.is_ascii_alphabetic())
+        .count();
+    let generic = || {
+        format!(
+            "this block must be converted but holds syntax kinpost does not evaluate (`{quoted}`: an expression, parameter or macro call); expected plain numeric words such as X12.5"
+        )
+    };
+    if letters == 0 {
+        return generic();
+    }
+    // `XNAN`, `X-inf`, `A3=inf`: the address is one letter (and digits, `=`).
+    let first = &token[..1];
+    let tail = token[1..]
+        .trim_start_matches(|c: char| {
+            c.is_ascii_digit() || matches!(c, '=' | ' ' | '\t' | '+' | '-')
+        })
+        .to_ascii_lowercase();
+    if ["nan", "inf"].iter().any(|w| tail.starts_with(w)) {
+        return format!("`{quoted}` is not a finite number; expected a number such as {first}12.5");
+    }
+    let (address, rest) = token.split_at(letters);
+    // Address digits (`A3`) and `=` belong to the address.
+    let rest = rest.trim_start_matches(|c: char| c.is_ascii_digit() && address.len() > 1);
+    let value = rest.trim_start_matches([' ', '\t', '=']);
+    if value.is_empty() {
+        return format!(
+            "`{quoted}`: the word {address} has no number; expected a number such as {address}12.5"
+        );
+    }
+    if value.starts_with(['[', '#', '<']) {
+        return generic();
+    }
+    let unsigned = value.trim_start_matches(['+', '-']).trim_start();
+    let numeric = |c: char| c.is_ascii_digit() || c == '.';
+    if !unsigned.starts_with(numeric) {
+        return format!("malformed number `{quoted}`; expected a number such as {address}12.5");
+    }
+    let body: String = unsigned.chars().take_while(|&c| numeric(c)).collect();
+    let after = &unsigned[body.len()..];
+    if body.matches('.').count() > 1 {
+        return format!(
+            "malformed number `{quoted}`: more than one decimal point; expected a number such as {address}12.5"
+        );
+    }
+    if after.starts_with(',') {
+        return format!(
+            "malformed number `{quoted}`: a comma is not a decimal point; expected a number such as {address}12.5"
+        );
+    }
+    if body.parse::<f64>().is_ok_and(f64::is_infinite) {
+        return format!(
+            "number out of range `{quoted}` ({} digits): it does not fit a 64-bit float (beyond ±1.8e308); expected a coordinate in mm or inch",
+            body.chars().filter(char::is_ascii_digit).count()
+        );
+    }
+    format!("malformed number `{quoted}`; expected a number such as {address}12.5")
+}
+
+/// The first blank-separated token of `text` (comments cut off).
+fn token(text: &str) -> &str {
+    let t = text.trim_start();
+    let end = t
+        .char_indices()
+        .find(|&(i, c)| matches!(c, '(' | ';') || (matches!(c, ' ' | '\t') && !sign_only(&t[..i])))
+        .map_or(t.len(), |(i, _)| i);
+    &t[..end]
+}
+
+/// `X-` or `X+`: the blank after a sign belongs to the number (`X- 3`).
+fn sign_only(t: &str) -> bool {
+    let t = t.trim_end();
+    t.ends_with(['+', '-'])
+        && t.trim_end_matches(['+', '-'])
+            .chars()
+            .all(|c| c.is_ascii_alphabetic())
+}
+
+/// `s`, shortened to [`QUOTE_MAX`] characters with an ellipsis.
+fn quote(s: &str) -> String {
+    if s.chars().count() <= QUOTE_MAX {
+        s.to_string()
+    } else {
+        let head: String = s.chars().take(QUOTE_MAX).collect();
+        format!("{head}…")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::describe_opaque as d;
+
+    #[test]
+    fn names_the_problem() {
+        assert!(d(b"X1.2.3 Y5").starts_with("malformed number `X1.2.3`: more than one"));
+        assert!(d(b"XNAN Y0").starts_with("`XNAN` is not a finite number"));
+        assert!(d(b"X-inf").starts_with("`X-inf` is not a finite number"));
+        let long = format!("X{}", "9".repeat(400));
+        let m = d(long.as_bytes());
+        assert!(m.starts_with("number out of range `X999"), "{m}");
+        assert!(m.contains("400 digits") && m.contains('…'), "{m}");
+        assert!(d(b"X1,5").contains("comma"));
+        assert!(d(b"X[#1+2]").contains("expression"));
+        assert!(d(b"#1=5").contains("expression"));
+        assert!(d(b"X").contains("has no number"));
+        assert!(d(b"A3=abc").starts_with("malformed number `A3=abc`"));
+        assert!(d(b"X- 1.2.3").starts_with("malformed number `X- 1.2.3`"));
+    }
+}
