@@ -1,10 +1,11 @@
 //! Acceptance tests of `kinpost diagnose` (issue 5): on simulated
 //! recordings of both seed machines, each catalogue effect hidden under
 //! measurement noise (σ = 1 µm per coordinate; the effect's 3-D RMS
-//! 1.2 σ) and under the fixture geometric errors (larger than the effect),
-//! some starting part-way. For each: the right effect and axis ranked
-//! first, the parameters within 20 %, the held-out RMS reduced, and the
-//! start found within 10 blocks.
+//! 1.2 σ, 1.4 σ for the part-way thermal drift, which is tested over 24
+//! seeds in longer recordings) and under the fixture geometric errors
+//! (larger than the effect), some starting part-way. For each: the right
+//! effect and axis ranked first, the parameters within 20 %, the held-out
+//! RMS reduced, and the start found within 10 blocks.
 
 mod diagnose_support;
 
@@ -18,6 +19,25 @@ const TARGET_RMS: f64 = 1.2 * SIGMA;
 struct Outcome {
     line: String,
     failures: Vec<String>,
+    /// For a thermal drift found as such.
+    tau: Option<Drift>,
+}
+
+/// τ of a thermal drift found, its truth and reported standard deviation,
+/// and the amplitude's relative error.
+#[derive(Debug, Clone, Copy)]
+struct Drift {
+    tau: f64,
+    tau_true: f64,
+    tau_sd: f64,
+    amplitude_error: f64,
+}
+
+impl Drift {
+    /// τ error in reported standard deviations.
+    fn z(&self) -> f64 {
+        (self.tau - self.tau_true) / self.tau_sd
+    }
 }
 
 fn rel(a: f64, b: f64) -> f64 {
@@ -89,23 +109,25 @@ fn parameter_error(found: &Effect, truth: &Effect) -> Option<f64> {
 }
 
 fn run_case(m: Machine, spec: &str, seed: u64) -> Outcome {
-    let chain = m.chain();
-    let errors = m.errors();
     let blocks = match m {
         Machine::Zhao => 120,
         Machine::Wang => 100,
     };
+    run_sized(m, blocks, spec, TARGET_RMS, seed)
+}
+
+/// A case with a program of `blocks` blocks and the effect scaled to the
+/// 3-D tip RMS `target` (mm).
+fn run_sized(m: Machine, blocks: usize, spec: &str, target: f64, seed: u64) -> Outcome {
+    let chain = m.chain();
+    let errors = m.errors();
     let program = m.program(blocks, seed);
     let opts = sim_options(seed);
-    let truth = calibrated(&chain, &errors, &program, spec, TARGET_RMS, &opts);
-    let eff_rms = effect_rms(
-        &chain,
-        Some(&errors),
-        &program,
-        std::slice::from_ref(&truth),
-        &opts,
-    );
-    let geo_rms = geometric_rms(&chain, &errors, &program, &opts);
+    let Calibrated {
+        spec: truth,
+        effect_rms: eff_rms,
+        geometric_rms: geo_rms,
+    } = calibrated_case(&chain, &errors, &program, spec, target, &opts);
     let rec = simulate(
         &chain,
         Some(&errors),
@@ -139,7 +161,28 @@ fn check(
         return Outcome {
             line: format!("{m:?} {spec}: no finding"),
             failures: vec!["no finding".into()],
+            tau: None,
         };
+    };
+    let tau = match (&f.spec.effect, &truth.effect) {
+        (
+            Effect::ThermalDrift {
+                tau_s,
+                amplitude_mm,
+                ..
+            },
+            Effect::ThermalDrift {
+                tau_s: tau_true,
+                amplitude_mm: a_true,
+                ..
+            },
+        ) => Some(Drift {
+            tau: *tau_s,
+            tau_true: *tau_true,
+            tau_sd: f.uncertainty.get("tau_s").copied().unwrap_or(f64::NAN),
+            amplitude_error: rel(*amplitude_mm, *a_true),
+        }),
+        _ => None,
     };
     if f.effect != truth.effect.kind().name() || f.axis != truth.effect.axis_label() {
         failures.push(format!(
@@ -189,6 +232,7 @@ fn check(
                 .unwrap_or_default()
         ),
         failures,
+        tau,
     }
 }
 
@@ -259,27 +303,97 @@ fn every_effect_is_found_on_wang2023_xyzab() {
     ]);
 }
 
-/// Thermal drift that starts part-way has three coupled parameters (onset,
-/// τ, amplitude): at 1.2 σ the onset and the amplitude are found, but τ is
-/// only within about 30 % (see `docs/diagnose.md`, limits).
+/// Thermal drift that starts part-way: onset, τ and amplitude are traded
+/// off along a ridge of the likelihood, so τ needs more data than the other
+/// effects. With 11 000–12 500 samples (a 20-minute recording, about 6τ
+/// after the onset) and the effect at 1.4 σ, the Cramér–Rao bound of τ is
+/// about 5.5 % and the diagnosis reaches it; every case of 12 seeds on each
+/// machine must meet the acceptance criteria (τ and amplitude within
+/// 20 %), and τ's reported uncertainty (which includes the onset's) must
+/// cover its error (see `docs/diagnose.md`, limits).
 #[test]
 fn thermal_drift_starting_part_way() {
+    let cases: Vec<(Machine, usize, &str, u64)> = (0..12u64)
+        .flat_map(|k| {
+            [
+                (
+                    Machine::Zhao,
+                    400,
+                    "thermal_drift:Z=0.002,tau=200@block=40",
+                    300 + k,
+                ),
+                (
+                    Machine::Wang,
+                    280,
+                    "thermal_drift:X=0.002,tau=200@block=30",
+                    300 + k,
+                ),
+            ]
+        })
+        .collect();
+    let outcomes: Vec<Outcome> = std::thread::scope(|s| {
+        let hs: Vec<_> = (0..2usize)
+            .map(|half| {
+                let cases = &cases;
+                s.spawn(move || {
+                    cases
+                        .iter()
+                        .skip(half)
+                        .step_by(2)
+                        .map(|&(m, b, spec, seed)| run_sized(m, b, spec, 1.4 * SIGMA, seed))
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        hs.into_iter().flat_map(|h| h.join().unwrap()).collect()
+    });
+    let mut bad = Vec::new();
+    let mut z2 = 0.0;
+    let mut worst: f64 = 0.0;
+    for o in &outcomes {
+        let z = o.tau.map_or(f64::NAN, |d| d.z());
+        println!("{}  τ error {z:+.1} σ", o.line);
+        if let Some(d) = o.tau {
+            worst = worst.max(rel(d.tau, d.tau_true));
+        }
+        z2 += z * z;
+        if !o.failures.is_empty() {
+            bad.push(format!("{}: {}", o.line, o.failures.join("; ")));
+        }
+        if z.is_nan() || z.abs() > 3.5 {
+            bad.push(format!("{}: τ error {z:.1} reported σ", o.line));
+        }
+    }
+    let z_rms = (z2 / outcomes.len() as f64).sqrt();
+    println!(
+        "{} cases: largest τ error {:.1} %, RMS of τ error / reported σ {z_rms:.2}",
+        outcomes.len(),
+        worst * 100.0
+    );
+    assert!(bad.is_empty(), "failed cases:\n{}", bad.join("\n"));
+    assert!(
+        (0.5..1.6).contains(&z_rms),
+        "τ uncertainty miscalibrated: {z_rms}"
+    );
+}
+
+/// The same drift in a recording too short for τ (325 s, 2.7 τ after the
+/// onset, 1.2 σ): the Cramér–Rao bound of τ is 12–13 % and about one seed
+/// in five misses 20 %. The effect, axis, onset and amplitude are still
+/// found, and τ's reported uncertainty is honest about it.
+#[test]
+fn thermal_drift_starting_part_way_in_a_short_recording() {
     let o = run_case(Machine::Zhao, "thermal_drift:Z=0.002,tau=90@block=30", 14);
-    println!("{}", o.line);
+    let d = o.tau.expect("a thermal drift");
+    println!("{}  τ error {:+.1} σ", o.line, d.z());
     let rest: Vec<&String> = o
         .failures
         .iter()
         .filter(|f| !f.starts_with("parameters"))
         .collect();
     assert!(rest.is_empty(), "{}: {:?}", o.line, rest);
-    let err: f64 = o
-        .line
-        .split("param err")
-        .nth(1)
-        .and_then(|t| t.trim().split(' ').next())
-        .and_then(|t| t.parse().ok())
-        .unwrap();
-    assert!(err <= 40.0, "{}", o.line);
+    assert!(d.amplitude_error <= 0.2, "{}", o.line);
+    assert!(d.z().abs() <= 3.0, "{}", o.line);
 }
 
 /// Robustness sweep over seeds (run by hand: `ROBUST="wang:scale:Z=8" cargo test -- --ignored`).

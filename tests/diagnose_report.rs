@@ -55,6 +55,37 @@ fn json_has_exactly_the_formats_fields() {
     assert!(svg.starts_with("<svg") && svg.contains("time (s)"));
 }
 
+/// A thermal drift that starts part-way reports its onset time with a
+/// standard deviation (`onset_sd_s`, an added field), and τ's uncertainty
+/// includes the onset's; other findings have no `onset_sd_s`.
+#[test]
+fn part_way_drift_reports_the_onset_uncertainty() {
+    let m = Machine::Zhao;
+    let chain = m.chain();
+    let errors = m.errors();
+    let program = m.program(60, 5);
+    let e = parse_effect_spec("thermal_drift:Z=0.004,tau=40@block=15").unwrap();
+    let rec = simulate(&chain, Some(&errors), &program, &[e], &sim_options(5)).unwrap();
+    let r = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
+    let j = r.to_json();
+    let f = &j["findings"][0];
+    assert_eq!(f["effect"], "thermal_drift", "{}", r.to_text());
+    let sd = f["onset_sd_s"].as_f64().unwrap();
+    assert!(sd > 0.0 && sd < 20.0, "{sd}");
+    let tau = f["parameters"]["tau_s"].as_f64().unwrap();
+    let tau_sd = f["uncertainty"]["tau_s"].as_f64().unwrap();
+    assert!(tau_sd > 0.0 && tau_sd < tau, "{tau} ± {tau_sd}");
+    let cond = f["where"]["condition"].as_str().unwrap();
+    assert!(cond.contains(&format!("± {sd:.1} s)")), "{cond}");
+    // A step effect from a block has no smooth onset parameter.
+    let e = parse_effect_spec("zero_offset:Z=0.003@block=20").unwrap();
+    let rec = simulate(&chain, Some(&errors), &program, &[e], &sim_options(5)).unwrap();
+    let r = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
+    let j = r.to_json();
+    assert_eq!(j["findings"][0]["effect"], "zero_offset");
+    assert!(j["findings"][0].get("onset_sd_s").is_none());
+}
+
 #[test]
 fn clean_recording_says_consistent_with_noise() {
     let m = Machine::Zhao;

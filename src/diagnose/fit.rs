@@ -545,6 +545,52 @@ fn choose_onset(profile: &[f64], ctx: &SearchCtx, n_onsets: usize) -> (usize, f6
     }
 }
 
+/// Range of the thermal time constant searched, as multiples of the
+/// recording's span.
+pub const TAU_RANGE: (f64, f64) = (1.0 / 30.0, 30.0);
+
+/// Coarse grid of the time-constant search: this many values log-spaced
+/// over [`TAU_RANGE`] (spacing a factor 1.69). It also sets the look-
+/// elsewhere penalty `2 ln TAU_GRID` of a searched τ.
+pub const TAU_GRID: usize = 14;
+
+/// Fine grid: the bracket of ±1 coarse step around the best coarse value is
+/// scanned at `2·TAU_FINE + 1` values (spacing a factor 1.09) before the
+/// golden-section refinement, so that a narrow maximum of the profile
+/// (the onset switching between blocks makes it piecewise smooth) is not
+/// missed.
+const TAU_FINE: usize = 6;
+
+/// Maximises `f(ln τ).0` over `[lo, hi]`: coarse grid, fine grid around the
+/// best, golden-section search within ±1 fine step. Returns the argument
+/// and the value at the maximum found.
+fn maximise_ln<T: Copy>(f: &dyn Fn(f64) -> (f64, T), lo: f64, hi: f64) -> (f64, (f64, T)) {
+    let coarse = (hi - lo) / (TAU_GRID - 1) as f64;
+    let mut best = (lo, f(lo));
+    let consider = |x: f64, best: &mut (f64, (f64, T))| {
+        let v = f(x);
+        if v.0 > best.1.0 {
+            *best = (x, v);
+        }
+    };
+    for g in 1..TAU_GRID {
+        consider(lo + coarse * g as f64, &mut best);
+    }
+    let centre = best.0;
+    let fine = coarse / TAU_FINE as f64;
+    for g in 1..=TAU_FINE {
+        for x in [centre - fine * g as f64, centre + fine * g as f64] {
+            if x > lo && x < hi {
+                consider(x, &mut best);
+            }
+        }
+    }
+    let (a, b) = ((best.0 - fine).max(lo), (best.0 + fine).min(hi));
+    let (x, _) = crate::numeric::golden_section_max(&mut |x| f(x).0, a, b, 10);
+    consider(x, &mut best);
+    best
+}
+
 /// Searches one family: non-linear parameter (grid + golden section) and
 /// onset (profile over all block starts). `None` if the family has no
 /// support in the data (joint never moves, …).
@@ -562,35 +608,19 @@ pub fn search_family(
         Family::ThermalDrift(_) => {
             let t0 = prep.t[0];
             let span = (prep.t[prep.n - 1] - t0).max(1e-9);
-            let (lo, hi) = ((span / 30.0).ln(), (span * 30.0).ln());
-            let grid = 14;
-            let eval = |ln_tau: f64| -> (f64, usize, f64, f64) {
+            let (lo, hi) = (span * TAU_RANGE.0, span * TAU_RANGE.1);
+            // The joint profile over (onset, τ): for each τ every onset is
+            // profiled by one suffix-sum pass; the best onset is kept.
+            let eval = |ln_tau: f64| -> (f64, (usize, f64, f64)) {
                 let tau = ln_tau.exp();
                 let base = base_columns(prep, fam, tau);
                 let gf = |s: usize| thermal_gamma(prep, tau, prep.t[s]).to_vec();
                 let prof = scan(prep, sel, &base, onsets, Some(&gf), ctx.min_after);
                 let (k, d, pen) = choose_onset(&prof, ctx, n_on);
-                (d / s2 - pen, k, d, pen)
+                (d / s2 - pen, (k, d, pen))
             };
-            let mut best = (f64::NEG_INFINITY, 0usize, 0.0, 0.0, lo);
-            let step = (hi - lo) / (grid - 1) as f64;
-            for g in 0..grid {
-                let x = lo + step * g as f64;
-                let (sc, k, d, pen) = eval(x);
-                if sc > best.0 {
-                    best = (sc, k, d, pen, x);
-                }
-            }
-            let a = (best.4 - step).max(lo);
-            let b = (best.4 + step).min(hi);
-            let (x, _) = crate::numeric::golden_section_max(&mut |x| eval(x).0, a, b, 14);
-            let (sc, k, d, pen) = eval(x);
-            let (x, k, d, pen) = if sc >= best.0 {
-                (x, k, d, pen)
-            } else {
-                (best.4, best.1, best.2, best.3)
-            };
-            let penalty = (k_lin + 1.0) * ctx.ln_n + 2.0 * (grid as f64).ln() + pen;
+            let (x, (_, (k, d, pen))) = maximise_ln(&eval, lo.ln(), hi.ln());
+            let penalty = (k_lin + 1.0) * ctx.ln_n + 2.0 * (TAU_GRID as f64).ln() + pen;
             Some(Candidate {
                 term: Term {
                     family: fam,
@@ -650,13 +680,12 @@ pub fn search_family(
                     }
                 }
             }
+            // Score of one frequency from the per-sample (sin θ, cos θ).
             let mut cs = vec![0.0; 2 * ks];
-            let mut full = |f: f64| -> f64 {
+            let mut score = |trig: &[(f64, f64)]| -> f64 {
                 let (mut ss, mut sc, mut cc, mut rs, mut rc) = (0.0, 0.0, 0.0, 0.0, 0.0);
                 cs.iter_mut().for_each(|x| *x = 0.0);
-                let omega = std::f64::consts::TAU * f;
-                for i in 0..prep.n {
-                    let (sn, co) = (omega * prep.qj(i, j)).sin_cos();
+                for (i, &(sn, co)) in trig.iter().enumerate() {
                     ss += w[i] * sn * sn;
                     sc += w[i] * sn * co;
                     cc += w[i] * co * co;
@@ -688,16 +717,33 @@ pub fn search_family(
                 }
                 quad_form_2(&a, &c, [ss, cc])
             };
-            let mut vals: Vec<(f64, f64)> = (0..grid)
-                .map(|g| {
-                    let f = f_lo + step * g as f64;
-                    (full(f), f)
-                })
-                .collect();
+            let trig_at = |f: f64| -> Vec<(f64, f64)> {
+                let omega = std::f64::consts::TAU * f;
+                (0..prep.n)
+                    .map(|i| (omega * prep.qj(i, j)).sin_cos())
+                    .collect()
+            };
+            // The grid is uniform in frequency: each sample's (sin, cos)
+            // advances by a fixed rotation from one grid value to the next
+            // (re-seeded exactly every 32 steps against rounding drift).
+            let rot = trig_at(step);
+            let mut trig = Vec::new();
+            let mut vals: Vec<(f64, f64)> = Vec::with_capacity(grid);
+            for g in 0..grid {
+                let f = f_lo + step * g as f64;
+                if g % 32 == 0 {
+                    trig = trig_at(f);
+                } else {
+                    for (t, r) in trig.iter_mut().zip(&rot) {
+                        *t = (t.0 * r.1 + t.1 * r.0, t.1 * r.1 - t.0 * r.0);
+                    }
+                }
+                vals.push((score(&trig), f));
+            }
             vals.sort_by(|a, b| b.0.total_cmp(&a.0));
             let f_best = vals[0].1;
             let (f, _) = crate::numeric::golden_section_max(
-                &mut full,
+                &mut |f| score(&trig_at(f)),
                 (f_best - step).max(f_lo),
                 (f_best + step).min(f_hi),
                 16,
@@ -930,6 +976,32 @@ pub fn nl_derivative(prep: &Prepared, term: &Term, beta: &[f64]) -> Cols {
     out
 }
 
+/// For a thermal drift that starts part-way, the Gauss–Newton column of its
+/// onset time t₀: `∂/∂t₀ [a·J·(1 − e^−(t−t₀)/τ)] = −(a/τ)·e^−(t−t₀)/τ·J`
+/// from the onset on (the drift is continuous at its onset, so the
+/// likelihood is smooth in a continuous t₀ and this column gives t₀ a
+/// standard deviation, and lets the onset's trade-off with τ and the
+/// amplitude enter theirs). `None` for other terms and for a drift from
+/// the start of the recording (whose onset is not a free parameter).
+pub fn onset_derivative(prep: &Prepared, term: &Term, beta: &[f64]) -> Option<Cols> {
+    let Family::ThermalDrift(j) = term.family else {
+        return None;
+    };
+    if term.onset == 0 || term.onset >= prep.n {
+        return None;
+    }
+    let t0 = prep.t[term.onset];
+    let mut out = Cols::zeros(prep.rows(), 1);
+    for i in term.onset..prep.n {
+        let g = -beta[0] / term.nl * (-(prep.t[i] - t0) / term.nl).exp();
+        let jj = prep.jj(i, j);
+        for a in 0..3 {
+            out.data[3 * i + a] = g * jj[a];
+        }
+    }
+    Some(out)
+}
+
 /// An effect found, with everything the report needs.
 #[derive(Debug, Clone)]
 pub struct Fitted {
@@ -939,6 +1011,9 @@ pub struct Fitted {
     pub spec: EffectSpec,
     /// Standard deviations of the parameters (order of `Effect::parameters`).
     pub sd: Vec<f64>,
+    /// Standard deviation of a drift's onset time, s (when it starts
+    /// part-way).
+    pub onset_sd_s: Option<f64>,
     /// The candidate score when it entered.
     pub score: f64,
     /// Held-out RSS before / after it entered, mm².

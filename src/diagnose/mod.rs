@@ -41,6 +41,10 @@ use crate::error::{Error, Location, Result};
 use crate::geometric::ErrorModel;
 use crate::machine::chain::{Chain, ErrorMotion, JointErrors, JointKind};
 
+/// Relative standard deviation of a drift's τ above which the report says
+/// that τ is only loosely determined (at 10 % a 20 % error is a 2σ event).
+const LOOSE_TAU: f64 = 0.1;
+
 /// Options of [`diagnose`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct DiagOptions {
@@ -182,13 +186,18 @@ pub fn diagnose(
     }
     let mut full = all.clone();
     let mut nl_index = vec![None; terms.len()];
+    let mut onset_index = vec![None; terms.len()];
     for (k, t) in terms.iter().enumerate() {
+        let b: Vec<f64> = (0..t.family.linear_params())
+            .map(|p| beta[offsets[k] + p])
+            .collect();
         if t.family.has_nonlinear() {
-            let b: Vec<f64> = (0..t.family.linear_params())
-                .map(|p| beta[offsets[k] + p])
-                .collect();
             nl_index[k] = Some(full.k);
             full = full.hcat(&fit::nl_derivative(&prep, t, &b));
+        }
+        if let Some(c) = fit::onset_derivative(&prep, t, &b) {
+            onset_index[k] = Some(full.k);
+            full = full.hcat(&c);
         }
     }
     let (_, g) = fit::lsq(&prep, &full, &|_| true);
@@ -204,6 +213,7 @@ pub fn diagnose(
         }
         let sub = nalgebra::DMatrix::from_fn(idx.len(), idx.len(), |a, c| cov[(idx[a], idx[c])]);
         let sd = fit::parameter_sd(&prep, t, &b, &sub);
+        let onset_sd_s = onset_index[k].map(|i| cov[(i, i)].max(0.0).sqrt());
         let effect = fit::term_effect(&prep, t, &b);
         let from_block = if t.onset > 0 {
             block_of(&prep, t.onset)
@@ -232,6 +242,7 @@ pub fn diagnose(
             term: *t,
             spec: EffectSpec { effect, from_block },
             sd,
+            onset_sd_s,
             score,
             holdout: hold,
             runner_up,
@@ -293,10 +304,23 @@ pub fn diagnose(
                 .collect();
             let mut condition = report::condition_text(&f.spec.effect, rotary);
             if let Some(b) = f.spec.from_block {
+                let sd = f
+                    .onset_sd_s
+                    .map_or(String::new(), |s| format!(" ± {s:.1}"));
                 condition.push_str(&format!(
-                    "; from block {b} on (t = {:.1} s)",
+                    "; from block {b} on (t = {:.1}{sd} s)",
                     prep.t[f.term.onset]
                 ));
+            }
+            if let Effect::ThermalDrift { tau_s, .. } = &f.spec.effect {
+                let rel = f.sd.get(1).copied().unwrap_or(0.0) / tau_s;
+                if rel > LOOSE_TAU {
+                    let covered = (t_span[1] - prep.t[f.term.onset]) / tau_s;
+                    condition.push_str(&format!(
+                        "; τ only loosely determined (± {:.0} %): the recording runs {covered:.1} τ after the onset, and a longer recording would narrow it",
+                        rel * 100.0
+                    ));
+                }
             }
             Finding {
                 effect: f.spec.effect.kind().name().to_string(),
@@ -310,6 +334,7 @@ pub fn diagnose(
                 },
                 rms_explained_mm: ex,
                 from_block: f.spec.from_block,
+                onset_sd_s: f.onset_sd_s,
                 delta_bic: f.score,
                 holdout_rms_mm: [to_rms(f.holdout.0), to_rms(f.holdout.1)],
                 runner_up: f.runner_up.as_ref().map(|(rt, d, e)| RunnerUp {

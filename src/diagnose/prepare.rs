@@ -6,13 +6,13 @@
 // Numerical code: several parallel arrays are indexed by one counter.
 #![allow(clippy::needless_range_loop)]
 
-use nalgebra::{Unit, Vector3};
+use nalgebra::{Matrix4, Unit, Vector3};
 
 use super::effects::{BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionState};
 use super::recording::Recording;
 use crate::error::{Error, Location, Result};
 use crate::geometric::{BoundErrors, ErrorModel};
-use crate::machine::chain::{Chain, JointErrors, JointKind, NoErrors, translation};
+use crate::machine::chain::{Chain, Element, JointErrors, JointKind, NoErrors, error_matrix};
 
 /// The model machine: chain with the model's fixed elements, error motions
 /// and the model's own dynamic effects.
@@ -147,9 +147,43 @@ impl Prepared {
     }
 }
 
-/// Unit offset directions of a revolute joint and the chains with a 1 mm
-/// offset along each.
-type RcoChains = ([Vector3<f64>; 2], [Chain; 2]);
+/// Exact tool-tip change, at joint values `q` (internal units), of a 1 mm
+/// offset along each of `dirs[j]` of every revolute joint `j` that has them:
+/// the chain with `Trans(d)` inserted before the joint and `Trans(−d)` after
+/// it. With the joint's transform `G = [R t; 0 1]` (motion and error
+/// motion), `Trans(d)·G·Trans(−d) − G = [0, d − R d; 0 0]`, so the tip moves
+/// by `A·(d − R d)`, `A` the linear part of the product of the elements
+/// before the joint: one pass along the chain gives every column.
+fn rco_columns(
+    chain: &Chain,
+    q: &[f64],
+    errors: &dyn JointErrors,
+    dirs: &[Option<[Vector3<f64>; 2]>],
+    out: &mut [[[f64; 3]; 2]],
+) {
+    let mut prefix = Matrix4::<f64>::identity();
+    for el in &chain.elements {
+        match el {
+            Element::Fixed(m) => prefix *= m,
+            Element::Joint(j) => {
+                let j = *j;
+                let mut g = chain.joint_motion(j, q[j]);
+                if let Some(e) = errors.error(j, q[j]) {
+                    g *= error_matrix(&e);
+                }
+                if let Some(d) = &dirs[j] {
+                    let a = prefix.fixed_view::<3, 3>(0, 0);
+                    let r = g.fixed_view::<3, 3>(0, 0);
+                    for k in 0..2 {
+                        let v = a * (d[k] - r * d[k]);
+                        out[j][k] = [v.x, v.y, v.z];
+                    }
+                }
+                prefix *= g;
+            }
+        }
+    }
+}
 
 /// Two unit vectors perpendicular to `u`.
 fn perpendicular_pair(u: &Unit<Vector3<f64>>) -> [Vector3<f64>; 2] {
@@ -245,31 +279,23 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
     // Onsets of the model's dynamic effects.
     let mut dynamic = machine.dynamic.clone();
     let mut active = vec![false; dynamic.len()];
-    // Rotary-centre-offset chains: unit offsets before/after each revolute joint.
-    let mut rco_chains: Vec<Option<RcoChains>> = Vec::with_capacity(dof);
-    for j in 0..dof {
-        if kinds[j] == JointKind::Revolute {
-            let dirs = perpendicular_pair(&chain.joints[j].axis);
-            let mk = |d: Vector3<f64>| {
-                let el = chain.joints[j].element;
-                chain
-                    .with_fixed_inserted(el + 1, translation(&(-d)))
-                    .with_fixed_inserted(el, translation(&d))
-            };
-            rco_chains.push(Some((dirs, [mk(dirs[0]), mk(dirs[1])])));
-        } else {
-            rco_chains.push(None);
-        }
-    }
-    let mut rco: Vec<Option<RcoBasis>> = rco_chains
+    // Rotary-centre-offset bases: two unit offsets perpendicular to each
+    // revolute joint's axis.
+    let rco_dirs: Vec<Option<[Vector3<f64>; 2]>> = (0..dof)
+        .map(|j| {
+            (kinds[j] == JointKind::Revolute).then(|| perpendicular_pair(&chain.joints[j].axis))
+        })
+        .collect();
+    let mut rco: Vec<Option<RcoBasis>> = rco_dirs
         .iter()
-        .map(|c| {
-            c.as_ref().map(|(dirs, _)| RcoBasis {
-                dirs: *dirs,
+        .map(|d| {
+            d.map(|dirs| RcoBasis {
+                dirs,
                 cols: Vec::with_capacity(n),
             })
         })
         .collect();
+    let mut rco_cols = vec![[[0.0; 3]; 2]; dof];
     let mut jac = Vec::with_capacity(n * dof);
     let mut tool_axis = Vec::with_capacity(n);
     let mut r = Vec::with_capacity(n);
@@ -319,14 +345,12 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
         let m = rec.samples[i].meas;
         r.push([m[0] - pose.tip.x, m[1] - pose.tip.y, m[2] - pose.tip.z]);
         model_tip.push([pose.tip.x, pose.tip.y, pose.tip.z]);
-        for j in 0..dof {
-            if let (Some((_, chains)), Some(b)) = (&rco_chains[j], rco[j].as_mut()) {
-                let mut cols = [[0.0; 3]; 2];
-                for (k, c) in chains.iter().enumerate() {
-                    let p = c.pose(&qi, errors).tip - pose.tip;
-                    cols[k] = [p.x, p.y, p.z];
+        if rco_dirs.iter().any(Option::is_some) {
+            rco_columns(chain, &qi, errors, &rco_dirs, &mut rco_cols);
+            for j in 0..dof {
+                if let Some(b) = rco[j].as_mut() {
+                    b.cols.push(rco_cols[j]);
                 }
-                b.cols.push(cols);
             }
         }
     }
@@ -399,4 +423,61 @@ pub fn noise_floor(r: &[[f64; 3]]) -> ([f64; 3], f64) {
 /// Helper for callers: effect specs bound to the model chain.
 pub fn bind_all(specs: &[EffectSpec], chain: &Chain) -> Result<Vec<BoundEffect>> {
     specs.iter().map(|s| BoundEffect::new(s, chain)).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::machine::chain::{ErrorMotion, translation};
+
+    /// Error motions with every component non-zero and varying with q.
+    struct Wobbly;
+
+    impl JointErrors for Wobbly {
+        fn error(&self, joint: usize, q: f64) -> Option<ErrorMotion> {
+            let k = joint as f64 + 1.0;
+            Some(ErrorMotion::from_fn(|c, _| {
+                let s = if c < 3 { 2e-3 } else { 3e-5 };
+                s * (k * q + c as f64).sin()
+            }))
+        }
+    }
+
+    #[test]
+    fn rotary_centre_columns_equal_the_offset_chains() {
+        let mut c = Chain::new();
+        c.joint("A", JointKind::Revolute, Vector3::new(-1.0, 0.0, 0.0));
+        c.translate(Vector3::new(3.0, -4.0, 12.0));
+        c.joint("X", JointKind::Prismatic, Vector3::x());
+        c.rotate(Vector3::new(0.2, 1.0, 0.1), 0.3);
+        c.joint("B", JointKind::Revolute, Vector3::y());
+        c.translate(Vector3::new(0.0, 0.0, -265.0));
+        let q = [0.7, 41.0, -0.4];
+        let dirs: Vec<Option<[Vector3<f64>; 2]>> = c
+            .joints
+            .iter()
+            .map(|j| (j.kind == JointKind::Revolute).then(|| perpendicular_pair(&j.axis)))
+            .collect();
+        let mut cols = vec![[[0.0; 3]; 2]; 3];
+        rco_columns(&c, &q, &Wobbly, &dirs, &mut cols);
+        let base = c.pose(&q, &Wobbly).tip;
+        for (j, d) in dirs.iter().enumerate() {
+            let Some(d) = d else { continue };
+            let el = c.joints[j].element;
+            for k in 0..2 {
+                let off = c
+                    .with_fixed_inserted(el + 1, translation(&(-d[k])))
+                    .with_fixed_inserted(el, translation(&d[k]));
+                let v = off.pose(&q, &Wobbly).tip - base;
+                for a in 0..3 {
+                    assert!(
+                        (v[a] - cols[j][k][a]).abs() < 1e-9,
+                        "{j} {k}: {v} vs {:?}",
+                        cols[j][k]
+                    );
+                }
+                assert!(v.norm() > 1e-3);
+            }
+        }
+    }
 }

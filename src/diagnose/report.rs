@@ -55,6 +55,12 @@ pub struct Finding {
     pub rms_explained_mm: f64,
     /// First block in which it acts when it starts part-way, else null.
     pub from_block: Option<u64>,
+    /// Standard deviation of the onset time, s: given for a thermal drift
+    /// that starts part-way (its onset is a smooth parameter traded off
+    /// against τ and the amplitude, and their uncertainties include it);
+    /// omitted otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub onset_sd_s: Option<f64>,
     /// BIC decrease when it entered the model (χ² units).
     pub delta_bic: f64,
     /// Held-out RMS before and after it entered, mm.

@@ -168,3 +168,54 @@ pub fn calibrated(
     scale_effect(&mut s.effect, target / r);
     s
 }
+
+/// An effect calibrated to a tip RMS, with the figures the acceptance
+/// checks need.
+pub struct Calibrated {
+    /// The effect, its amplitude scaled.
+    pub spec: EffectSpec,
+    /// 3-D tip RMS of the scaled effect (as [`effect_rms`]), mm.
+    pub effect_rms: f64,
+    /// 3-D tip RMS of the geometric errors (as [`geometric_rms`]), mm.
+    pub geometric_rms: f64,
+}
+
+/// [`calibrated`], [`effect_rms`] of the result and [`geometric_rms`] with
+/// the trajectory sampled and the model evaluated once (the same numbers,
+/// four chain evaluations along the program instead of six).
+pub fn calibrated_case(
+    chain: &Chain,
+    errors: &ErrorModel,
+    program: &[Waypoint],
+    spec: &str,
+    target: f64,
+    opts: &SimOptions,
+) -> Calibrated {
+    let traj = sample_waypoints(chain, program, opts.sample_interval_s, opts.accel_mm_s2).unwrap();
+    let model = evaluate_trajectory(chain, Some(errors), &[], &traj).unwrap();
+    let rms_against = |effects: &[EffectSpec]| {
+        let b = evaluate_trajectory(chain, Some(errors), effects, &traj).unwrap();
+        let s: f64 = model
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x - y).norm_squared())
+            .sum();
+        (s / model.len() as f64).sqrt()
+    };
+    let mut s = kinpost::diagnose::parse_effect_spec(spec).unwrap();
+    let r = rms_against(std::slice::from_ref(&s));
+    assert!(r > 0.0, "{spec} has no effect on this program");
+    scale_effect(&mut s.effect, target / r);
+    let effect_rms = rms_against(std::slice::from_ref(&s));
+    let nominal = evaluate_trajectory(chain, None, &[], &traj).unwrap();
+    let g: f64 = nominal
+        .iter()
+        .zip(&model)
+        .map(|(x, y)| (x - y).norm_squared())
+        .sum();
+    Calibrated {
+        spec: s,
+        effect_rms,
+        geometric_rms: (g / model.len() as f64).sqrt(),
+    }
+}
