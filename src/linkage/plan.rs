@@ -194,16 +194,11 @@ mod tests {
     use super::*;
     use crate::machine::chain::NoErrors;
 
+    /// wang2023-xyzab exactly as kinematics.md gives it (the embedded fixture).
     fn wang() -> Chain {
-        let mut c = Chain::new();
-        c.joint("A", JointKind::Revolute, Vector3::new(-1.0, 0.0, 0.0));
-        c.joint("X", JointKind::Prismatic, Vector3::x());
-        c.joint("Y", JointKind::Prismatic, Vector3::y());
-        c.joint("Z", JointKind::Prismatic, Vector3::z());
-        c.translate(Vector3::new(0.0, 0.0, 265.0));
-        c.joint("B", JointKind::Revolute, Vector3::y());
-        c.translate(Vector3::new(0.0, 0.0, -265.0));
-        c
+        crate::machine::Machine::embedded("wang2023-xyzab")
+            .expect("embedded machine")
+            .chain
     }
 
     /// Table 2 row → chain order [A, X, Y, Z, B] in mm / rad.
