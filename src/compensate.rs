@@ -24,7 +24,9 @@
 
 use crate::linalg::{self, Col, Qr};
 use crate::machine::chain::{Chain, JacobianColumns, JointErrors, MAX_JOINTS, NoErrors, Pose};
+use crate::post::{GcodeConverter, PendingPose, PostOptions, PostStats};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+use std::io::{BufRead, Write};
 
 /// Which Jacobian (and which step) to use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -77,6 +79,12 @@ pub struct Refined {
     pub axis_residual_rad: f64,
     /// Whether the tip tolerance was reached (or the step became negligible).
     pub converged: bool,
+    /// The actual machine's pose at `q0` (where the refinement started).
+    #[serde(skip)]
+    pub start_pose: Pose,
+    /// The actual machine's pose at `q`.
+    #[serde(skip)]
+    pub pose: Pose,
 }
 
 fn residual(target: &Pose, p: &Pose) -> (Vector3<f64>, Vector3<f64>) {
@@ -396,6 +404,7 @@ pub fn refine(
     let mut converged = false;
     let mut jac = [[0.0; 6]; MAX_JOINTS];
     let mut pose = eval(&q[..n], &mut jac);
+    let start_pose = pose;
     let mut trial = [0.0; MAX_JOINTS];
     let mut jac2 = [[0.0; 6]; MAX_JOINTS];
     loop {
@@ -476,6 +485,8 @@ pub fn refine(
         q: q[..n].to_vec(),
         iterations,
         converged,
+        start_pose,
+        pose,
     }
 }
 
@@ -516,8 +527,8 @@ pub struct CompensatingSolver<'a> {
     pub machine: &'a crate::machine::Machine,
     /// The actual chain (fixed error elements inserted).
     pub actual_chain: Chain,
-    /// Position-dependent errors.
-    pub errors: &'a dyn JointErrors,
+    /// Position-dependent errors (shared with worker threads).
+    pub errors: &'a (dyn JointErrors + Sync),
     /// Analytic IK of the theoretical machine.
     pub ik: crate::machine::IkSolver,
     /// Refinement options.
@@ -577,10 +588,43 @@ impl crate::post::PoseSolver for CompensatingSolver<'_> {
         pose: &Pose,
         previous: Option<&[f64]>,
         line: usize,
-    ) -> Result<crate::post::SolvedPose, String> {
-        let th = self.ik.solve(pose, previous).map_err(|e| e.to_string())?;
-        let before = self.actual_chain.pose(&th.q, self.errors);
-        let r = refine(&self.actual_chain, self.errors, pose, &th.q, &self.options);
+    ) -> std::result::Result<crate::post::SolvedPose, String> {
+        let th = self.theoretical(pose, previous)?;
+        let r = self.refine_block(pose, &th);
+        self.commit(pose, th, r, line)
+    }
+}
+
+impl CompensatingSolver<'_> {
+    /// Stage 1 of [`crate::post::PoseSolver::solve`] (in block order): the
+    /// analytic IK of the theoretical machine, continuing from `previous`.
+    pub fn theoretical(
+        &self,
+        pose: &Pose,
+        previous: Option<&[f64]>,
+    ) -> std::result::Result<Vec<f64>, String> {
+        self.ik
+            .solve(pose, previous)
+            .map(|s| s.q)
+            .map_err(|e| e.to_string())
+    }
+
+    /// Stage 2 (independent per block, any thread): the Newton refinement
+    /// from the theoretical joint values `th`.
+    pub fn refine_block(&self, pose: &Pose, th: &[f64]) -> Refined {
+        refine(&self.actual_chain, self.errors, pose, th, &self.options)
+    }
+
+    /// Stage 3 (in block order): the failure policy, backlash
+    /// pre-compensation and the block's record.
+    pub fn commit(
+        &mut self,
+        pose: &Pose,
+        th: Vec<f64>,
+        r: Refined,
+        line: usize,
+    ) -> std::result::Result<crate::post::SolvedPose, String> {
+        let before = r.start_pose;
         let failure = if !r.converged || r.tip_residual_mm > self.accept_tip_mm {
             Some(format!(
                 "compensation did not converge: tool-tip residual {:.3e} mm after {} iterations (accepted: {:.1e} mm)",
@@ -599,7 +643,7 @@ impl crate::post::PoseSolver for CompensatingSolver<'_> {
                 OnFail::Theoretical => {
                     self.warnings
                         .push(format!("line {line}: {msg}; theoretical axes kept"));
-                    th.q.clone()
+                    th.clone()
                 }
                 OnFail::Best if self.ik.check_limits(&r.q).is_ok() => {
                     self.warnings.push(format!(
@@ -611,14 +655,18 @@ impl crate::post::PoseSolver for CompensatingSolver<'_> {
                     self.warnings.push(format!(
                         "line {line}: {msg}; theoretical axes kept (limits)"
                     ));
-                    th.q.clone()
+                    th.clone()
                 }
             },
         };
         // Backlash: the axis lags its command by value/2 against the direction
         // of its last motion, so command value/2 further in that direction.
         // Where the machine really goes (after its backlash): what the record reports.
-        let after = self.actual_chain.pose(&q, self.errors);
+        let after = if q == r.q {
+            r.pose
+        } else {
+            self.actual_chain.pose(&q, self.errors)
+        };
         let mut q = q;
         if !self.backlash.is_empty() {
             if self.last_direction.len() != q.len() {
@@ -637,7 +685,7 @@ impl crate::post::PoseSolver for CompensatingSolver<'_> {
             self.last_target = Some(target);
         }
         let ext_c = self.machine.to_external(&q);
-        let ext_t = self.machine.to_external(&th.q);
+        let ext_t = self.machine.to_external(&th);
         self.records.push(BlockRecord {
             line,
             iterations: r.iterations,
@@ -664,6 +712,173 @@ impl crate::post::PoseSolver for CompensatingSolver<'_> {
             q,
         })
     }
+}
+
+/// Lines per chunk of [`compensate_gcode`].
+const CHUNK_LINES: usize = 4096;
+
+/// A solver for [`GcodeConverter`] that is never called (the chunked driver
+/// solves outside the converter).
+struct Unused;
+
+impl crate::post::PoseSolver for Unused {
+    fn solve(
+        &mut self,
+        _: &Pose,
+        _: Option<&[f64]>,
+        _: usize,
+    ) -> std::result::Result<crate::post::SolvedPose, String> {
+        Err("internal: the chunked driver solves poses itself".into())
+    }
+}
+
+/// One line of a chunk after the sequential first pass.
+enum Entry {
+    /// Bytes to write unchanged (a range of the chunk's text buffer).
+    Text(usize, usize),
+    /// A pose block (the chunk's jobs are in the same order).
+    Pose,
+}
+
+/// A pose block of a chunk.
+struct Job {
+    line: usize,
+    pending: PendingPose,
+    th: Vec<f64>,
+    refined: Option<Refined>,
+}
+
+/// Compensates a G-code pose program, writing the machine program to `out`,
+/// on every core: the result is the same for any number of threads.
+///
+/// The program goes through in chunks of lines. Per chunk: the lines are
+/// parsed in parallel; one sequential pass applies the modal state and
+/// solves the analytic IK of each pose, continuing from the previous pose's
+/// theoretical solution (branch choice and rotary unwinding need the order);
+/// the Newton refinements, independent per block, run in parallel; a last
+/// sequential pass applies the failure policy, backlash pre-compensation and
+/// records in block order and writes the blocks. `records` receives the
+/// per-block records after each chunk (memory stays flat).
+///
+/// Unlike [`crate::post::post_gcode`] with the solver's
+/// [`crate::post::PoseSolver`] interface, which continues each IK from the
+/// previous block's *compensated* axes, the IK continues from the previous
+/// *theoretical* solution: the two differ by the compensation (micrometres,
+/// microradians), which changes neither the branch nor the turn of a rotary
+/// except at an exact tie.
+pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
+    machine: &crate::machine::Machine,
+    solver: &mut CompensatingSolver<'_>,
+    mut input: R,
+    out: &mut W,
+    opts: &PostOptions,
+    mut progress: impl FnMut(u64),
+    mut records: impl FnMut(&mut Vec<BlockRecord>) -> crate::error::Result<()>,
+) -> crate::error::Result<PostStats> {
+    use crate::error::Error;
+    use rayon::prelude::*;
+    let mut unused = Unused;
+    let mut conv = GcodeConverter::new(machine, &mut unused, opts);
+    let mut raw: Vec<Vec<u8>> = Vec::with_capacity(CHUNK_LINES);
+    let mut number = 0usize;
+    let mut bytes_read = 0u64;
+    let mut previous_th: Option<Vec<f64>> = None;
+    let mut text = Vec::new();
+    let mut buf = Vec::new();
+    let mut entries = Vec::with_capacity(CHUNK_LINES);
+    let mut jobs: Vec<Job> = Vec::with_capacity(CHUNK_LINES);
+    let mut eof = false;
+    while !eof {
+        // Read a chunk of physical lines (buffers reused).
+        let mut filled = 0;
+        while filled < CHUNK_LINES {
+            if raw.len() == filled {
+                raw.push(Vec::with_capacity(128));
+            }
+            let b = &mut raw[filled];
+            b.clear();
+            match input.read_until(b'\n', b) {
+                Ok(0) => {
+                    eof = true;
+                    break;
+                }
+                Ok(_) => filled += 1,
+                Err(e) => return Err(Error::io(&opts.file_name, e)),
+            }
+        }
+        let first = number + 1;
+        number += filled;
+        let lines: Vec<crate::gcode::Line> = raw[..filled]
+            .par_iter()
+            .enumerate()
+            .map(|(i, b)| crate::gcode::parse_line(b, first + i))
+            .collect();
+        // Pass 1, in order: modal state, poses, analytic IK.
+        text.clear();
+        entries.clear();
+        jobs.clear();
+        let mut stop = None;
+        for (i, line) in lines.iter().enumerate() {
+            bytes_read += line.bytes.len() as u64;
+            progress(bytes_read);
+            let start = text.len();
+            match conv.begin(line, &mut text) {
+                Err(e) => {
+                    stop = Some(e);
+                    break;
+                }
+                Ok(None) => entries.push(Entry::Text(start, text.len())),
+                Ok(Some(pending)) => {
+                    match solver.theoretical(&pending.pose, previous_th.as_deref()) {
+                        Ok(th) => {
+                            previous_th = Some(th.clone());
+                            entries.push(Entry::Pose);
+                            jobs.push(Job {
+                                line: i,
+                                pending,
+                                th,
+                                refined: None,
+                            });
+                        }
+                        Err(m) => {
+                            stop = Some(conv.solve_error(line, &pending, m));
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+        // Pass 2, in parallel: the refinements.
+        {
+            let s = &*solver;
+            jobs.par_iter_mut()
+                .for_each(|j| j.refined = Some(s.refine_block(&j.pending.pose, &j.th)));
+        }
+        // Pass 3, in order: policy, backlash, records, output.
+        buf.clear();
+        let mut done = jobs.drain(..);
+        for entry in &entries {
+            match *entry {
+                Entry::Text(a, b) => buf.extend_from_slice(&text[a..b]),
+                Entry::Pose => {
+                    let job = done.next().expect("one job per pose entry");
+                    let line = &lines[job.line];
+                    let refined = job.refined.expect("refined in pass 2");
+                    let solved = solver
+                        .commit(&job.pending.pose, job.th, refined, line.number)
+                        .map_err(|m| conv.solve_error(line, &job.pending, m))?;
+                    conv.finish(line, job.pending, solved, &mut buf)?;
+                }
+            }
+        }
+        drop(done);
+        out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
+        records(&mut solver.records)?;
+        if let Some(e) = stop {
+            return Err(e);
+        }
+    }
+    Ok(conv.stats)
 }
 
 /// Writes the JSON report of a compensation run block by block, in the

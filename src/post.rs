@@ -218,6 +218,20 @@ impl<'a> GcodeConverter<'a> {
     /// Converts one line, appending the bytes to write to `out`; returns the
     /// joint values when the line was a pose.
     pub fn convert(&mut self, line: &Line, out: &mut Vec<u8>) -> Result<Option<Converted>> {
+        let Some(pending) = self.begin(line, out)? else {
+            return Ok(None);
+        };
+        let solved = self
+            .solver
+            .solve(&pending.pose, self.previous.as_deref(), line.number)
+            .map_err(|m| self.solve_error(line, &pending, m))?;
+        self.finish(line, pending, solved, out)
+    }
+
+    /// First half of [`GcodeConverter::convert`]: the modal state and the
+    /// pose. A line that is not a pose is written to `out` and `None`
+    /// returned; a pose is returned for solving.
+    pub fn begin(&mut self, line: &Line, out: &mut Vec<u8>) -> Result<Option<PendingPose>> {
         let opts = self.opts;
         self.stats.lines += 1;
         let loc = |item: Option<usize>| {
@@ -279,17 +293,42 @@ impl<'a> GcodeConverter<'a> {
             }
             return Ok(None);
         };
-        let pose = Pose::new(tip, axis);
-        let solved = self
-            .solver
-            .solve(&pose, self.previous.as_deref(), line.number)
-            .map_err(|m| {
-                Error::input_with(
-                    loc(meaning.pose_items.first().copied()),
-                    m,
-                    String::from_utf8_lossy(&line.bytes),
-                )
-            })?;
+        Ok(Some(PendingPose {
+            pose: Pose::new(tip, axis),
+            meaning,
+        }))
+    }
+
+    /// The error of a failed solve of `pending` (programmed at `line`).
+    pub fn solve_error(&self, line: &Line, pending: &PendingPose, message: String) -> Error {
+        let col = pending
+            .meaning
+            .pose_items
+            .first()
+            .map(|&i| line.items[i].start + 1)
+            .unwrap_or(0);
+        Error::input_with(
+            Location::new(&self.opts.file_name, line.number, col),
+            message,
+            String::from_utf8_lossy(&line.bytes),
+        )
+    }
+
+    /// Second half of [`GcodeConverter::convert`]: writes the pose block
+    /// with the machine axes of `solved`.
+    pub fn finish(
+        &mut self,
+        line: &Line,
+        pending: PendingPose,
+        solved: SolvedPose,
+        out: &mut Vec<u8>,
+    ) -> Result<Option<Converted>> {
+        let opts = self.opts;
+        let meaning = pending.meaning;
+        let loc = |item: Option<usize>| {
+            let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);
+            Location::new(&opts.file_name, line.number, col)
+        };
         if solved.axis_miss_rad > opts.axis_tolerance_rad {
             return Err(Error::input_with(
                 loc(meaning.pose_items.first().copied()),
@@ -363,6 +402,16 @@ impl GcodeConverter<'_> {
             self.previous = Some(q);
         }
     }
+}
+
+/// A pose block between [`GcodeConverter::begin`] and
+/// [`GcodeConverter::finish`].
+#[derive(Debug, Clone)]
+pub struct PendingPose {
+    /// The tool pose to solve.
+    pub pose: Pose,
+    /// What the block means.
+    pub meaning: crate::program::BlockMeaning,
 }
 
 /// Converts a G-code pose program, writing the machine program to `out`.

@@ -3,7 +3,10 @@
 
 use super::{InputKind, MachineChoice, PoseStartArg};
 use crate::analyze::Analyzer;
-use crate::compensate::{CompensatingSolver, Method, OnFail, Options, ReportWriter, RunSummary};
+use crate::compensate::{
+    BlockRecord, CompensatingSolver, Method, OnFail, Options, ReportWriter, RunSummary,
+    compensate_gcode,
+};
 use crate::error::{Error, Result};
 use crate::geometric::bspline::{Extrapolation, KnotChoice};
 use crate::geometric::model::{ErrorModel, FitOptions};
@@ -13,7 +16,7 @@ use crate::linkage::nonlinear_error;
 use crate::machine::{IkSolver, Machine, NoErrors, Pose};
 use crate::output::write_atomically;
 use crate::plot::{Panel, write_panels};
-use crate::post::{PoseSolver, PostOptions, SolvedPose, post_cl, post_gcode};
+use crate::post::{PoseSolver, PostOptions, SolvedPose, post_cl};
 use crate::program::PoseStart;
 use crate::program::source::{looks_like_poses, machine_axis_blocks, program_poses};
 use crate::progress::RunProgress;
@@ -392,14 +395,13 @@ pub struct CompensateArgs {
     pub quiet: bool,
 }
 
-/// The compensating solver with its per-block records taken out as they
-/// come: added to the running summary and written to the report.
-struct Streaming<'s, 'm, 'w> {
+/// The compensating solver with its per-block records handed to `sink` as
+/// they come (APT CL input, block by block).
+struct Streaming<'s, 'm, 'k> {
     inner: &'s mut CompensatingSolver<'m>,
-    summary: RunSummary,
-    report: Option<ReportWriter<&'w mut dyn Write>>,
-    /// The first error writing the report (the run stops reporting there).
-    error: Option<std::io::Error>,
+    sink: &'k mut dyn FnMut(&mut Vec<BlockRecord>) -> Result<()>,
+    /// The first error of the sink (the run stops reporting there).
+    error: Option<Error>,
 }
 
 impl PoseSolver for Streaming<'_, '_, '_> {
@@ -410,15 +412,12 @@ impl PoseSolver for Streaming<'_, '_, '_> {
         line: usize,
     ) -> std::result::Result<SolvedPose, String> {
         let solved = self.inner.solve(pose, previous, line)?;
-        for r in self.inner.records.drain(..) {
-            self.summary.add(&r);
-            if let Some(w) = &mut self.report
-                && self.error.is_none()
-                && let Err(e) = w.block(&r)
-            {
-                self.error = Some(e);
-            }
+        if self.error.is_none()
+            && let Err(e) = (self.sink)(&mut self.inner.records)
+        {
+            self.error = Some(e);
         }
+        self.inner.records.clear();
         Ok(solved)
     }
 }
@@ -500,34 +499,49 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     // The per-block records stream into the summary and (with --report) into
     // the report file as they are computed: memory stays flat.
     let mut run = |report: Option<&mut dyn Write>| -> Result<RunSummary> {
-        let mut streaming = Streaming {
-            inner: &mut solver,
-            summary: RunSummary::start(&machine, method),
-            report: match report {
-                Some(w) => {
-                    Some(ReportWriter::new(w).map_err(|e| Error::io(report_name.clone(), e))?)
+        let mut summary = RunSummary::start(&machine, method);
+        let mut writer = match report {
+            Some(w) => Some(ReportWriter::new(w).map_err(|e| Error::io(report_name.clone(), e))?),
+            None => None,
+        };
+        let mut sink = |records: &mut Vec<BlockRecord>| -> Result<()> {
+            for r in records.drain(..) {
+                summary.add(&r);
+                if let Some(w) = &mut writer {
+                    w.block(&r).map_err(|e| Error::io(report_name.clone(), e))?;
                 }
-                None => None,
-            },
-            error: None,
+            }
+            Ok(())
         };
         write_atomically(a.output.as_deref(), |out| {
             if kind == InputKind::Cl {
-                post_cl(&machine, &mut streaming, &mut inp.reader, out, &opts, |n| {
+                let mut streaming = Streaming {
+                    inner: &mut solver,
+                    sink: &mut sink,
+                    error: None,
+                };
+                let stats = post_cl(&machine, &mut streaming, &mut inp.reader, out, &opts, |n| {
                     progress.update(n)
-                })
+                })?;
+                match streaming.error.take() {
+                    Some(e) => Err(e),
+                    None => Ok(stats),
+                }
             } else {
-                post_gcode(&machine, &mut streaming, &mut inp.reader, out, &opts, |n| {
-                    progress.update(n)
-                })
+                compensate_gcode(
+                    &machine,
+                    &mut solver,
+                    &mut inp.reader,
+                    out,
+                    &opts,
+                    |n| progress.update(n),
+                    &mut sink,
+                )
             }
         })?;
-        if let Some(e) = streaming.error.take() {
-            return Err(Error::io(report_name.clone(), e));
-        }
-        let summary = streaming.summary.finish();
-        if let Some(r) = streaming.report.take() {
-            r.finish(&summary, &streaming.inner.warnings)
+        let summary = summary.finish();
+        if let Some(w) = writer.take() {
+            w.finish(&summary, &solver.warnings)
                 .map_err(|e| Error::io(report_name.clone(), e))?;
         }
         Ok(summary)

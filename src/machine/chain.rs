@@ -709,6 +709,57 @@ impl Chain {
         }
     }
 
+    /// Theoretical forward kinematics (no errors) and, for each prismatic
+    /// joint `j`, its direction of motion in the workpiece frame in
+    /// `dirs[j]` (the tip rows of its Jacobian column; other entries are left
+    /// as they are): what an IK needs to solve the linear axes, for the cost
+    /// of one forward pass.
+    pub fn pose_and_prismatic_directions(
+        &self,
+        q: &[f64],
+        dirs: &mut [[f64; 3]; MAX_JOINTS],
+    ) -> Pose {
+        let compiled = self.with_compiled(|c| {
+            let mut prefix: Option<Affine> = None;
+            for step in &c.steps {
+                let m = match step {
+                    Step::Fixed(m) => *m,
+                    Step::Joint(j) => {
+                        let jc = &c.joints[*j];
+                        if jc.kind == JointKind::Prismatic {
+                            dirs[*j] = match &prefix {
+                                Some(p) => p.dir(&jc.u),
+                                None => jc.u,
+                            };
+                        }
+                        jc.transform(q[*j], None).0
+                    }
+                };
+                prefix = Some(match prefix {
+                    None => m,
+                    Some(p) => p.mul(&m),
+                });
+            }
+            let t = prefix.unwrap_or(Affine::IDENTITY);
+            Pose {
+                tip: Vector3::new(t.m[0][3], t.m[1][3], t.m[2][3]),
+                axis: Vector3::new(t.m[0][2], t.m[1][2], t.m[2][2]),
+            }
+        });
+        match compiled {
+            Some(pose) => pose,
+            None => {
+                let (pose, jac) = self.pose_and_jacobian_general(q, &NoErrors);
+                for (j, joint) in self.joints.iter().enumerate() {
+                    if joint.kind == JointKind::Prismatic {
+                        dirs[j] = [jac[(0, j)], jac[(1, j)], jac[(2, j)]];
+                    }
+                }
+                pose
+            }
+        }
+    }
+
     fn pose_jacobian_compiled(
         c: &Compiled,
         q: &[f64],

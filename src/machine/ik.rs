@@ -648,17 +648,17 @@ impl IkSolver {
         for raw in raws {
             let mut q = raw.q;
             self.unwind(&mut q, &reference);
-            match self.solve_prismatics(&mut q, &target) {
-                Ok(()) => {}
+            // The tool axis does not depend on the linear axes.
+            let axis_miss_rad = match self.solve_prismatics(&mut q, &target) {
+                Ok(reached) => reached.axis_angle(&target),
                 Err(e) => {
                     last_err = Some(e);
                     continue;
                 }
-            }
-            let reached = self.chain.pose(&q, &NoErrors);
+            };
             out.push(IkSolution {
                 q,
-                axis_miss_rad: reached.axis_angle(&target),
+                axis_miss_rad,
                 singular: raw.singular,
                 branch: raw.branch,
             });
@@ -716,29 +716,58 @@ impl IkSolver {
 
     /// With the rotary joints of `q` fixed, sets its prismatic joints so that
     /// the tip meets `target` (least squares when there are fewer than 3).
-    fn solve_prismatics(&self, q: &mut [f64], target: &Pose) -> Result<(), IkError> {
+    /// With the rotary joints of `q` fixed, sets its prismatic joints so that
+    /// the tip meets `target` (least squares when there are fewer than 3);
+    /// returns the pose with the linear axes at 0 (whose tool axis is that
+    /// of the solution: linear axes turn nothing).
+    fn solve_prismatics(&self, q: &mut [f64], target: &Pose) -> Result<Pose, IkError> {
         for &j in &self.prismatics {
             q[j] = 0.0;
         }
-        let (p0, jac) = self.chain.pose_and_jacobian(q, &NoErrors);
-        let m = self.prismatics.len();
-        let a = DMatrix::from_fn(3, m, |r, c| jac[(r, self.prismatics[c])]);
-        let b = DVector::from_column_slice((target.tip - p0.tip).as_slice());
-        let svd = a.svd(true, true);
-        let smax = svd.singular_values.max();
-        let smin = svd.singular_values.min();
-        if smin.is_nan() || smin <= 1e-9 * smax.max(1.0) {
-            return Err(IkError::Unreachable {
-                reason: "the linear axes are dependent at these rotary positions".into(),
-            });
-        }
-        let x = svd.solve(&b, 0.0).map_err(|e| IkError::Unreachable {
+        let mut dirs = [[0.0; 3]; super::chain::MAX_JOINTS];
+        let p0 = self.chain.pose_and_prismatic_directions(q, &mut dirs);
+        let col = |c: usize| Vector3::from(dirs[self.prismatics[c]]);
+        let b = target.tip - p0.tip;
+        let dependent = || IkError::Unreachable {
+            reason: "the linear axes are dependent at these rotary positions".into(),
+        };
+        let failed = |e: &str| IkError::Unreachable {
             reason: format!("linear solve failed: {e}"),
-        })?;
-        for (c, &j) in self.prismatics.iter().enumerate() {
-            q[j] = x[c];
+        };
+        // A least-squares solve by SVD on the stack (3 or 2 linear axes).
+        macro_rules! solve {
+            ($a:expr) => {{
+                let svd = $a.svd(true, true);
+                let smax = svd.singular_values.max();
+                let smin = svd.singular_values.min();
+                if smin.is_nan() || smin <= 1e-9 * smax.max(1.0) {
+                    return Err(dependent());
+                }
+                let x = svd.solve(&b, 0.0).map_err(failed)?;
+                for (c, &j) in self.prismatics.iter().enumerate() {
+                    q[j] = x[c];
+                }
+            }};
         }
-        Ok(())
+        match self.prismatics.len() {
+            3 => solve!(Matrix3::from_columns(&[col(0), col(1), col(2)])),
+            2 => solve!(nalgebra::Matrix3x2::from_columns(&[col(0), col(1)])),
+            m => {
+                let a = DMatrix::from_fn(3, m, |r, c| dirs[self.prismatics[c]][r]);
+                let b = DVector::from_column_slice(b.as_slice());
+                let svd = a.svd(true, true);
+                let smax = svd.singular_values.max();
+                let smin = svd.singular_values.min();
+                if smin.is_nan() || smin <= 1e-9 * smax.max(1.0) {
+                    return Err(dependent());
+                }
+                let x = svd.solve(&b, 0.0).map_err(failed)?;
+                for (c, &j) in self.prismatics.iter().enumerate() {
+                    q[j] = x[c];
+                }
+            }
+        }
+        Ok(p0)
     }
 
     fn orient_1r(&self, target: &Pose, reference: &[f64]) -> Vec<Raw> {
