@@ -1,9 +1,12 @@
 //! Criterion benchmarks: analytic IK, compensated poses per second on both
-//! seed machines, and post-processing throughput.
+//! seed machines, and post-processing throughput (post, and compensate
+//! through the chunked driver on all cores).
 //! Run: `cargo bench --bench kinematics`; figures in docs/performance.md.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use kinpost::compensate::{Options, refine};
+use kinpost::compensate::{
+    BlockRecord, CompensatingSolver, OnFail, Options, compensate_gcode, refine,
+};
 use kinpost::demo::{OffAxisLens, impeller_poses, lens_path, lens_program};
 use kinpost::geometric::model::ErrorModel;
 use kinpost::machine::{IkSolver, Machine, Pose};
@@ -72,6 +75,46 @@ fn bench(c: &mut Criterion) {
                 &mut out,
                 &opts,
                 |_| {},
+            )
+            .unwrap();
+            out
+        })
+    });
+    g.bench_function("zhao2022-lens compensate (chunked driver)", |b| {
+        let opts = PostOptions::default();
+        let path = format!(
+            "{}/fixtures/errors/zhao2022-xzbc.csv",
+            env!("CARGO_MANIFEST_DIR")
+        );
+        let model = ErrorModel::load(Path::new(&path)).unwrap();
+        let bound = model.bind(&machine.chain).unwrap();
+        b.iter(|| {
+            let mut solver = CompensatingSolver {
+                machine: &machine,
+                actual_chain: model.apply_fixed(&machine.chain).unwrap(),
+                errors: &bound,
+                ik: IkSolver::new(&machine),
+                options: Options::default(),
+                on_fail: OnFail::Error,
+                accept_tip_mm: 1e-9,
+                records: Vec::new(),
+                warnings: Vec::new(),
+                backlash: Vec::new(),
+                last_direction: Vec::new(),
+                last_target: None,
+            };
+            let mut out = Vec::with_capacity(program.len());
+            compensate_gcode(
+                &machine,
+                &mut solver,
+                program.as_bytes(),
+                &mut out,
+                &opts,
+                |_| {},
+                |r: &mut Vec<BlockRecord>| {
+                    r.clear();
+                    Ok(())
+                },
             )
             .unwrap();
             out

@@ -159,7 +159,8 @@ fn damp_into_caps(jp: &[Col], rp: &Vector3<f64>, caps: &Joints, n: usize, dq1: &
 ///
 /// Tip part: the minimum-norm solution of `J_p S x = r_p` by QR of
 /// `(J_p S)ᵀ`, `Δ₁ = S x`. Axis part: with `Z` an orthonormal basis of the
-/// null space of `J_p` (trailing columns of the QR of `J_pᵀ`),
+/// null space of `J_p` (one direction: `S z_s` normalised, `z_s` the scaled
+/// problem's null vector; more: trailing columns of the QR of `J_pᵀ`),
 /// `N (W J_o N)⁺ = Z (W J_o Z)⁺`, so `Δ₂ = Z (W J_o Z)⁺ W (r_o − J_o Δ₁)`,
 /// the same step as the SVD form with `N = I − J_p⁺ J_p` and every vector
 /// exactly in the null space up to rounding. Paper: least squares on the
@@ -223,11 +224,10 @@ fn step_qr(
         row
     });
     damp_into_caps(&jp_rows, rp, caps, n, &mut d1);
-    // Null space of J_p and the weighted axis rows on it.
-    let plain = Qr::new(&jpt, n);
-    if plain.condition() > QR_CONDITION_LIMIT {
-        return None;
-    }
+    // Null space of J_p and the weighted axis rows on it. With one free
+    // direction it is the scaled problem's null vector mapped back through S
+    // (J_p (S z) = (J_p S) z = 0), normalised; with more, an orthonormal
+    // basis from the QR of J_pᵀ itself.
     let w = &opts.axis_weights;
     let jo =
         |r: usize, v: &Col| -> f64 { w[r] * (0..n).map(|c| jac[c][r + 3] * v[c]).sum::<f64>() };
@@ -238,13 +238,33 @@ fn step_qr(
     if free > 3 {
         return None;
     }
-    let z: [Col; 3] = std::array::from_fn(|i| {
-        if i < free {
-            plain.q_column(3 + i)
-        } else {
-            [0.0; linalg::ROWS]
+    let z: [Col; 3] = if free == 1 {
+        let zs = scaled.q_column(3);
+        let mut z = [0.0; linalg::ROWS];
+        for k in 0..n {
+            z[k] = caps[k] * zs[k];
         }
-    });
+        let norm = z[..n].iter().map(|x| x * x).sum::<f64>().sqrt();
+        if norm.is_nan() || norm <= 0.0 {
+            return None;
+        }
+        for x in z.iter_mut().take(n) {
+            *x /= norm;
+        }
+        [z, [0.0; linalg::ROWS], [0.0; linalg::ROWS]]
+    } else {
+        let plain = Qr::new(&jpt, n);
+        if plain.condition() > QR_CONDITION_LIMIT {
+            return None;
+        }
+        std::array::from_fn(|i| {
+            if i < free {
+                plain.q_column(3 + i)
+            } else {
+                [0.0; linalg::ROWS]
+            }
+        })
+    };
     // B = W J_o Z (3 × free), v = W r_o − W J_o Δ₁.
     let b: [Col; 3] = std::array::from_fn(|i| {
         let mut col = [0.0; linalg::ROWS];

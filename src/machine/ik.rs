@@ -15,7 +15,8 @@
 //! turn anything), so every analytic family solves the rotary joints from the
 //! tool axis first; with the rotations fixed the tool tip is affine in the
 //! prismatic joints, and those come from one linear solve whose matrix is
-//! the prismatic columns of [`Chain::pose_and_jacobian`].
+//! the prismatic columns of the Jacobian
+//! ([`Chain::pose_and_prismatic_directions`], one forward pass).
 //!
 //! Policy (see `docs/machines.md`): every branch is enumerated; rotary values
 //! are unwound towards the previous block ([`super::rotary::choose_turn`]);
