@@ -219,3 +219,24 @@ pub fn calibrated_case(
         geometric_rms: (g / model.len() as f64).sqrt(),
     }
 }
+
+/// `f` applied to every item on two threads (items alternate between them),
+/// the results in the order of `items`.
+pub fn par_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let f = &f;
+    let mut halves: Vec<Vec<R>> = std::thread::scope(|s| {
+        let hs: Vec<_> = (0..2usize)
+            .map(|half| s.spawn(move || items.iter().skip(half).step_by(2).map(f).collect()))
+            .collect();
+        hs.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    let odd = halves.pop().unwrap_or_default();
+    let even = halves.pop().unwrap_or_default();
+    let mut out = Vec::with_capacity(items.len());
+    let mut odd = odd.into_iter();
+    for r in even {
+        out.push(r);
+        out.extend(odd.next());
+    }
+    out
+}
