@@ -653,12 +653,7 @@ impl BoundEffect {
                     spec,
                     format!(
                         "axis {a} is not a joint of the machine (joints: {})",
-                        chain
-                            .joints
-                            .iter()
-                            .map(|j| j.name.as_str())
-                            .collect::<Vec<_>>()
-                            .join(", ")
+                        chain.joint_names()
                     ),
                 )
             })

@@ -205,7 +205,7 @@ impl FixedError {
                         format!(
                             "fixed error `{}`: joint {name} is not in the chain (joints: {})",
                             self.name,
-                            joint_names(chain)
+                            chain.joint_names()
                         ),
                     )
                 })?;
@@ -219,15 +219,6 @@ impl FixedError {
     pub fn matrix(&self) -> Matrix4<f64> {
         error_matrix(&ErrorMotion::from_column_slice(&self.motion))
     }
-}
-
-fn joint_names(chain: &Chain) -> String {
-    chain
-        .joints
-        .iter()
-        .map(|j| j.name.as_str())
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 /// Where a model came from.
@@ -669,7 +660,7 @@ impl ErrorModel {
                     format!(
                         "the error model has errors for axis {}, which is not a joint of the machine (joints: {}); expected only the machine's axes",
                         a.axis,
-                        joint_names(chain)
+                        chain.joint_names()
                     ),
                 )
             })?;

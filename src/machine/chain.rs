@@ -553,6 +553,15 @@ impl Chain {
             .position(|j| j.name.eq_ignore_ascii_case(name))
     }
 
+    /// The joints' names, comma-separated (for messages).
+    pub fn joint_names(&self) -> String {
+        self.joints
+            .iter()
+            .map(|j| j.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+
     /// Returns a copy of this chain with a fixed element inserted at element
     /// position `at` (0 = before everything, `elements.len()` = at the tool).
     /// Joint element indices are kept consistent.
