@@ -32,7 +32,7 @@ pub use simulate::{
     simulate,
 };
 
-use effects::{BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, MotionState};
+use effects::BoundEffect;
 use fit::{Candidate, Family, Fitted, SearchCtx, Selected, Term};
 use prepare::{ModelMachine, Prepared, noise_floor, prepare};
 use report::{Condition, Locate, Series, Window};
@@ -697,38 +697,13 @@ pub fn dynamic_offsets(
         .filter(|e| e.effect.kind().is_dynamic())
         .map(|e| BoundEffect::new(e, chain))
         .collect::<Result<_>>()?;
-    let mut active = vec![false; effects.len()];
-    let mut trackers = vec![DirectionTracker::new(DIRECTION_DEAD_BAND); n];
-    let mut dir = vec![0.0; n];
+    let mut walker = simulate::TrajectoryWalker::new(n, effects.len());
     let mut out = Vec::with_capacity(traj.len());
     for p in traj {
-        if p.q.len() != n || p.v.len() != n {
-            return Err(Error::input(
-                Location::new("<trajectory>", 0, 0),
-                format!(
-                    "a trajectory point has {} values; the machine has {n} joints",
-                    p.q.len()
-                ),
-            ));
-        }
-        for j in 0..n {
-            dir[j] = trackers[j].update(p.q[j]);
-        }
-        let st = MotionState {
-            t: p.t,
-            q: &p.q,
-            v: &p.v,
-            dir: &dir,
-        };
+        let (st, active) = walker.step(p, &mut effects)?;
         let mut dq = vec![0.0; n];
-        for (k, e) in effects.iter_mut().enumerate() {
-            if !active[k] && e.spec.from_block.is_none_or(|b| p.block >= b) {
-                active[k] = true;
-                e.t0 = p.t;
-            }
-            if active[k]
-                && let Some(j) = e.joint
-            {
+        for (e, _) in effects.iter().zip(active).filter(|(_, a)| **a) {
+            if let Some(j) = e.joint {
                 dq[j] += e.delta_q(&st);
             }
         }

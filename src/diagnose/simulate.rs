@@ -396,12 +396,51 @@ pub fn evaluate_trajectory(
     traj: &[TrajPoint],
 ) -> Result<Vec<Vector3<f64>>> {
     let mut machine = TrueMachine::new(chain, errors, effects)?;
-    let n = chain.dof();
-    let mut trackers = vec![DirectionTracker::new(DIRECTION_DEAD_BAND); n];
-    let mut active = 0u64;
-    let mut dir = vec![0.0; n];
+    let mut walker = TrajectoryWalker::new(chain.dof(), machine.effects.len());
     let mut out = Vec::with_capacity(traj.len());
     for p in traj {
+        let (state, active) = walker.step(p, &mut machine.effects)?;
+        let mask = active
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| **a)
+            .fold(0u64, |m, (k, _)| m | 1 << k);
+        out.push(machine.tip(&state, mask));
+    }
+    Ok(out)
+}
+
+/// Walks a commanded trajectory for the effects: checks that every point
+/// has one position and one velocity per joint, tracks each joint's
+/// direction of motion, and switches each effect on at the first point
+/// whose block is at least its `from_block`, starting its clock (`t0`)
+/// there.
+pub(crate) struct TrajectoryWalker {
+    trackers: Vec<DirectionTracker>,
+    dir: Vec<f64>,
+    active: Vec<bool>,
+}
+
+impl TrajectoryWalker {
+    /// A walker for a chain of `joints` joints and `effects` effects, none
+    /// acting yet.
+    pub(crate) fn new(joints: usize, effects: usize) -> Self {
+        TrajectoryWalker {
+            trackers: vec![DirectionTracker::new(DIRECTION_DEAD_BAND); joints],
+            dir: vec![0.0; joints],
+            active: vec![false; effects],
+        }
+    }
+
+    /// Advances to `p`, switching on those of `effects` (the ones the
+    /// walker was made for, in the same order) that start there; returns
+    /// the motion state at `p` and which effects act there.
+    pub(crate) fn step<'a>(
+        &'a mut self,
+        p: &'a TrajPoint,
+        effects: &mut [BoundEffect],
+    ) -> Result<(MotionState<'a>, &'a [bool])> {
+        let n = self.dir.len();
         if p.q.len() != n || p.v.len() != n {
             return Err(Error::input(
                 Location::new("<trajectory>", 0, 0),
@@ -411,12 +450,12 @@ pub fn evaluate_trajectory(
                 ),
             ));
         }
-        for j in 0..n {
-            dir[j] = trackers[j].update(p.q[j]);
+        for (d, (tracker, q)) in self.dir.iter_mut().zip(self.trackers.iter_mut().zip(&p.q)) {
+            *d = tracker.update(*q);
         }
-        for (k, e) in machine.effects.iter_mut().enumerate() {
-            if active & (1 << k) == 0 && e.spec.from_block.is_none_or(|b| p.block >= b) {
-                active |= 1 << k;
+        for (active, e) in self.active.iter_mut().zip(effects) {
+            if !*active && e.spec.from_block.is_none_or(|b| p.block >= b) {
+                *active = true;
                 e.t0 = p.t;
             }
         }
@@ -424,11 +463,10 @@ pub fn evaluate_trajectory(
             t: p.t,
             q: &p.q,
             v: &p.v,
-            dir: &dir,
+            dir: &self.dir,
         };
-        out.push(machine.tip(&state, active));
+        Ok((state, &self.active))
     }
-    Ok(out)
 }
 
 /// Simulates a recording: the commanded axes sampled along the waypoints,
