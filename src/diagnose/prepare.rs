@@ -10,6 +10,7 @@ use nalgebra::{Matrix4, Unit, Vector3};
 
 use super::effects::{BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionState};
 use super::recording::Recording;
+use super::simulate::central_pair;
 use crate::error::{Error, Location, Result};
 use crate::geometric::{BoundErrors, ErrorModel};
 use crate::machine::chain::{Chain, Element, JointErrors, JointKind, NoErrors, error_matrix};
@@ -210,13 +211,7 @@ fn velocities(t: &[f64], q: &[f64], dof: usize) -> Vec<f64> {
         return v;
     }
     for i in 0..n {
-        let (a, b) = if i == 0 {
-            (0, 1)
-        } else if i == n - 1 {
-            (n - 2, n - 1)
-        } else {
-            (i - 1, i + 1)
-        };
+        let (a, b) = central_pair(i, n);
         let dt = t[b] - t[a];
         for j in 0..dof {
             v[i * dof + j] = (q[b * dof + j] - q[a * dof + j]) / dt;

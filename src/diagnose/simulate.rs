@@ -359,6 +359,19 @@ pub fn sample_waypoints(
     Ok(out)
 }
 
+/// The two samples that the central difference at sample `i` of `n`
+/// (`n ≥ 2`) uses: its neighbours, or at the ends the end and its
+/// neighbour.
+pub(crate) fn central_pair(i: usize, n: usize) -> (usize, usize) {
+    if i == 0 {
+        (0, 1)
+    } else if i == n - 1 {
+        (n - 2, n - 1)
+    } else {
+        (i - 1, i + 1)
+    }
+}
+
 /// Fills in the velocities of a trajectory by central differences of its
 /// positions (one-sided at the ends).
 pub fn central_velocities(traj: &mut [TrajPoint]) {
@@ -367,13 +380,7 @@ pub fn central_velocities(traj: &mut [TrajPoint]) {
         return;
     }
     for i in 0..n {
-        let (a, b) = if i == 0 {
-            (0, 1)
-        } else if i == n - 1 {
-            (n - 2, n - 1)
-        } else {
-            (i - 1, i + 1)
-        };
+        let (a, b) = central_pair(i, n);
         let dt = traj[b].t - traj[a].t;
         let v: Vec<f64> = traj[b]
             .q
