@@ -2,6 +2,9 @@
 //! the binary: the formats.md §3 report, silence on clean data, and the loop
 //! closed (the improved model cuts the error of a re-run).
 
+mod diagnose_support;
+
+use diagnose_support::FORMATS_FIELDS;
 use kinpost::diagnose::parse_effect_spec;
 use kinpost::gcode::LineReader;
 use kinpost::geometric::model::ErrorModel;
@@ -83,16 +86,7 @@ fn backlash_found_and_reported_as_formats_md_says() {
     let rec = simulate(dir.path(), "rec.csv", &["backlash:X=0.0024@block=40"], "7");
     let svg = dir.path().join("d.svg");
     let v = diagnose_json(&rec, &["--svg", svg.to_str().unwrap()]);
-    for key in [
-        "samples",
-        "noise_floor_mm",
-        "rms_before_mm",
-        "rms_after_mm",
-        "holdout_rms_before_mm",
-        "holdout_rms_after_mm",
-        "findings",
-        "verdict",
-    ] {
+    for key in FORMATS_FIELDS {
         assert!(v.get(key).is_some(), "missing {key}: {v}");
     }
     let f = &v["findings"][0];

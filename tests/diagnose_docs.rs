@@ -4,28 +4,20 @@
 mod diagnose_support;
 
 use diagnose_support::*;
-use kinpost::diagnose::{DiagOptions, diagnose, parse_effect_spec, simulate};
 
 fn example(m: Machine, blocks: usize, seed: u64, specs: &[&str], name: &str) {
-    let chain = m.chain();
-    let errors = m.errors();
-    let program = m.program(blocks, seed);
-    let opts = sim_options(seed);
-    let effects: Vec<_> = specs
-        .iter()
-        .map(|s| parse_effect_spec(s).unwrap())
-        .collect();
-    let rec = simulate(&chain, Some(&errors), &program, &effects, &opts).unwrap();
+    let sc = m.scenario(blocks, seed);
+    let effects = effects(specs);
+    let (rec, r) = sc.run(&effects);
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/diagnose");
     std::fs::create_dir_all(&dir).unwrap();
-    let r = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
     r.write_svg(&dir.join(format!("{name}.svg"))).unwrap();
     std::fs::write(dir.join(format!("{name}.txt")), r.to_text()).unwrap();
     std::fs::write(dir.join(format!("{name}.json")), r.to_json_string() + "\n").unwrap();
     println!(
         "{name}: effect RMS {:.3} µm, geometric {:.3} µm, {} samples\n{}",
-        effect_rms(&chain, Some(&errors), &program, &effects, &opts) * 1e3,
-        geometric_rms(&chain, &errors, &program, &opts) * 1e3,
+        effect_rms(&sc.chain, Some(&sc.errors), &sc.program, &effects, &sc.opts) * 1e3,
+        geometric_rms(&sc.chain, &sc.errors, &sc.program, &sc.opts) * 1e3,
         rec.len(),
         r.to_text()
     );

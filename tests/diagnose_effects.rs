@@ -11,7 +11,7 @@
 mod diagnose_support;
 
 use diagnose_support::*;
-use kinpost::diagnose::{DiagOptions, Effect, EffectSpec, Report, diagnose, simulate};
+use kinpost::diagnose::{Effect, EffectSpec, Report};
 
 const SIGMA: f64 = 0.001;
 const TARGET_RMS: f64 = 1.2 * SIGMA;
@@ -154,24 +154,13 @@ fn run_case(m: Machine, spec: &str, seed: u64) -> Outcome {
 /// A case with a program of `blocks` blocks and the effect scaled to the
 /// 3-D tip RMS `target` (mm).
 fn run_sized(m: Machine, blocks: usize, spec: &str, target: f64, seed: u64) -> Outcome {
-    let chain = m.chain();
-    let errors = m.errors();
-    let program = m.program(blocks, seed);
-    let opts = sim_options(seed);
+    let sc = m.scenario(blocks, seed);
     let Calibrated {
         spec: truth,
         effect_rms: eff_rms,
         geometric_rms: geo_rms,
-    } = calibrated_case(&chain, &errors, &program, spec, target, &opts);
-    let rec = simulate(
-        &chain,
-        Some(&errors),
-        &program,
-        std::slice::from_ref(&truth),
-        &opts,
-    )
-    .unwrap();
-    let report = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
+    } = sc.calibrated(spec, target);
+    let (_, report) = sc.run(std::slice::from_ref(&truth));
     check(m, spec, &truth, eff_rms, geo_rms, &report)
 }
 
@@ -273,25 +262,17 @@ fn check(
     }
 }
 
+/// Runs `cases` on two threads and asserts that every one meets the
+/// criteria. Case `i` of `n` has the seed 11 + (i mod ⌈n/2⌉): seeds 11–15
+/// for ten cases, each used on both halves of the list.
 fn run_all(cases: &[(Machine, &str)]) {
-    let outcomes: Vec<Outcome> = std::thread::scope(|s| {
-        let handles: Vec<_> = cases
-            .chunks(cases.len().div_ceil(2))
-            .map(|chunk| {
-                s.spawn(move || {
-                    chunk
-                        .iter()
-                        .enumerate()
-                        .map(|(k, (m, spec))| run_case(*m, spec, 11 + k as u64))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap())
-            .collect()
-    });
+    let half = cases.len().div_ceil(2);
+    let seeded: Vec<(Machine, &str, u64)> = cases
+        .iter()
+        .enumerate()
+        .map(|(i, &(m, spec))| (m, spec, 11 + (i % half) as u64))
+        .collect();
+    let outcomes = par_map(&seeded, |&(m, spec, seed)| run_case(m, spec, seed));
     let mut bad = Vec::new();
     for o in &outcomes {
         println!("{}", o.line);
@@ -380,21 +361,8 @@ fn thermal_drift_starting_part_way() {
             ]
         })
         .collect();
-    let outcomes: Vec<Outcome> = std::thread::scope(|s| {
-        let hs: Vec<_> = (0..2usize)
-            .map(|half| {
-                let cases = &cases;
-                s.spawn(move || {
-                    cases
-                        .iter()
-                        .skip(half)
-                        .step_by(2)
-                        .map(|&(m, b, spec, seed)| run_sized(m, b, spec, 1.4 * SIGMA, seed))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        hs.into_iter().flat_map(|h| h.join().unwrap()).collect()
+    let outcomes = par_map(&cases, |&(m, b, spec, seed)| {
+        run_sized(m, b, spec, 1.4 * SIGMA, seed)
     });
     let mut bad = Vec::new();
     let mut z2 = 0.0;

@@ -6,61 +6,35 @@
 mod diagnose_support;
 
 use diagnose_support::*;
-use kinpost::diagnose::{DiagOptions, diagnose, simulate};
 
 const SEEDS: u64 = 40;
 
 fn false_alarms(m: Machine) -> (usize, Vec<String>) {
-    let chain = m.chain();
-    let errors = m.errors();
     let blocks = match m {
         Machine::Zhao => 80,
         Machine::Wang => 70,
     };
-    let results: Vec<(u64, Vec<String>, f64)> = std::thread::scope(|s| {
-        let hs: Vec<_> = (0..2u64)
-            .map(|half| {
-                let (chain, errors) = (&chain, &errors);
-                s.spawn(move || {
-                    (0..SEEDS)
-                        .filter(|k| k % 2 == half)
-                        .map(|k| {
-                            let seed = 1000 + k;
-                            let program = m.program(blocks, seed);
-                            let rec =
-                                simulate(chain, Some(errors), &program, &[], &sim_options(seed))
-                                    .unwrap();
-                            let r = diagnose(chain, Some(errors), &rec, &DiagOptions::default())
-                                .unwrap();
-                            assert!(
-                                r.findings.is_empty()
-                                    || r.verdict.starts_with("missing physics found")
-                            );
-                            if r.findings.is_empty() {
-                                assert!(
-                                    r.verdict.starts_with("consistent with measurement noise"),
-                                    "{}",
-                                    r.verdict
-                                );
-                            }
-                            let names = r
-                                .findings
-                                .iter()
-                                .map(|f| {
-                                    format!("{} {}", f.effect, f.axis.clone().unwrap_or_default())
-                                })
-                                .collect();
-                            let best = r
-                                .candidates
-                                .first()
-                                .map_or(f64::NEG_INFINITY, |c| c.delta_bic);
-                            (seed, names, best)
-                        })
-                        .collect::<Vec<_>>()
-                })
-            })
+    let seeds: Vec<u64> = (1000..1000 + SEEDS).collect();
+    let results = par_map(&seeds, |&seed| {
+        let (_, r) = m.scenario(blocks, seed).run(&[]);
+        assert!(r.findings.is_empty() || r.verdict.starts_with("missing physics found"));
+        if r.findings.is_empty() {
+            assert!(
+                r.verdict.starts_with("consistent with measurement noise"),
+                "{}",
+                r.verdict
+            );
+        }
+        let names: Vec<String> = r
+            .findings
+            .iter()
+            .map(|f| format!("{} {}", f.effect, f.axis.clone().unwrap_or_default()))
             .collect();
-        hs.into_iter().flat_map(|h| h.join().unwrap()).collect()
+        let best = r
+            .candidates
+            .first()
+            .map_or(f64::NEG_INFINITY, |c| c.delta_bic);
+        (seed, names, best)
     });
     let mut alarms = Vec::new();
     for (seed, names, _) in &results {

@@ -8,17 +8,18 @@ mod diagnose_support;
 use diagnose_support::*;
 use kinpost::diagnose::{
     DiagOptions, TrajPoint, central_velocities, compensate_dynamic, diagnose, evaluate_trajectory,
-    parse_effect_spec, sample_waypoints, simulate,
+    parse_effect_spec, sample_waypoints,
 };
 use kinpost::geometric::ErrorModel;
 use kinpost::machine::{Chain, JointKind, NoErrors};
 
-fn to_internal(chain: &Chain, q: &[f64]) -> Vec<f64> {
+/// `q` with `f` applied to the values of the revolute joints.
+fn map_rotary(chain: &Chain, q: &[f64], f: fn(f64) -> f64) -> Vec<f64> {
     q.iter()
         .zip(&chain.joints)
         .map(|(v, j)| {
             if j.kind == JointKind::Revolute {
-                v.to_radians()
+                f(*v)
             } else {
                 *v
             }
@@ -26,17 +27,14 @@ fn to_internal(chain: &Chain, q: &[f64]) -> Vec<f64> {
         .collect()
 }
 
+/// Joint values in file units (mm, deg) to internal units (mm, rad).
+fn to_internal(chain: &Chain, q: &[f64]) -> Vec<f64> {
+    map_rotary(chain, q, f64::to_radians)
+}
+
+/// Joint values in internal units (mm, rad) to file units (mm, deg).
 fn to_file(chain: &Chain, q: &[f64]) -> Vec<f64> {
-    q.iter()
-        .zip(&chain.joints)
-        .map(|(v, j)| {
-            if j.kind == JointKind::Revolute {
-                v.to_degrees()
-            } else {
-                *v
-            }
-        })
-        .collect()
+    map_rotary(chain, q, f64::to_degrees)
 }
 
 /// Minimum-norm Gauss–Newton on the tool tip only, from the nominal
@@ -104,19 +102,14 @@ fn rerun_error(
 #[test]
 fn two_effects_found_written_and_compensated() {
     let m = Machine::Zhao;
-    let chain = m.chain();
-    let errors = m.errors();
-    let program = m.program(120, 5);
-    let opts = sim_options(5);
-    let truth = vec![
-        parse_effect_spec("scale:X=15").unwrap(),
-        parse_effect_spec("backlash:Z=0.0025@block=30").unwrap(),
-    ];
-    let rec = simulate(&chain, Some(&errors), &program, &truth, &opts).unwrap();
+    let sc = m.scenario(120, 5);
+    let (chain, errors) = (&sc.chain, &sc.errors);
+    let truth = effects(&["scale:X=15", "backlash:Z=0.0025@block=30"]);
+    let rec = sc.simulate(&truth);
     // Through the CSV, as the command line does.
     let csv = rec.to_csv_string();
     let rec = kinpost::diagnose::Recording::parse(&csv, "rec.csv", &rec.axes).unwrap();
-    let report = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
+    let report = sc.diagnose(&rec);
     println!("{}", report.to_text());
     assert_eq!(report.findings.len(), 2, "{}", report.to_text());
     let scale = report
@@ -137,19 +130,19 @@ fn two_effects_found_written_and_compensated() {
     assert!(report.holdout_rms_after_mm < report.holdout_rms_before_mm);
 
     // Write and read back the improved model.
-    let improved = report.improved_model(Some(&errors));
+    let improved = report.improved_model(Some(errors));
     let json = serde_json::to_string_pretty(&improved.to_json()).unwrap();
     assert!(json.contains("\"effects\""));
     let back = ErrorModel::from_json_str(&json, "improved.json").unwrap();
     assert_eq!(back.effects.len(), 2);
 
     // Diagnosing the same recording with the improved model: nothing left.
-    let again = diagnose(&chain, Some(&back), &rec, &DiagOptions::default()).unwrap();
+    let again = diagnose(chain, Some(&back), &rec, &DiagOptions::default()).unwrap();
     assert!(again.findings.is_empty(), "{}", again.to_text());
 
     // A re-run of another program, compensated with the old and the new model.
     let other = m.program(60, 77);
-    let mut traj = sample_waypoints(&chain, &other, 0.2, Some(300.0)).unwrap();
+    let mut traj = sample_waypoints(chain, &other, 0.2, Some(300.0)).unwrap();
     central_velocities(&mut traj);
     // On zhao2022-xzbc the C axis is singular where the tool sits on it
     // (X = 0): the re-run leaves out the samples within 5 mm of it.
@@ -163,8 +156,8 @@ fn two_effects_found_written_and_compensated() {
             s
         })
         .collect();
-    let old = rerun_error(&chain, &errors, &errors, &now, &traj);
-    let new = rerun_error(&chain, &back, &errors, &now, &traj);
+    let old = rerun_error(chain, errors, errors, &now, &traj);
+    let new = rerun_error(chain, &back, errors, &now, &traj);
     println!(
         "re-run tool-tip error RMS: compensated with the error tables {:.3} µm, with the improved model {:.3} µm",
         old * 1e3,

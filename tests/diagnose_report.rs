@@ -8,24 +8,11 @@ use kinpost::diagnose::{DiagOptions, Recording, diagnose, parse_effect_spec, sim
 
 #[test]
 fn json_has_exactly_the_formats_fields() {
-    let m = Machine::Wang;
-    let chain = m.chain();
-    let errors = m.errors();
-    let program = m.program(50, 21);
-    let e = parse_effect_spec("zero_offset:Z=0.003@block=20").unwrap();
-    let rec = simulate(&chain, Some(&errors), &program, &[e], &sim_options(21)).unwrap();
-    let r = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
+    let (rec, r) = Machine::Wang
+        .scenario(50, 21)
+        .run(&effects(&["zero_offset:Z=0.003@block=20"]));
     let j = r.to_json();
-    for k in [
-        "samples",
-        "noise_floor_mm",
-        "rms_before_mm",
-        "rms_after_mm",
-        "holdout_rms_before_mm",
-        "holdout_rms_after_mm",
-        "findings",
-        "verdict",
-    ] {
+    for k in FORMATS_FIELDS {
         assert!(j.get(k).is_some(), "missing {k}");
     }
     assert_eq!(j["samples"].as_u64(), Some(rec.len() as u64));
@@ -60,13 +47,8 @@ fn json_has_exactly_the_formats_fields() {
 /// includes the onset's; other findings have no `onset_sd_s`.
 #[test]
 fn part_way_drift_reports_the_onset_uncertainty() {
-    let m = Machine::Zhao;
-    let chain = m.chain();
-    let errors = m.errors();
-    let program = m.program(60, 5);
-    let e = parse_effect_spec("thermal_drift:Z=0.004,tau=40@block=15").unwrap();
-    let rec = simulate(&chain, Some(&errors), &program, &[e], &sim_options(5)).unwrap();
-    let r = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
+    let sc = Machine::Zhao.scenario(60, 5);
+    let (_, r) = sc.run(&effects(&["thermal_drift:Z=0.004,tau=40@block=15"]));
     let j = r.to_json();
     let f = &j["findings"][0];
     assert_eq!(f["effect"], "thermal_drift", "{}", r.to_text());
@@ -78,9 +60,7 @@ fn part_way_drift_reports_the_onset_uncertainty() {
     let cond = f["where"]["condition"].as_str().unwrap();
     assert!(cond.contains(&format!("± {sd:.1} s)")), "{cond}");
     // A step effect from a block has no smooth onset parameter.
-    let e = parse_effect_spec("zero_offset:Z=0.003@block=20").unwrap();
-    let rec = simulate(&chain, Some(&errors), &program, &[e], &sim_options(5)).unwrap();
-    let r = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
+    let (_, r) = sc.run(&effects(&["zero_offset:Z=0.003@block=20"]));
     let j = r.to_json();
     assert_eq!(j["findings"][0]["effect"], "zero_offset");
     assert!(j["findings"][0].get("onset_sd_s").is_none());
@@ -88,12 +68,8 @@ fn part_way_drift_reports_the_onset_uncertainty() {
 
 #[test]
 fn clean_recording_says_consistent_with_noise() {
-    let m = Machine::Zhao;
-    let chain = m.chain();
-    let errors = m.errors();
-    let program = m.program(40, 8);
-    let rec = simulate(&chain, Some(&errors), &program, &[], &sim_options(8)).unwrap();
-    let r = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
+    let sc = Machine::Zhao.scenario(40, 8);
+    let (rec, r) = sc.run(&[]);
     assert!(r.findings.is_empty());
     assert!(
         r.verdict.starts_with("consistent with measurement noise"),
@@ -104,7 +80,7 @@ fn clean_recording_says_consistent_with_noise() {
     assert!(r.to_svg().is_ok());
     // Without the error model the fixture errors are the mismatch: found,
     // but not as noise.
-    let r = diagnose(&chain, None, &rec, &DiagOptions::default()).unwrap();
+    let r = diagnose(&sc.chain, None, &rec, &DiagOptions::default()).unwrap();
     assert!(!r.verdict.starts_with("consistent"), "{}", r.verdict);
 }
 

@@ -19,7 +19,7 @@ mod diagnose_support;
 
 use diagnose_support::*;
 use kinpost::diagnose::prepare::{ModelMachine, prepare};
-use kinpost::diagnose::{DiagOptions, Effect, EffectSpec, Report, diagnose, simulate};
+use kinpost::diagnose::{Effect, EffectSpec, Report};
 
 const SIGMA: f64 = 0.001;
 
@@ -33,26 +33,15 @@ struct Run {
 }
 
 fn run(m: Machine, blocks: usize, spec: &str, rms_sigma: f64, seed: u64) -> Run {
-    let chain = m.chain();
-    let errors = m.errors();
-    let program = m.program(blocks, seed);
-    let opts = sim_options(seed);
-    let truth = calibrated_case(&chain, &errors, &program, spec, rms_sigma * SIGMA, &opts).spec;
-    let rec = simulate(
-        &chain,
-        Some(&errors),
-        &program,
-        std::slice::from_ref(&truth),
-        &opts,
-    )
-    .unwrap();
-    let report = diagnose(&chain, Some(&errors), &rec, &DiagOptions::default()).unwrap();
+    let sc = m.scenario(blocks, seed);
+    let truth = sc.calibrated(spec, rms_sigma * SIGMA).spec;
+    let (rec, report) = sc.run(std::slice::from_ref(&truth));
     if std::env::var("TEXT").is_ok() {
         println!("{}", report.to_text());
     }
     // Cramér–Rao bound of (a, τ, t₀) for a drift along the axis's tip
     // direction, σ per coordinate.
-    let machine = ModelMachine::new(&chain, Some(&errors)).unwrap();
+    let machine = ModelMachine::new(&sc.chain, Some(&sc.errors)).unwrap();
     let prep = prepare(&machine, &rec).unwrap();
     let Effect::ThermalDrift {
         axis,
@@ -125,21 +114,8 @@ fn sweep(
     seeds: std::ops::Range<u64>,
 ) -> Sweep {
     let seeds: Vec<u64> = seeds.collect();
-    let runs: Vec<(u64, Run)> = std::thread::scope(|s| {
-        let hs: Vec<_> = (0..2usize)
-            .map(|half| {
-                let seeds = &seeds;
-                s.spawn(move || {
-                    seeds
-                        .iter()
-                        .enumerate()
-                        .filter(|(k, _)| k % 2 == half)
-                        .map(|(_, &seed)| (seed, run(m, blocks, spec, rms_sigma, seed)))
-                        .collect::<Vec<_>>()
-                })
-            })
-            .collect();
-        hs.into_iter().flat_map(|h| h.join().unwrap()).collect()
+    let runs = par_map(&seeds, |&seed| {
+        (seed, run(m, blocks, spec, rms_sigma, seed))
     });
     let mut out = Sweep {
         tau_err: Vec::new(),
@@ -341,43 +317,16 @@ fn brute(
 #[test]
 #[ignore]
 fn clean_long_recordings() {
-    use kinpost::diagnose::simulate;
     let n: u64 = std::env::var("CLEAN")
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(10);
+    let seeds: Vec<u64> = (2000..2000 + n).collect();
     for (m, blocks) in [(Machine::Zhao, 400), (Machine::Wang, 280)] {
-        let chain = m.chain();
-        let errors = m.errors();
-        let res: Vec<(u64, usize, f64)> = std::thread::scope(|s| {
-            let hs: Vec<_> = (0..2u64)
-                .map(|half| {
-                    let (chain, errors) = (&chain, &errors);
-                    s.spawn(move || {
-                        (0..n)
-                            .filter(|k| k % 2 == half)
-                            .map(|k| {
-                                let seed = 2000 + k;
-                                let program = m.program(blocks, seed);
-                                let rec = simulate(
-                                    chain,
-                                    Some(errors),
-                                    &program,
-                                    &[],
-                                    &sim_options(seed),
-                                )
-                                .unwrap();
-                                let r =
-                                    diagnose(chain, Some(errors), &rec, &DiagOptions::default())
-                                        .unwrap();
-                                let best = r.candidates.first().map_or(f64::NAN, |c| c.delta_bic);
-                                (seed, r.findings.len(), best)
-                            })
-                            .collect::<Vec<_>>()
-                    })
-                })
-                .collect();
-            hs.into_iter().flat_map(|h| h.join().unwrap()).collect()
+        let res = par_map(&seeds, |&seed| {
+            let (_, r) = m.scenario(blocks, seed).run(&[]);
+            let best = r.candidates.first().map_or(f64::NAN, |c| c.delta_bic);
+            (seed, r.findings.len(), best)
         });
         let alarms = res.iter().filter(|r| r.1 > 0).count();
         let worst = res.iter().map(|r| r.2).fold(f64::NEG_INFINITY, f64::max);

@@ -3,7 +3,10 @@
 #![allow(dead_code)]
 
 use kinpost::diagnose::programs::{Travel, random_moves};
-use kinpost::diagnose::{EffectSpec, SimOptions, Waypoint, evaluate_trajectory, sample_waypoints};
+use kinpost::diagnose::{
+    DiagOptions, EffectSpec, Recording, Report, SimOptions, Waypoint, diagnose,
+    evaluate_trajectory, parse_effect_spec, sample_waypoints, simulate,
+};
 use kinpost::geometric::ErrorModel;
 use kinpost::machine::{Chain, JointKind};
 use nalgebra::Vector3;
@@ -95,6 +98,104 @@ impl Machine {
     }
 }
 
+/// One seed's setup on a seed machine: its chain, fixture error model,
+/// exercise program and simulation options.
+pub struct Scenario {
+    /// The machine's chain.
+    pub chain: Chain,
+    /// Its fixture error model.
+    pub errors: ErrorModel,
+    /// The exercise program.
+    pub program: Vec<Waypoint>,
+    /// The simulation options of the seed ([`sim_options`]).
+    pub opts: SimOptions,
+}
+
+impl Machine {
+    /// The machine with a program of `blocks` random moves and the
+    /// simulation options of `seed` (which also seeds the program).
+    pub fn scenario(self, blocks: usize, seed: u64) -> Scenario {
+        Scenario {
+            chain: self.chain(),
+            errors: self.errors(),
+            program: self.program(blocks, seed),
+            opts: sim_options(seed),
+        }
+    }
+}
+
+impl Scenario {
+    /// `spec` calibrated to the 3-D tip RMS `target` (mm) on this program,
+    /// as [`calibrated_case`].
+    pub fn calibrated(&self, spec: &str, target: f64) -> Calibrated {
+        calibrated_case(
+            &self.chain,
+            &self.errors,
+            &self.program,
+            spec,
+            target,
+            &self.opts,
+        )
+    }
+
+    /// A simulated recording of the program with `effects` injected.
+    pub fn simulate(&self, effects: &[EffectSpec]) -> Recording {
+        simulate(
+            &self.chain,
+            Some(&self.errors),
+            &self.program,
+            effects,
+            &self.opts,
+        )
+        .unwrap()
+    }
+
+    /// The diagnosis of `rec` against the chain and the fixture error model,
+    /// with the default options.
+    pub fn diagnose(&self, rec: &Recording) -> Report {
+        diagnose(
+            &self.chain,
+            Some(&self.errors),
+            rec,
+            &DiagOptions::default(),
+        )
+        .unwrap()
+    }
+
+    /// [`Scenario::simulate`], then [`Scenario::diagnose`].
+    pub fn run(&self, effects: &[EffectSpec]) -> (Recording, Report) {
+        let rec = self.simulate(effects);
+        let report = self.diagnose(&rec);
+        (rec, report)
+    }
+}
+
+/// The effects of the `--inject` specs `specs`.
+pub fn effects(specs: &[&str]) -> Vec<EffectSpec> {
+    specs
+        .iter()
+        .map(|s| parse_effect_spec(s).unwrap())
+        .collect()
+}
+
+/// The top-level fields of the report's JSON that `formats.md` §3 names.
+pub const FORMATS_FIELDS: [&str; 8] = [
+    "samples",
+    "noise_floor_mm",
+    "rms_before_mm",
+    "rms_after_mm",
+    "holdout_rms_before_mm",
+    "holdout_rms_after_mm",
+    "findings",
+    "verdict",
+];
+
+/// RMS (3-D norm) of the differences between two series of tips.
+pub fn rms_between(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
+    let s: f64 = a.iter().zip(b).map(|(x, y)| (x - y).norm_squared()).sum();
+    (s / a.len() as f64).sqrt()
+}
+
 /// Default simulation options for the tests: σ = 1 µm, 0.1 s samples.
 pub fn sim_options(seed: u64) -> SimOptions {
     SimOptions {
@@ -117,8 +218,7 @@ pub fn effect_rms(
     let traj = sample_waypoints(chain, program, opts.sample_interval_s, opts.accel_mm_s2).unwrap();
     let a = evaluate_trajectory(chain, errors, &[], &traj).unwrap();
     let b = evaluate_trajectory(chain, errors, effects, &traj).unwrap();
-    let s: f64 = a.iter().zip(&b).map(|(x, y)| (x - y).norm_squared()).sum();
-    (s / a.len() as f64).sqrt()
+    rms_between(&a, &b)
 }
 
 /// RMS (3-D norm) of the tip displacement of the geometric errors (model
@@ -132,8 +232,7 @@ pub fn geometric_rms(
     let traj = sample_waypoints(chain, program, opts.sample_interval_s, opts.accel_mm_s2).unwrap();
     let a = evaluate_trajectory(chain, None, &[], &traj).unwrap();
     let b = evaluate_trajectory(chain, Some(errors), &[], &traj).unwrap();
-    let s: f64 = a.iter().zip(&b).map(|(x, y)| (x - y).norm_squared()).sum();
-    (s / a.len() as f64).sqrt()
+    rms_between(&a, &b)
 }
 
 /// Multiplies the amplitude-like parameter of an effect by `k` (the
@@ -152,23 +251,6 @@ pub fn scale_effect(e: &mut kinpost::diagnose::Effect, k: f64) {
     }
 }
 
-/// `spec` with its amplitude scaled so that the effect's tip displacement
-/// has the 3-D RMS `target` (mm) along `program`.
-pub fn calibrated(
-    chain: &Chain,
-    errors: &ErrorModel,
-    program: &[Waypoint],
-    spec: &str,
-    target: f64,
-    opts: &SimOptions,
-) -> EffectSpec {
-    let mut s = kinpost::diagnose::parse_effect_spec(spec).unwrap();
-    let r = effect_rms(chain, Some(errors), program, std::slice::from_ref(&s), opts);
-    assert!(r > 0.0, "{spec} has no effect on this program");
-    scale_effect(&mut s.effect, target / r);
-    s
-}
-
 /// An effect calibrated to a tip RMS, with the figures the acceptance
 /// checks need.
 pub struct Calibrated {
@@ -180,9 +262,10 @@ pub struct Calibrated {
     pub geometric_rms: f64,
 }
 
-/// [`calibrated`], [`effect_rms`] of the result and [`geometric_rms`] with
-/// the trajectory sampled and the model evaluated once (the same numbers,
-/// four chain evaluations along the program instead of six).
+/// `spec` with its amplitude scaled so that the effect's tip displacement
+/// has the 3-D RMS `target` (mm) along `program`, with [`effect_rms`] of
+/// the result and [`geometric_rms`], the trajectory sampled and the model
+/// evaluated once (four chain evaluations along the program).
 pub fn calibrated_case(
     chain: &Chain,
     errors: &ErrorModel,
@@ -194,29 +277,21 @@ pub fn calibrated_case(
     let traj = sample_waypoints(chain, program, opts.sample_interval_s, opts.accel_mm_s2).unwrap();
     let model = evaluate_trajectory(chain, Some(errors), &[], &traj).unwrap();
     let rms_against = |effects: &[EffectSpec]| {
-        let b = evaluate_trajectory(chain, Some(errors), effects, &traj).unwrap();
-        let s: f64 = model
-            .iter()
-            .zip(&b)
-            .map(|(x, y)| (x - y).norm_squared())
-            .sum();
-        (s / model.len() as f64).sqrt()
+        rms_between(
+            &model,
+            &evaluate_trajectory(chain, Some(errors), effects, &traj).unwrap(),
+        )
     };
-    let mut s = kinpost::diagnose::parse_effect_spec(spec).unwrap();
+    let mut s = parse_effect_spec(spec).unwrap();
     let r = rms_against(std::slice::from_ref(&s));
     assert!(r > 0.0, "{spec} has no effect on this program");
     scale_effect(&mut s.effect, target / r);
     let effect_rms = rms_against(std::slice::from_ref(&s));
     let nominal = evaluate_trajectory(chain, None, &[], &traj).unwrap();
-    let g: f64 = nominal
-        .iter()
-        .zip(&model)
-        .map(|(x, y)| (x - y).norm_squared())
-        .sum();
     Calibrated {
         spec: s,
         effect_rms,
-        geometric_rms: (g / model.len() as f64).sqrt(),
+        geometric_rms: rms_between(&nominal, &model),
     }
 }
 
