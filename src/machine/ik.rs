@@ -735,7 +735,16 @@ impl IkSolver {
         let failed = |e: &str| IkError::Unreachable {
             reason: format!("linear solve failed: {e}"),
         };
-        // A least-squares solve by SVD on the stack (3 or 2 linear axes).
+        // Well-conditioned linear axes (every real machine): a least-squares
+        // solve by Gram–Schmidt QR on the stack.
+        if let Some(x) = gram_schmidt_solve(&dirs, &self.prismatics, &b) {
+            for (c, &j) in self.prismatics.iter().enumerate() {
+                q[j] = x[c];
+            }
+            return Ok(p0);
+        }
+        // Otherwise (nearly dependent axes, more than three): by SVD, which
+        // also decides whether the axes are dependent.
         macro_rules! solve {
             ($a:expr) => {{
                 let svd = $a.svd(true, true);
@@ -877,6 +886,52 @@ impl IkSolver {
         }
         out
     }
+}
+
+/// Least-squares solution of `Σ_c x_c · dirs[cols[c]] = b` for two or three
+/// columns by modified Gram–Schmidt QR, when the columns are certainly far
+/// from dependent: `None` for any other column count, and whenever the
+/// smallest singular value might be below `1e-6` of the largest (then the
+/// caller's SVD decides). With `R` the triangular factor, `σ_max ≤ ‖R‖_F` and
+/// `σ_min ≥ |det R| / ‖R‖_F^(m−1)`, so `|det R| ≥ 1e-6 · ‖R‖_F^m` proves
+/// `σ_min / σ_max ≥ 1e-6`.
+fn gram_schmidt_solve(
+    dirs: &[[f64; 3]; super::chain::MAX_JOINTS],
+    cols: &[usize],
+    b: &Vector3<f64>,
+) -> Option<[f64; 3]> {
+    let m = cols.len();
+    if !(2..=3).contains(&m) {
+        return None;
+    }
+    let mut q = [Vector3::zeros(); 3];
+    let mut r = [[0.0f64; 3]; 3];
+    for c in 0..m {
+        let mut v = Vector3::from(dirs[cols[c]]);
+        for (i, qi) in q.iter().enumerate().take(c) {
+            r[i][c] = qi.dot(&v);
+            v -= r[i][c] * qi;
+        }
+        r[c][c] = v.norm();
+        if !(r[c][c] > 0.0) {
+            return None;
+        }
+        q[c] = v / r[c][c];
+    }
+    let frob2: f64 = r.iter().flatten().map(|v| v * v).sum();
+    let det: f64 = (0..m).map(|i| r[i][i]).product();
+    if !(det.abs() >= 1e-6 * frob2.powf(m as f64 / 2.0)) {
+        return None;
+    }
+    let mut x = [0.0; 3];
+    for i in (0..m).rev() {
+        let mut v = q[i].dot(b);
+        for k in i + 1..m {
+            v -= r[i][k] * x[k];
+        }
+        x[i] = v / r[i][i];
+    }
+    Some(x)
 }
 
 #[cfg(test)]
