@@ -768,17 +768,39 @@ struct Job {
     refined: Option<Refined>,
 }
 
+/// A chunk of the program between the driver's stages.
+struct Chunk {
+    /// The parsed lines.
+    lines: Vec<crate::gcode::Line>,
+    /// Text of the non-pose lines (ranges in `entries`).
+    text: Vec<u8>,
+    /// Every line of the chunk up to `stop`, in order.
+    entries: Vec<Entry>,
+    /// The pose blocks, in order.
+    jobs: Vec<Job>,
+    /// The first pass stopped at an error (raised once the lines before it
+    /// are written).
+    stop: Option<crate::error::Error>,
+}
+
 /// Compensates a G-code pose program, writing the machine program to `out`,
 /// on every core: the result is the same for any number of threads.
 ///
-/// The program goes through in chunks of lines. Per chunk: the lines are
-/// parsed in parallel; one sequential pass applies the modal state and
-/// solves the analytic IK of each pose, continuing from the previous pose's
-/// theoretical solution (branch choice and rotary unwinding need the order);
-/// the Newton refinements, independent per block, run in parallel; a last
-/// sequential pass applies the failure policy, backlash pre-compensation and
-/// records in block order and writes the blocks. `records` receives the
-/// per-block records after each chunk (memory stays flat).
+/// The program goes through in chunks of lines, each in four stages:
+///
+/// 1. its lines are read and parsed (in parallel);
+/// 2. one sequential pass applies the modal state and solves the analytic IK
+///    of each pose, continuing from the previous pose's theoretical solution
+///    (branch choice and rotary unwinding need the order);
+/// 3. the Newton refinements, independent per block, run in parallel;
+/// 4. a last sequential pass applies the failure policy, backlash
+///    pre-compensation and records in block order and writes the blocks.
+///
+/// The stages are pipelined: while the refinements of chunk *k* run on the
+/// thread pool, this thread writes chunk *k − 1* (stage 4) and prepares
+/// chunk *k + 1* (stages 1–2), so the in-order work overlaps the parallel
+/// work. `records` receives the per-block records after each chunk (memory
+/// stays flat: at most three chunks are alive).
 ///
 /// Unlike [`crate::post::post_gcode`] with the solver's
 /// [`crate::post::PoseSolver`] interface, which continues each IK from the
@@ -799,17 +821,24 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
     use rayon::prelude::*;
     let mut unused = Unused;
     let mut conv = GcodeConverter::new(machine, &mut unused, opts);
+    // What the refinements need, apart from the solver's in-order state.
+    let chain = solver.actual_chain.clone();
+    let errors = solver.errors;
+    let options = solver.options.clone();
     let mut raw: Vec<Vec<u8>> = Vec::with_capacity(CHUNK_LINES);
     let mut number = 0usize;
     let mut bytes_read = 0u64;
     let mut previous_th: Option<Vec<f64>> = None;
-    let mut text = Vec::new();
     let mut buf = Vec::new();
-    let mut entries = Vec::with_capacity(CHUNK_LINES);
-    let mut jobs: Vec<Job> = Vec::with_capacity(CHUNK_LINES);
     let mut eof = false;
-    while !eof {
-        // Read a chunk of physical lines (buffers reused).
+
+    // Stages 1 and 2 of the next chunk (`None` at the end of the input).
+    let mut prepare = |conv: &mut GcodeConverter<'_>,
+                       solver: &CompensatingSolver<'_>|
+     -> crate::error::Result<Option<Chunk>> {
+        if eof {
+            return Ok(None);
+        }
         let mut filled = 0;
         while filled < CHUNK_LINES {
             if raw.len() == filled {
@@ -826,6 +855,9 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
                 Err(e) => return Err(Error::io(&opts.file_name, e)),
             }
         }
+        if filled == 0 {
+            return Ok(None);
+        }
         let first = number + 1;
         number += filled;
         let lines: Vec<crate::gcode::Line> = raw[..filled]
@@ -833,27 +865,29 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
             .enumerate()
             .map(|(i, b)| crate::gcode::parse_line(b, first + i))
             .collect();
-        // Pass 1, in order: modal state, poses, analytic IK.
-        text.clear();
-        entries.clear();
-        jobs.clear();
-        let mut stop = None;
-        for (i, line) in lines.iter().enumerate() {
+        let mut chunk = Chunk {
+            text: Vec::new(),
+            entries: Vec::with_capacity(lines.len()),
+            jobs: Vec::new(),
+            stop: None,
+            lines,
+        };
+        for (i, line) in chunk.lines.iter().enumerate() {
             bytes_read += line.bytes.len() as u64;
             progress(bytes_read);
-            let start = text.len();
-            match conv.begin(line, &mut text) {
+            let start = chunk.text.len();
+            match conv.begin(line, &mut chunk.text) {
                 Err(e) => {
-                    stop = Some(e);
+                    chunk.stop = Some(e);
                     break;
                 }
-                Ok(None) => entries.push(Entry::Text(start, text.len())),
+                Ok(None) => chunk.entries.push(Entry::Text(start, chunk.text.len())),
                 Ok(Some(pending)) => {
                     match solver.theoretical(&pending.pose, previous_th.as_deref()) {
                         Ok(th) => {
                             previous_th = Some(th.clone());
-                            entries.push(Entry::Pose);
-                            jobs.push(Job {
+                            chunk.entries.push(Entry::Pose);
+                            chunk.jobs.push(Job {
                                 line: i,
                                 pending,
                                 th,
@@ -861,29 +895,31 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
                             });
                         }
                         Err(m) => {
-                            stop = Some(conv.solve_error(line, &pending, m));
+                            chunk.stop = Some(conv.solve_error(line, &pending, m));
                             break;
                         }
                     }
                 }
             }
         }
-        // Pass 2, in parallel: the refinements.
-        {
-            let s = &*solver;
-            jobs.par_iter_mut()
-                .for_each(|j| j.refined = Some(s.refine_block(&j.pending.pose, &j.th)));
-        }
-        // Pass 3, in order: policy, backlash, records, output.
+        Ok(Some(chunk))
+    };
+
+    // Stage 4 of a refined chunk; its first-pass error, if any, after its
+    // lines are written.
+    let mut write = |conv: &mut GcodeConverter<'_>,
+                     solver: &mut CompensatingSolver<'_>,
+                     chunk: Chunk|
+     -> crate::error::Result<()> {
         buf.clear();
-        let mut done = jobs.drain(..);
-        for entry in &entries {
+        let mut done = chunk.jobs.into_iter();
+        for entry in &chunk.entries {
             match *entry {
-                Entry::Text(a, b) => buf.extend_from_slice(&text[a..b]),
+                Entry::Text(a, b) => buf.extend_from_slice(&chunk.text[a..b]),
                 Entry::Pose => {
                     let job = done.next().expect("one job per pose entry");
-                    let line = &lines[job.line];
-                    let refined = job.refined.expect("refined in pass 2");
+                    let line = &chunk.lines[job.line];
+                    let refined = job.refined.expect("refined in stage 3");
                     let solved = solver
                         .commit(&job.pending.pose, job.th, refined, line.number)
                         .map_err(|m| conv.solve_error(line, &job.pending, m))?;
@@ -891,12 +927,39 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
                 }
             }
         }
-        drop(done);
         out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
         records(&mut solver.records)?;
-        if let Some(e) = stop {
-            return Err(e);
+        match chunk.stop {
+            Some(e) => Err(e),
+            None => Ok(()),
         }
+    };
+
+    let mut current = prepare(&mut conv, solver)?;
+    let mut previous: Option<Chunk> = None;
+    while current.is_some() || previous.is_some() {
+        // No chunk after one whose first pass stopped.
+        let stopped = current.as_ref().is_some_and(|c| c.stop.is_some());
+        let next = rayon::in_place_scope(|scope| {
+            if let Some(c) = current.as_mut() {
+                let (chain, options) = (&chain, &options);
+                let jobs = &mut c.jobs;
+                scope.spawn(move |_| {
+                    jobs.par_iter_mut().for_each(|j| {
+                        j.refined = Some(refine(chain, errors, &j.pending.pose, &j.th, options))
+                    })
+                });
+            }
+            if let Some(p) = previous.take() {
+                write(&mut conv, solver, p)?;
+            }
+            if stopped {
+                return Ok(None);
+            }
+            prepare(&mut conv, solver)
+        })?;
+        previous = current.take();
+        current = next;
     }
     Ok(conv.stats)
 }
