@@ -165,6 +165,10 @@ fn damp_into_caps(jp: &[Col], rp: &Vector3<f64>, caps: &Joints, n: usize, dq1: &
 /// the same step as the SVD form with `N = I − J_p⁺ J_p` and every vector
 /// exactly in the null space up to rounding. Paper: least squares on the
 /// stacked 6×n Jacobian by QR.
+/// A step no larger than this (relative to `1 + |q|`, mm or rad) is taken to
+/// be the last: see [`refine`].
+const FINAL_STEP: f64 = 1e-6;
+
 fn step_qr(
     jac: &JacobianColumns,
     n: usize,
@@ -418,6 +422,8 @@ pub fn refine(
             }
         }
     };
+    // The pose alone, where the Jacobian is not needed.
+    let eval_pose = |q: &[f64]| -> Pose { chain.pose(q, errors) };
     let mut q = [0.0; MAX_JOINTS];
     q[..n].copy_from_slice(q0);
     let mut iterations = 0;
@@ -460,7 +466,17 @@ pub fn refine(
             }
             let within = (0..n).all(|k| (trial[k] - q0[k]).abs() <= total_cap[k]);
             if within {
-                let p2 = eval(&trial[..n], &mut jac2);
+                // After a step this small the next one is at floating-point
+                // level (Newton: the residual goes with the step squared), so
+                // the trial is most likely the result: its Jacobian is only
+                // computed if another step turns out to be needed.
+                let final_guess =
+                    (0..n).all(|k| (trial[k] - q[k]).abs() <= FINAL_STEP * (1.0 + q[k].abs()));
+                let p2 = if final_guess {
+                    eval_pose(&trial[..n])
+                } else {
+                    eval(&trial[..n], &mut jac2)
+                };
                 let tip2 = p2.tip_distance(target);
                 let ax2 = p2.axis_angle(target);
                 // The paper's step is taken as printed (no safeguard but the bounds).
@@ -468,13 +484,13 @@ pub fn refine(
                     || tip2 <= tip.max(opts.tip_tolerance_mm) * (1.0 + 1e-9) + 1e-15;
                 let ax_ok = opts.method == Method::Paper || ax2 <= ax + 1e-15 || tip2 < 0.5 * tip;
                 if tip_ok && ax_ok {
-                    accepted = Some((p2, tip2, ax2));
+                    accepted = Some((p2, tip2, ax2, !final_guess));
                     break;
                 }
             }
             s2 *= 0.5;
         }
-        let Some((p2, tip2, ax2)) = accepted else {
+        let Some((p2, tip2, ax2, with_jacobian)) = accepted else {
             // No step improves within the bounds: this is the best there is.
             converged = tip <= opts.tip_tolerance_mm;
             break;
@@ -482,12 +498,16 @@ pub fn refine(
         iterations += 1;
         q[..n].copy_from_slice(&trial[..n]);
         pose = p2;
-        std::mem::swap(&mut jac, &mut jac2);
+        if with_jacobian {
+            std::mem::swap(&mut jac, &mut jac2);
+        }
         // Converged when the tip is met and neither the tip nor the axis
-        // improves any more at floating-point level.
+        // improves any more at floating-point level: the tip is at that
+        // level, or it stopped improving.
         // Floating-point floor of the tip: a few ulps of the coordinates.
         let floor = 1e-14 * (1.0 + target.tip.amax());
-        let tip_settled = tip2 <= opts.tip_tolerance_mm && tip - tip2 <= floor + 1e-9 * tip;
+        let tip_settled =
+            tip2 <= opts.tip_tolerance_mm && (tip2 <= floor || tip - tip2 <= floor + 1e-9 * tip);
         let ax_settled = ax - ax2 <= 1e-15 + 1e-9 * ax;
         if opts.method == Method::Paper {
             if (tip - tip2).abs() <= floor + 1e-9 * tip && (ax - ax2).abs() <= 1e-15 + 1e-9 * ax {
@@ -497,6 +517,9 @@ pub fn refine(
         } else if tip_settled && ax_settled {
             converged = true;
             break;
+        }
+        if !with_jacobian {
+            pose = eval(&q[..n], &mut jac);
         }
     }
     Refined {

@@ -67,8 +67,12 @@ fn write_fixed_fast(out: &mut String, value: f64, decimals: usize) -> bool {
             }
         }
     };
-    let int = (n / scale) as u64;
-    let frac = (n % scale) as u64;
+    // 64-bit division where the rounded value fits (it nearly always does:
+    // 128-bit division is a slow library call).
+    let (int, frac) = match u64::try_from(n) {
+        Ok(n) => (n / POW10[decimals], n % POW10[decimals]),
+        Err(_) => ((n / scale) as u64, (n % scale) as u64),
+    };
     if negative {
         out.push('-');
     }
