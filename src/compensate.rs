@@ -847,7 +847,7 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
     // What the refinements need, apart from the solver's in-order state.
     let chain = solver.actual_chain.clone();
     let errors = solver.errors;
-    let options = solver.options.clone();
+    let options = solver.options;
     let mut raw: Vec<Vec<u8>> = Vec::with_capacity(CHUNK_LINES);
     let mut number = 0usize;
     let mut bytes_read = 0u64;
@@ -855,39 +855,35 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
     let mut buf = Vec::new();
     let mut eof = false;
 
-    // Stages 1 and 2 of the next chunk (`None` at the end of the input).
-    let mut prepare = |conv: &mut GcodeConverter<'_>,
-                       solver: &CompensatingSolver<'_>|
-     -> crate::error::Result<Option<Chunk>> {
-        if eof {
-            return Ok(None);
-        }
+    // Reads the next chunk's lines into `raw`; how many (0 at the end).
+    let mut read = |raw: &mut Vec<Vec<u8>>| -> crate::error::Result<usize> {
         let mut filled = 0;
-        while filled < CHUNK_LINES {
+        while filled < CHUNK_LINES && !eof {
             if raw.len() == filled {
                 raw.push(Vec::with_capacity(128));
             }
             let b = &mut raw[filled];
             b.clear();
             match input.read_until(b'\n', b) {
-                Ok(0) => {
-                    eof = true;
-                    break;
-                }
+                Ok(0) => eof = true,
                 Ok(_) => filled += 1,
                 Err(e) => return Err(Error::io(&opts.file_name, e)),
             }
         }
-        if filled == 0 {
-            return Ok(None);
-        }
-        let first = number + 1;
-        number += filled;
-        let lines: Vec<crate::gcode::Line> = raw[..filled]
-            .par_iter()
+        Ok(filled)
+    };
+    // Parses `count` lines of `raw`, the first numbered `first` (stage 1).
+    let parse = |raw: &[Vec<u8>], first: usize| -> Vec<crate::gcode::Line> {
+        raw.iter()
             .enumerate()
             .map(|(i, b)| crate::gcode::parse_line(b, first + i))
-            .collect();
+            .collect()
+    };
+    // Stage 2 of a parsed chunk.
+    let mut first_pass = |conv: &mut GcodeConverter<'_>,
+                          solver: &CompensatingSolver<'_>,
+                          lines: Vec<crate::gcode::Line>|
+     -> Chunk {
         let mut chunk = Chunk {
             text: Vec::new(),
             entries: Vec::with_capacity(lines.len()),
@@ -925,7 +921,7 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
                 }
             }
         }
-        Ok(Some(chunk))
+        chunk
     };
 
     // Stage 4 of a refined chunk; its first-pass error, if any, after its
@@ -958,11 +954,20 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
         }
     };
 
-    let mut current = prepare(&mut conv, solver)?;
+    // The pipeline: while the pool refines chunk k and parses chunk k + 2,
+    // this thread writes chunk k − 1 and runs the first pass of chunk k + 1.
+    let mut raw_next: Vec<Vec<u8>> = Vec::with_capacity(CHUNK_LINES);
+    let mut count = read(&mut raw)?;
+    let mut parsed = (count > 0).then(|| parse(&raw[..count], 1));
+    number += count;
+    count = read(&mut raw)?;
+    let mut current: Option<Chunk> = None;
     let mut previous: Option<Chunk> = None;
-    while current.is_some() || previous.is_some() {
-        // No chunk after one whose first pass stopped.
-        let stopped = current.as_ref().is_some_and(|c| c.stop.is_some());
+    let mut stopped = false;
+    while parsed.is_some() || current.is_some() || previous.is_some() {
+        let first = number + 1;
+        number += count;
+        let mut parsed_next = None;
         let next = rayon::in_place_scope(|scope| {
             if let Some(c) = current.as_mut() {
                 let (chain, options) = (&chain, &options);
@@ -973,16 +978,30 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
                     })
                 });
             }
+            if count > 0 && !stopped {
+                let (lines, slot) = (&raw[..count], &mut parsed_next);
+                scope.spawn(move |_| *slot = Some(parse(lines, first)));
+            }
             if let Some(p) = previous.take() {
                 write(&mut conv, solver, p)?;
             }
-            if stopped {
-                return Ok(None);
-            }
-            prepare(&mut conv, solver)
-        })?;
+            let next = match parsed.take() {
+                Some(lines) if !stopped => Some(first_pass(&mut conv, solver, lines)),
+                _ => None,
+            };
+            // Read the chunk after while the pool works (the raw buffers
+            // of the chunk being parsed are not touched).
+            let n = if stopped { 0 } else { read(&mut raw_next)? };
+            Ok::<_, crate::error::Error>((next, n))
+        });
+        let (next, n) = next?;
+        // No chunk after one whose first pass stopped.
+        stopped |= next.as_ref().is_some_and(|c| c.stop.is_some());
         previous = current.take();
         current = next;
+        parsed = if stopped { None } else { parsed_next };
+        std::mem::swap(&mut raw, &mut raw_next);
+        count = n;
     }
     Ok(conv.stats)
 }

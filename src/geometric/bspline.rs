@@ -292,6 +292,9 @@ impl BSpline {
     /// the knot span that holds `x`.
     #[inline]
     fn inside(&self, x: f64) -> (f64, f64) {
+        if self.pieces.len() == 1 {
+            return self.pieces[0].eval(x);
+        }
         let span = find_span(&self.knots, self.degree, self.coef.len(), x);
         self.pieces[span - self.degree].eval(x)
     }

@@ -913,14 +913,15 @@ fn gram_schmidt_solve(
             v -= r[i][c] * qi;
         }
         r[c][c] = v.norm();
-        if !(r[c][c] > 0.0) {
+        if r[c][c].is_nan() || r[c][c] <= 0.0 {
             return None;
         }
         q[c] = v / r[c][c];
     }
     let frob2: f64 = r.iter().flatten().map(|v| v * v).sum();
     let det: f64 = (0..m).map(|i| r[i][i]).product();
-    if !(det.abs() >= 1e-6 * frob2.powf(m as f64 / 2.0)) {
+    let bound = 1e-6 * frob2.powf(m as f64 / 2.0);
+    if !bound.is_finite() || det.is_nan() || det.abs() < bound {
         return None;
     }
     let mut x = [0.0; 3];
