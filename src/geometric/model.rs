@@ -122,7 +122,7 @@ impl AxisErrors {
 }
 
 /// The angle equivalent to `deg` (mod 360) that lies in, or nearest to, `[lo, hi]`.
-fn wrap_angle(deg: f64, (lo, hi): (f64, f64)) -> f64 {
+pub(crate) fn wrap_angle(deg: f64, (lo, hi): (f64, f64)) -> f64 {
     if !deg.is_finite() || (lo..=hi).contains(&deg) {
         return deg;
     }
@@ -661,7 +661,15 @@ impl ErrorModel {
                 terms.push(t);
             }
         }
-        Ok(BoundErrors { per_joint, terms })
+        let merged = per_joint
+            .iter()
+            .map(|a| a.and_then(super::merged::MergedAxis::new))
+            .collect();
+        Ok(BoundErrors {
+            per_joint,
+            merged,
+            terms,
+        })
     }
 
     /// Returns `chain` with every fixed error element inserted (in order).
@@ -703,6 +711,9 @@ fn locate(text: &str, file: &str, needle: &str) -> Location {
 #[derive(Debug, Clone)]
 pub struct BoundErrors<'a> {
     per_joint: Vec<Option<&'a AxisErrors>>,
+    /// Per joint, its axis's errors merged into one piecewise cubic (when
+    /// they can be).
+    merged: Vec<Option<super::merged::MergedAxis>>,
     /// Static diagnosed effects in error-motion form.
     terms: Vec<StaticTerm>,
 }
@@ -718,12 +729,17 @@ impl BoundErrors<'_> {
     /// Error motions of `joint` at `q` and their derivatives (per mm or rad).
     fn evaluate(&self, joint: usize, q: f64) -> Option<(ErrorMotion, ErrorMotion)> {
         let base = self.per_joint.get(joint).copied().flatten().map(|a| {
+            let merged = self.merged[joint].as_ref();
+            let at = |pos: f64| match merged {
+                Some(m) => m.error_at(pos),
+                None => a.error_at(pos),
+            };
             if a.rotary {
                 // The chain works in rad, the splines in degrees.
-                let (e, d) = a.error_at(q.to_degrees());
+                let (e, d) = at(q.to_degrees());
                 (e, d * (180.0 / std::f64::consts::PI))
             } else {
-                a.error_at(q)
+                at(q)
             }
         });
         if self.terms.is_empty() {
