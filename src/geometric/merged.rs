@@ -40,7 +40,7 @@ impl MergedAxis {
         let first = &axis.columns.first()?.spline;
         let (lo, hi) = first.range();
         let extrapolation = first.extrapolation();
-        if !(lo < hi) {
+        if lo.is_nan() || hi.is_nan() || lo >= hi {
             return None;
         }
         let mut starts = vec![lo];
