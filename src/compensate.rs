@@ -165,6 +165,10 @@ fn damp_into_caps(jp: &[Col], rp: &Vector3<f64>, caps: &Joints, n: usize, dq1: &
 /// the same step as the SVD form with `N = I − J_p⁺ J_p` and every vector
 /// exactly in the null space up to rounding. Paper: least squares on the
 /// stacked 6×n Jacobian by QR.
+/// A step no larger than this (relative to `1 + |q|`, mm or rad) is taken to
+/// be the last: see [`refine`].
+const FINAL_STEP: f64 = 1e-6;
+
 fn step_qr(
     jac: &JacobianColumns,
     n: usize,
@@ -418,6 +422,8 @@ pub fn refine(
             }
         }
     };
+    // The pose alone, where the Jacobian is not needed.
+    let eval_pose = |q: &[f64]| -> Pose { chain.pose(q, errors) };
     let mut q = [0.0; MAX_JOINTS];
     q[..n].copy_from_slice(q0);
     let mut iterations = 0;
@@ -460,7 +466,17 @@ pub fn refine(
             }
             let within = (0..n).all(|k| (trial[k] - q0[k]).abs() <= total_cap[k]);
             if within {
-                let p2 = eval(&trial[..n], &mut jac2);
+                // After a step this small the next one is at floating-point
+                // level (Newton: the residual goes with the step squared), so
+                // the trial is most likely the result: its Jacobian is only
+                // computed if another step turns out to be needed.
+                let final_guess =
+                    (0..n).all(|k| (trial[k] - q[k]).abs() <= FINAL_STEP * (1.0 + q[k].abs()));
+                let p2 = if final_guess {
+                    eval_pose(&trial[..n])
+                } else {
+                    eval(&trial[..n], &mut jac2)
+                };
                 let tip2 = p2.tip_distance(target);
                 let ax2 = p2.axis_angle(target);
                 // The paper's step is taken as printed (no safeguard but the bounds).
@@ -468,13 +484,13 @@ pub fn refine(
                     || tip2 <= tip.max(opts.tip_tolerance_mm) * (1.0 + 1e-9) + 1e-15;
                 let ax_ok = opts.method == Method::Paper || ax2 <= ax + 1e-15 || tip2 < 0.5 * tip;
                 if tip_ok && ax_ok {
-                    accepted = Some((p2, tip2, ax2));
+                    accepted = Some((p2, tip2, ax2, !final_guess));
                     break;
                 }
             }
             s2 *= 0.5;
         }
-        let Some((p2, tip2, ax2)) = accepted else {
+        let Some((p2, tip2, ax2, with_jacobian)) = accepted else {
             // No step improves within the bounds: this is the best there is.
             converged = tip <= opts.tip_tolerance_mm;
             break;
@@ -482,12 +498,16 @@ pub fn refine(
         iterations += 1;
         q[..n].copy_from_slice(&trial[..n]);
         pose = p2;
-        std::mem::swap(&mut jac, &mut jac2);
+        if with_jacobian {
+            std::mem::swap(&mut jac, &mut jac2);
+        }
         // Converged when the tip is met and neither the tip nor the axis
-        // improves any more at floating-point level.
+        // improves any more at floating-point level: the tip is at that
+        // level, or it stopped improving.
         // Floating-point floor of the tip: a few ulps of the coordinates.
         let floor = 1e-14 * (1.0 + target.tip.amax());
-        let tip_settled = tip2 <= opts.tip_tolerance_mm && tip - tip2 <= floor + 1e-9 * tip;
+        let tip_settled =
+            tip2 <= opts.tip_tolerance_mm && (tip2 <= floor || tip - tip2 <= floor + 1e-9 * tip);
         let ax_settled = ax - ax2 <= 1e-15 + 1e-9 * ax;
         if opts.method == Method::Paper {
             if (tip - tip2).abs() <= floor + 1e-9 * tip && (ax - ax2).abs() <= 1e-15 + 1e-9 * ax {
@@ -497,6 +517,9 @@ pub fn refine(
         } else if tip_settled && ax_settled {
             converged = true;
             break;
+        }
+        if !with_jacobian {
+            pose = eval(&q[..n], &mut jac);
         }
     }
     Refined {
@@ -768,17 +791,39 @@ struct Job {
     refined: Option<Refined>,
 }
 
+/// A chunk of the program between the driver's stages.
+struct Chunk {
+    /// The parsed lines.
+    lines: Vec<crate::gcode::Line>,
+    /// Text of the non-pose lines (ranges in `entries`).
+    text: Vec<u8>,
+    /// Every line of the chunk up to `stop`, in order.
+    entries: Vec<Entry>,
+    /// The pose blocks, in order.
+    jobs: Vec<Job>,
+    /// The first pass stopped at an error (raised once the lines before it
+    /// are written).
+    stop: Option<crate::error::Error>,
+}
+
 /// Compensates a G-code pose program, writing the machine program to `out`,
 /// on every core: the result is the same for any number of threads.
 ///
-/// The program goes through in chunks of lines. Per chunk: the lines are
-/// parsed in parallel; one sequential pass applies the modal state and
-/// solves the analytic IK of each pose, continuing from the previous pose's
-/// theoretical solution (branch choice and rotary unwinding need the order);
-/// the Newton refinements, independent per block, run in parallel; a last
-/// sequential pass applies the failure policy, backlash pre-compensation and
-/// records in block order and writes the blocks. `records` receives the
-/// per-block records after each chunk (memory stays flat).
+/// The program goes through in chunks of lines, each in four stages:
+///
+/// 1. its lines are read and parsed (in parallel);
+/// 2. one sequential pass applies the modal state and solves the analytic IK
+///    of each pose, continuing from the previous pose's theoretical solution
+///    (branch choice and rotary unwinding need the order);
+/// 3. the Newton refinements, independent per block, run in parallel;
+/// 4. a last sequential pass applies the failure policy, backlash
+///    pre-compensation and records in block order and writes the blocks.
+///
+/// The stages are pipelined: while the refinements of chunk *k* run on the
+/// thread pool, this thread writes chunk *k − 1* (stage 4) and prepares
+/// chunk *k + 1* (stages 1–2), so the in-order work overlaps the parallel
+/// work. `records` receives the per-block records after each chunk (memory
+/// stays flat: at most three chunks are alive).
 ///
 /// Unlike [`crate::post::post_gcode`] with the solver's
 /// [`crate::post::PoseSolver`] interface, which continues each IK from the
@@ -799,61 +844,69 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
     use rayon::prelude::*;
     let mut unused = Unused;
     let mut conv = GcodeConverter::new(machine, &mut unused, opts);
+    // What the refinements need, apart from the solver's in-order state.
+    let chain = solver.actual_chain.clone();
+    let errors = solver.errors;
+    let options = solver.options;
     let mut raw: Vec<Vec<u8>> = Vec::with_capacity(CHUNK_LINES);
     let mut number = 0usize;
     let mut bytes_read = 0u64;
     let mut previous_th: Option<Vec<f64>> = None;
-    let mut text = Vec::new();
     let mut buf = Vec::new();
-    let mut entries = Vec::with_capacity(CHUNK_LINES);
-    let mut jobs: Vec<Job> = Vec::with_capacity(CHUNK_LINES);
     let mut eof = false;
-    while !eof {
-        // Read a chunk of physical lines (buffers reused).
+
+    // Reads the next chunk's lines into `raw`; how many (0 at the end).
+    let mut read = |raw: &mut Vec<Vec<u8>>| -> crate::error::Result<usize> {
         let mut filled = 0;
-        while filled < CHUNK_LINES {
+        while filled < CHUNK_LINES && !eof {
             if raw.len() == filled {
                 raw.push(Vec::with_capacity(128));
             }
             let b = &mut raw[filled];
             b.clear();
             match input.read_until(b'\n', b) {
-                Ok(0) => {
-                    eof = true;
-                    break;
-                }
+                Ok(0) => eof = true,
                 Ok(_) => filled += 1,
                 Err(e) => return Err(Error::io(&opts.file_name, e)),
             }
         }
-        let first = number + 1;
-        number += filled;
-        let lines: Vec<crate::gcode::Line> = raw[..filled]
-            .par_iter()
+        Ok(filled)
+    };
+    // Parses `count` lines of `raw`, the first numbered `first` (stage 1).
+    let parse = |raw: &[Vec<u8>], first: usize| -> Vec<crate::gcode::Line> {
+        raw.iter()
             .enumerate()
             .map(|(i, b)| crate::gcode::parse_line(b, first + i))
-            .collect();
-        // Pass 1, in order: modal state, poses, analytic IK.
-        text.clear();
-        entries.clear();
-        jobs.clear();
-        let mut stop = None;
-        for (i, line) in lines.iter().enumerate() {
+            .collect()
+    };
+    // Stage 2 of a parsed chunk.
+    let mut first_pass = |conv: &mut GcodeConverter<'_>,
+                          solver: &CompensatingSolver<'_>,
+                          lines: Vec<crate::gcode::Line>|
+     -> Chunk {
+        let mut chunk = Chunk {
+            text: Vec::new(),
+            entries: Vec::with_capacity(lines.len()),
+            jobs: Vec::new(),
+            stop: None,
+            lines,
+        };
+        for (i, line) in chunk.lines.iter().enumerate() {
             bytes_read += line.bytes.len() as u64;
             progress(bytes_read);
-            let start = text.len();
-            match conv.begin(line, &mut text) {
+            let start = chunk.text.len();
+            match conv.begin(line, &mut chunk.text) {
                 Err(e) => {
-                    stop = Some(e);
+                    chunk.stop = Some(e);
                     break;
                 }
-                Ok(None) => entries.push(Entry::Text(start, text.len())),
+                Ok(None) => chunk.entries.push(Entry::Text(start, chunk.text.len())),
                 Ok(Some(pending)) => {
                     match solver.theoretical(&pending.pose, previous_th.as_deref()) {
                         Ok(th) => {
                             previous_th = Some(th.clone());
-                            entries.push(Entry::Pose);
-                            jobs.push(Job {
+                            chunk.entries.push(Entry::Pose);
+                            chunk.jobs.push(Job {
                                 line: i,
                                 pending,
                                 th,
@@ -861,29 +914,31 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
                             });
                         }
                         Err(m) => {
-                            stop = Some(conv.solve_error(line, &pending, m));
+                            chunk.stop = Some(conv.solve_error(line, &pending, m));
                             break;
                         }
                     }
                 }
             }
         }
-        // Pass 2, in parallel: the refinements.
-        {
-            let s = &*solver;
-            jobs.par_iter_mut()
-                .for_each(|j| j.refined = Some(s.refine_block(&j.pending.pose, &j.th)));
-        }
-        // Pass 3, in order: policy, backlash, records, output.
+        chunk
+    };
+
+    // Stage 4 of a refined chunk; its first-pass error, if any, after its
+    // lines are written.
+    let mut write = |conv: &mut GcodeConverter<'_>,
+                     solver: &mut CompensatingSolver<'_>,
+                     chunk: Chunk|
+     -> crate::error::Result<()> {
         buf.clear();
-        let mut done = jobs.drain(..);
-        for entry in &entries {
+        let mut done = chunk.jobs.into_iter();
+        for entry in &chunk.entries {
             match *entry {
-                Entry::Text(a, b) => buf.extend_from_slice(&text[a..b]),
+                Entry::Text(a, b) => buf.extend_from_slice(&chunk.text[a..b]),
                 Entry::Pose => {
                     let job = done.next().expect("one job per pose entry");
-                    let line = &lines[job.line];
-                    let refined = job.refined.expect("refined in pass 2");
+                    let line = &chunk.lines[job.line];
+                    let refined = job.refined.expect("refined in stage 3");
                     let solved = solver
                         .commit(&job.pending.pose, job.th, refined, line.number)
                         .map_err(|m| conv.solve_error(line, &job.pending, m))?;
@@ -891,12 +946,62 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
                 }
             }
         }
-        drop(done);
         out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
         records(&mut solver.records)?;
-        if let Some(e) = stop {
-            return Err(e);
+        match chunk.stop {
+            Some(e) => Err(e),
+            None => Ok(()),
         }
+    };
+
+    // The pipeline: while the pool refines chunk k and parses chunk k + 2,
+    // this thread writes chunk k − 1 and runs the first pass of chunk k + 1.
+    let mut raw_next: Vec<Vec<u8>> = Vec::with_capacity(CHUNK_LINES);
+    let mut count = read(&mut raw)?;
+    let mut parsed = (count > 0).then(|| parse(&raw[..count], 1));
+    number += count;
+    count = read(&mut raw)?;
+    let mut current: Option<Chunk> = None;
+    let mut previous: Option<Chunk> = None;
+    let mut stopped = false;
+    while parsed.is_some() || current.is_some() || previous.is_some() {
+        let first = number + 1;
+        number += count;
+        let mut parsed_next = None;
+        let next = rayon::in_place_scope(|scope| {
+            if let Some(c) = current.as_mut() {
+                let (chain, options) = (&chain, &options);
+                let jobs = &mut c.jobs;
+                scope.spawn(move |_| {
+                    jobs.par_iter_mut().for_each(|j| {
+                        j.refined = Some(refine(chain, errors, &j.pending.pose, &j.th, options))
+                    })
+                });
+            }
+            if count > 0 && !stopped {
+                let (lines, slot) = (&raw[..count], &mut parsed_next);
+                scope.spawn(move |_| *slot = Some(parse(lines, first)));
+            }
+            if let Some(p) = previous.take() {
+                write(&mut conv, solver, p)?;
+            }
+            let next = match parsed.take() {
+                Some(lines) if !stopped => Some(first_pass(&mut conv, solver, lines)),
+                _ => None,
+            };
+            // Read the chunk after while the pool works (the raw buffers
+            // of the chunk being parsed are not touched).
+            let n = if stopped { 0 } else { read(&mut raw_next)? };
+            Ok::<_, crate::error::Error>((next, n))
+        });
+        let (next, n) = next?;
+        // No chunk after one whose first pass stopped.
+        stopped |= next.as_ref().is_some_and(|c| c.stop.is_some());
+        previous = current.take();
+        current = next;
+        parsed = if stopped { None } else { parsed_next };
+        std::mem::swap(&mut raw, &mut raw_next);
+        count = n;
     }
     Ok(conv.stats)
 }

@@ -76,6 +76,35 @@ pub struct BSpline {
     hi: f64,
     end_lo: (f64, f64),
     end_hi: (f64, f64),
+    /// The same spline as one polynomial per knot span (spans `degree …
+    /// coef.len() − 1`), for evaluation.
+    pieces: Vec<Piece>,
+}
+
+/// One knot span of a spline as a cubic in the span's normalised position
+/// `u = (x − t_i) / (t_{i+1} − t_i) ∈ [0, 1]`: `a₀ + a₁u + a₂u² + a₃u³`.
+///
+/// Built from the spline's values and slopes at both ends of the span
+/// (cubic Hermite form), which determine a polynomial of degree ≤ 3 exactly;
+/// evaluating it by Horner's rule costs a few multiplications instead of the
+/// Cox–de Boor recursion, and agrees with it to rounding.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Piece {
+    start: f64,
+    inv_width: f64,
+    a: [f64; 4],
+}
+
+impl Piece {
+    /// Value and derivative at `x` (in the span or at its ends).
+    #[inline]
+    fn eval(&self, x: f64) -> (f64, f64) {
+        let u = (x - self.start) * self.inv_width;
+        let [a0, a1, a2, a3] = self.a;
+        let v = ((a3 * u + a2) * u + a1) * u + a0;
+        let d = ((3.0 * a3 * u + 2.0 * a2) * u + a1) * self.inv_width;
+        (v, d)
+    }
 }
 
 /// Maximum supported degree.
@@ -137,6 +166,28 @@ impl BSpline {
         if interior.windows(2).any(|w| w[1] <= w[0]) {
             return err("interior knots must be strictly increasing");
         }
+        let n = coef.len();
+        let pieces = (degree..n)
+            .map(|span| {
+                let (t0, t1) = (knots[span], knots[span + 1]);
+                let ends = |x: f64| {
+                    let (vals, ders) = basis_in_span(&knots, degree, span, x, true);
+                    combine(&coef, degree, span, &vals, &ders)
+                };
+                let ((v0, d0), (v1, d1)) = (ends(t0), ends(t1));
+                let h = t1 - t0;
+                Piece {
+                    start: t0,
+                    inv_width: 1.0 / h,
+                    a: [
+                        v0,
+                        d0 * h,
+                        3.0 * (v1 - v0) - (2.0 * d0 + d1) * h,
+                        2.0 * (v0 - v1) + (d0 + d1) * h,
+                    ],
+                }
+            })
+            .collect();
         let mut s = BSpline {
             degree,
             knots,
@@ -146,6 +197,7 @@ impl BSpline {
             hi,
             end_lo: (0.0, 0.0),
             end_hi: (0.0, 0.0),
+            pieces,
         };
         s.end_lo = s.inside(lo);
         s.end_hi = s.inside(hi);
@@ -163,6 +215,7 @@ impl BSpline {
             hi: at,
             end_lo: (v, 0.0),
             end_hi: (v, 0.0),
+            pieces: Vec::new(),
         }
     }
 
@@ -235,84 +288,39 @@ impl BSpline {
         }
     }
 
-    /// Value and derivative for `x` within `[lo, hi]` (de Boor).
+    /// Value and derivative for `x` within `[lo, hi]`: the polynomial of
+    /// the knot span that holds `x`.
+    #[inline]
     fn inside(&self, x: f64) -> (f64, f64) {
-        self.combine(&self.basis(x, true))
-    }
-
-    /// Whether `other` has the same basis functions (degree and knots), so
-    /// that one [`BSpline::basis`] serves both.
-    pub fn same_basis(&self, other: &BSpline) -> bool {
-        self.degree == other.degree && self.knots == other.knots
-    }
-
-    /// The non-zero basis functions at `x` (and, with `derivative`, their
-    /// derivatives), for [`BSpline::combine`] on this spline or on any spline
-    /// with the [same basis](BSpline::same_basis). Only meaningful for `x`
-    /// inside the range of a spline that is not a constant.
-    pub fn basis(&self, x: f64, derivative: bool) -> Basis {
-        let (span, vals, ders) = basis_at(&self.knots, self.degree, self.coef.len(), x, derivative);
-        Basis { span, vals, ders }
-    }
-
-    /// Value and derivative from basis functions of this spline's basis
-    /// (the derivative is 0 when the basis was computed without).
-    pub fn combine(&self, b: &Basis) -> (f64, f64) {
-        let k = self.degree;
-        let mut v = 0.0;
-        let mut d = 0.0;
-        for r in 0..=k {
-            let c = self.coef[b.span - k + r];
-            v += c * b.vals[r];
-            d += c * b.ders[r];
+        if self.pieces.len() == 1 {
+            return self.pieces[0].eval(x);
         }
-        (v, d)
-    }
-
-    /// Value and derivative at `x` using `b`, the basis at `x` of a spline
-    /// with the same basis: the same numbers as
-    /// [`BSpline::value_and_derivative`], with the basis computed once for
-    /// several splines. `b` is computed lazily (not at all outside the range).
-    pub fn value_and_derivative_with(
-        &self,
-        x: f64,
-        b: &mut Option<Basis>,
-        derivative: bool,
-    ) -> (f64, f64) {
-        if self.degree == 0 && self.coef.len() == 1 || !(self.lo..=self.hi).contains(&x) {
-            return self.value_and_derivative(x);
-        }
-        let b = b.get_or_insert_with(|| self.basis(x, derivative));
-        self.combine(b)
+        let span = find_span(&self.knots, self.degree, self.coef.len(), x);
+        self.pieces[span - self.degree].eval(x)
     }
 }
 
-/// The non-zero basis functions of a spline at one position (see
-/// [`BSpline::basis`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Basis {
-    span: usize,
-    vals: [f64; 4],
-    ders: [f64; 4],
+/// `Σ c_{span−k+r} · (vals[r], ders[r])`: value and derivative of the spline
+/// with coefficients `coef` from the basis functions of knot span `span`.
+fn combine(coef: &[f64], k: usize, span: usize, vals: &[f64; 4], ders: &[f64; 4]) -> (f64, f64) {
+    let mut v = 0.0;
+    let mut d = 0.0;
+    for r in 0..=k {
+        let c = coef[span - k + r];
+        v += c * vals[r];
+        d += c * ders[r];
+    }
+    (v, d)
 }
 
-/// The non-zero basis functions of degree `k` at `x` and their derivatives.
+/// The knot span of `x` for a spline of degree `k` with `n` coefficients:
+/// the largest `i` in `k..n` with `t_i ≤ x` (`x` clamped to `[t_k, t_n]`).
 ///
-/// Returns the knot span `i` (`t_i ≤ x < t_{i+1}`, `k ≤ i < n`) and the values
-/// of `N_{i−k,k} … N_{i,k}` and their first derivatives. `x` must lie within
-/// `[t_k, t_n]`; it is clamped to that range otherwise. Without
-/// `derivative` the derivatives are left at 0.
-///
-/// The span is the largest `i` in `k..n` with `t_i ≤ x`: guessed from the
-/// position of `x` in the range as if the knots were uniform (exact for the
-/// fitted splines), then corrected by stepping, so any knot vector works.
-fn basis_at(
-    knots: &[f64],
-    k: usize,
-    n: usize,
-    x: f64,
-    derivative: bool,
-) -> (usize, [f64; 4], [f64; 4]) {
+/// Guessed from the position of `x` in the range as if the knots were
+/// uniform (exact for the fitted splines), then corrected by stepping, so
+/// any knot vector works.
+#[inline]
+fn find_span(knots: &[f64], k: usize, n: usize, x: f64) -> usize {
     let x = x.clamp(knots[k], knots[n]);
     let (lo, hi) = (knots[k], knots[n]);
     let guess = if hi > lo {
@@ -327,13 +335,45 @@ fn basis_at(
     while span < n - 1 && knots[span + 1] <= x {
         span += 1;
     }
+    span
+}
+
+/// The non-zero basis functions of degree `k` at `x` and their derivatives.
+///
+/// Returns the knot span `i` (`t_i ≤ x < t_{i+1}`, `k ≤ i < n`, see
+/// [`find_span`]) and the values of `N_{i−k,k} … N_{i,k}` and their first
+/// derivatives. `x` must lie within `[t_k, t_n]`; it is clamped to that
+/// range otherwise. Without `derivative` the derivatives are left at 0.
+fn basis_at(
+    knots: &[f64],
+    k: usize,
+    n: usize,
+    x: f64,
+    derivative: bool,
+) -> (usize, [f64; 4], [f64; 4]) {
+    let x = x.clamp(knots[k], knots[n]);
+    let span = find_span(knots, k, n, x);
+    let (vals, ders) = basis_in_span(knots, k, span, x, derivative);
+    (span, vals, ders)
+}
+
+/// The basis functions of knot span `span` (and, with `derivative`, their
+/// first derivatives) evaluated at `x`, which may also be either end of the
+/// span: the polynomial pieces of that span, whatever span `x` falls in.
+fn basis_in_span(
+    knots: &[f64],
+    k: usize,
+    span: usize,
+    x: f64,
+    derivative: bool,
+) -> ([f64; 4], [f64; 4]) {
     let mut vals = [0.0; 4];
     let mut low = [0.0; 4]; // degree k − 1 values
     let mut left = [0.0; 4];
     let mut right = [0.0; 4];
     vals[0] = 1.0;
     if k == 0 {
-        return (span, vals, [0.0; 4]);
+        return (vals, [0.0; 4]);
     }
     for j in 1..=k {
         if j == k {
@@ -351,7 +391,7 @@ fn basis_at(
         vals[j] = saved;
     }
     if !derivative {
-        return (span, vals, [0.0; 4]);
+        return (vals, [0.0; 4]);
     }
     // N'_{i,k} = k (N_{i,k−1}/(t_{i+k} − t_i) − N_{i+1,k−1}/(t_{i+k+1} − t_{i+1})),
     // with i = span − k + r; low[s] holds N_{span−k+1+s, k−1}.
@@ -374,7 +414,7 @@ fn basis_at(
         }
         *d = kf * v;
     }
-    (span, vals, ders)
+    (vals, ders)
 }
 
 /// Clamped knot vector of degree `k` on `[a, b]` with `m` uniform interior knots.

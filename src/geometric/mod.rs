@@ -5,12 +5,14 @@
 //! * [`iso230_2`]: ISO 230-2 positioning figures from bidirectional runs.
 //! * [`model`]: the fitted [`ErrorModel`], its JSON form, and
 //!   [`BoundErrors`], the chain evaluator's error source.
+//! * [`merged`]: an axis's error splines as one piecewise cubic, for speed.
 //! * [`synth`]: deterministic synthetic tables for the fixture machines.
 //!
 //! See `docs/error-tables.md`.
 
 pub mod bspline;
 pub mod iso230_2;
+pub mod merged;
 pub mod model;
 pub mod synth;
 pub mod table;

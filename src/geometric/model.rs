@@ -115,52 +115,6 @@ impl AxisErrors {
         (e, d)
     }
 
-    /// Groups of columns that share a basis (degree and knots), by column
-    /// index: evaluated together, one knot-span search and one set of basis
-    /// functions serves every column of a group.
-    fn basis_groups(&self) -> Vec<Vec<usize>> {
-        let mut groups: Vec<Vec<usize>> = Vec::new();
-        for (i, c) in self.columns.iter().enumerate() {
-            match groups
-                .iter_mut()
-                .find(|g| self.columns[g[0]].spline.same_basis(&c.spline))
-            {
-                Some(g) => g.push(i),
-                None => groups.push(vec![i]),
-            }
-        }
-        groups
-    }
-
-    /// [`AxisErrors::error_at`] with the columns grouped by basis (the same
-    /// numbers); without `derivative` only the error motions are computed.
-    fn error_at_grouped(
-        &self,
-        groups: &[Vec<usize>],
-        pos: f64,
-        derivative: bool,
-    ) -> (ErrorMotion, ErrorMotion) {
-        let mut e = ErrorMotion::zeros();
-        let mut d = ErrorMotion::zeros();
-        for g in groups {
-            let p = if self.rotary {
-                wrap_angle(pos, self.columns[g[0]].spline.range())
-            } else {
-                pos
-            };
-            let mut basis = None;
-            for &i in g {
-                let c = &self.columns[i];
-                let (v, dv) = c
-                    .spline
-                    .value_and_derivative_with(p, &mut basis, derivative);
-                e[c.component.index()] = v;
-                d[c.component.index()] = dv;
-            }
-        }
-        (e, d)
-    }
-
     /// The column of component `c`, if fitted.
     pub fn column(&self, c: Component) -> Option<&ColumnSpline> {
         self.columns.iter().find(|s| s.component == c)
@@ -168,7 +122,7 @@ impl AxisErrors {
 }
 
 /// The angle equivalent to `deg` (mod 360) that lies in, or nearest to, `[lo, hi]`.
-fn wrap_angle(deg: f64, (lo, hi): (f64, f64)) -> f64 {
+pub(crate) fn wrap_angle(deg: f64, (lo, hi): (f64, f64)) -> f64 {
     if !deg.is_finite() || (lo..=hi).contains(&deg) {
         return deg;
     }
@@ -698,13 +652,13 @@ impl ErrorModel {
                 terms.push(t);
             }
         }
-        let groups = per_joint
+        let merged = per_joint
             .iter()
-            .map(|a| a.map(AxisErrors::basis_groups).unwrap_or_default())
+            .map(|a| a.and_then(super::merged::MergedAxis::new))
             .collect();
         Ok(BoundErrors {
             per_joint,
-            groups,
+            merged,
             terms,
         })
     }
@@ -748,8 +702,9 @@ fn locate(text: &str, file: &str, needle: &str) -> Location {
 #[derive(Debug, Clone)]
 pub struct BoundErrors<'a> {
     per_joint: Vec<Option<&'a AxisErrors>>,
-    /// Per joint, the columns of its axis grouped by basis.
-    groups: Vec<Vec<Vec<usize>>>,
+    /// Per joint, its axis's errors merged into one piecewise cubic (when
+    /// they can be).
+    merged: Vec<Option<super::merged::MergedAxis>>,
     /// Static diagnosed effects in error-motion form.
     terms: Vec<StaticTerm>,
 }
@@ -762,20 +717,20 @@ impl BoundErrors<'_> {
 }
 
 impl BoundErrors<'_> {
-    fn evaluate(
-        &self,
-        joint: usize,
-        q: f64,
-        derivative: bool,
-    ) -> Option<(ErrorMotion, ErrorMotion)> {
+    /// Error motions of `joint` at `q` and their derivatives (per mm or rad).
+    fn evaluate(&self, joint: usize, q: f64) -> Option<(ErrorMotion, ErrorMotion)> {
         let base = self.per_joint.get(joint).copied().flatten().map(|a| {
-            let groups = &self.groups[joint];
+            let merged = self.merged[joint].as_ref();
+            let at = |pos: f64| match merged {
+                Some(m) => m.error_at(pos),
+                None => a.error_at(pos),
+            };
             if a.rotary {
                 // The chain works in rad, the splines in degrees.
-                let (e, d) = a.error_at_grouped(groups, q.to_degrees(), derivative);
+                let (e, d) = at(q.to_degrees());
                 (e, d * (180.0 / std::f64::consts::PI))
             } else {
-                a.error_at_grouped(groups, q, derivative)
+                at(q)
             }
         });
         if self.terms.is_empty() {
@@ -801,11 +756,11 @@ impl BoundErrors<'_> {
 
 impl JointErrors for BoundErrors<'_> {
     fn error(&self, joint: usize, q: f64) -> Option<ErrorMotion> {
-        self.evaluate(joint, q, false).map(|(e, _)| e)
+        self.evaluate(joint, q).map(|(e, _)| e)
     }
 
     fn error_and_derivative(&self, joint: usize, q: f64) -> Option<(ErrorMotion, ErrorMotion)> {
-        self.evaluate(joint, q, true)
+        self.evaluate(joint, q)
     }
 
     fn is_empty(&self) -> bool {

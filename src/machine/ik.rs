@@ -232,7 +232,8 @@ pub struct IkSolver {
 
 /// A branch before unwinding and the linear solve.
 struct Raw {
-    q: Vec<f64>,
+    /// Joint values (the first `dof` are used).
+    q: [f64; super::chain::MAX_JOINTS],
     singular: bool,
     branch: u8,
 }
@@ -568,11 +569,15 @@ impl IkSolver {
 
     /// The reference branches are compared with: the previous block, or the
     /// neutral position (all joints 0) for the first block.
-    fn reference(&self, previous: Option<&[f64]>) -> Vec<f64> {
+    fn reference(&self, previous: Option<&[f64]>) -> [f64; super::chain::MAX_JOINTS] {
+        let mut r = [0.0; super::chain::MAX_JOINTS];
         match previous {
-            Some(p) if p.len() == self.chain.dof() && p.iter().all(|v| v.is_finite()) => p.to_vec(),
-            _ => vec![0.0; self.chain.dof()],
+            Some(p) if p.len() == self.chain.dof() && p.iter().all(|v| v.is_finite()) => {
+                r[..p.len()].copy_from_slice(p);
+            }
+            _ => {}
         }
+        r
     }
 
     fn candidates(
@@ -635,7 +640,7 @@ impl IkSolver {
         }
         let raws = match self.family {
             Family::ThreeAxis => vec![Raw {
-                q: vec![0.0; self.chain.dof()],
+                q: [0.0; super::chain::MAX_JOINTS],
                 singular: false,
                 branch: 0,
             }],
@@ -647,7 +652,7 @@ impl IkSolver {
         let mut out = Vec::with_capacity(raws.len());
         let mut last_err = None;
         for raw in raws {
-            let mut q = raw.q;
+            let mut q = raw.q[..n].to_vec();
             self.unwind(&mut q, &reference);
             // The tool axis does not depend on the linear axes.
             let axis_miss_rad = match self.solve_prismatics(&mut q, &target) {
@@ -735,7 +740,16 @@ impl IkSolver {
         let failed = |e: &str| IkError::Unreachable {
             reason: format!("linear solve failed: {e}"),
         };
-        // A least-squares solve by SVD on the stack (3 or 2 linear axes).
+        // Well-conditioned linear axes (every real machine): a least-squares
+        // solve by Gram–Schmidt QR on the stack.
+        if let Some(x) = gram_schmidt_solve(&dirs, &self.prismatics, &b) {
+            for (c, &j) in self.prismatics.iter().enumerate() {
+                q[j] = x[c];
+            }
+            return Ok(p0);
+        }
+        // Otherwise (nearly dependent axes, more than three): by SVD, which
+        // also decides whether the axes are dependent.
         macro_rules! solve {
             ($a:expr) => {{
                 let svd = $a.svd(true, true);
@@ -776,7 +790,7 @@ impl IkSolver {
         let k = self.u(j1);
         let p = self.segs[1] * Vector3::z();
         let qt = self.segs[0].transpose() * target.axis;
-        let mut q = vec![0.0; self.chain.dof()];
+        let mut q = [0.0; super::chain::MAX_JOINTS];
         let (t, singular) = match subproblem1(&k, &p, &qt, self.options.singular_tol_rad) {
             Some(t) => (t, false),
             None => (reference[j1], true),
@@ -795,14 +809,13 @@ impl IkSolver {
         let k2 = self.segs[1] * self.u(j2);
         let p = self.segs[1] * self.segs[2] * Vector3::z();
         let qt = self.segs[0].transpose() * target.axis;
-        let n = self.chain.dof();
         if k1.cross(&qt).norm() <= self.options.singular_tol_rad {
             // Tool axis along the first rotary: it is free; keep it and turn
             // the second rotary onto the axis.
             let t1 = reference[j1];
             let back = rotation3(&Unit::new_unchecked(k1), -t1) * qt;
             let t2 = subproblem1(&k2, &p, &back, 0.0).unwrap_or_else(|| reference[j2]);
-            let mut q = vec![0.0; n];
+            let mut q = [0.0; super::chain::MAX_JOINTS];
             q[j1] = t1;
             q[j2] = t2;
             return vec![Raw {
@@ -815,7 +828,7 @@ impl IkSolver {
             .into_iter()
             .enumerate()
             .map(|(b, (t1, t2))| {
-                let mut q = vec![0.0; n];
+                let mut q = [0.0; super::chain::MAX_JOINTS];
                 q[j1] = t1;
                 q[j2] = t2;
                 Raw {
@@ -834,7 +847,6 @@ impl IkSolver {
         let (j1, j2) = (self.revolutes[0], self.revolutes[1]);
         let u1 = self.u(j1);
         let u2 = self.u(j2);
-        let n = self.chain.dof();
         // Tip and axis in the frame just before the first revolute.
         let p = (f.pre_inv * target.tip.push(1.0)).xyz();
         let o = self.segs[0].transpose() * target.axis;
@@ -852,13 +864,14 @@ impl IkSolver {
             && h <= self.options.singular_tol_rad)
             || (zr == 0.0 && zi == 0.0)
         {
-            (vec![reference[j1]], true)
+            ([reference[j1], 0.0], true)
         } else {
             let t = 0.5 * zi.atan2(zr);
-            (vec![t, t + PI], false)
+            ([t, t + PI], false)
         };
+        let count = if singular { 1 } else { 2 };
         let mut out = Vec::with_capacity(2);
-        for (b, t1) in t1s.into_iter().enumerate() {
+        for (b, &t1) in t1s[..count].iter().enumerate() {
             // Tool axis in the frame before the second revolute.
             let back = self.segs[1].transpose() * (rotation3(&Unit::new_unchecked(u1), -t1) * o);
             let pz = self.segs[2] * Vector3::z();
@@ -866,7 +879,7 @@ impl IkSolver {
                 Some(t2) => (t2, false),
                 None => (reference[j2], true),
             };
-            let mut q = vec![0.0; n];
+            let mut q = [0.0; super::chain::MAX_JOINTS];
             q[j1] = t1;
             q[j2] = t2;
             out.push(Raw {
@@ -877,6 +890,53 @@ impl IkSolver {
         }
         out
     }
+}
+
+/// Least-squares solution of `Σ_c x_c · dirs[cols[c]] = b` for two or three
+/// columns by modified Gram–Schmidt QR, when the columns are certainly far
+/// from dependent: `None` for any other column count, and whenever the
+/// smallest singular value might be below `1e-6` of the largest (then the
+/// caller's SVD decides). With `R` the triangular factor, `σ_max ≤ ‖R‖_F` and
+/// `σ_min ≥ |det R| / ‖R‖_F^(m−1)`, so `|det R| ≥ 1e-6 · ‖R‖_F^m` proves
+/// `σ_min / σ_max ≥ 1e-6`.
+fn gram_schmidt_solve(
+    dirs: &[[f64; 3]; super::chain::MAX_JOINTS],
+    cols: &[usize],
+    b: &Vector3<f64>,
+) -> Option<[f64; 3]> {
+    let m = cols.len();
+    if !(2..=3).contains(&m) {
+        return None;
+    }
+    let mut q = [Vector3::zeros(); 3];
+    let mut r = [[0.0f64; 3]; 3];
+    for c in 0..m {
+        let mut v = Vector3::from(dirs[cols[c]]);
+        for (i, qi) in q.iter().enumerate().take(c) {
+            r[i][c] = qi.dot(&v);
+            v -= r[i][c] * qi;
+        }
+        r[c][c] = v.norm();
+        if r[c][c].is_nan() || r[c][c] <= 0.0 {
+            return None;
+        }
+        q[c] = v / r[c][c];
+    }
+    let frob2: f64 = r.iter().flatten().map(|v| v * v).sum();
+    let det: f64 = (0..m).map(|i| r[i][i]).product();
+    let bound = 1e-6 * frob2.powf(m as f64 / 2.0);
+    if !bound.is_finite() || det.is_nan() || det.abs() < bound {
+        return None;
+    }
+    let mut x = [0.0; 3];
+    for i in (0..m).rev() {
+        let mut v = q[i].dot(b);
+        for k in i + 1..m {
+            v -= r[i][k] * x[k];
+        }
+        x[i] = v / r[i][i];
+    }
+    Some(x)
 }
 
 #[cfg(test)]

@@ -14,8 +14,8 @@ pub fn push_fixed(out: &mut String, value: f64, decimals: usize) {
     if !write_fixed_fast(out, value, decimals) {
         let _ = write!(out, "{value:.decimals$}");
     }
-    let written = &out[start..];
-    if written.starts_with('-') && written[1..].bytes().all(|b| b == b'0' || b == b'.') {
+    let written = &out.as_bytes()[start..];
+    if written.first() == Some(&b'-') && written[1..].iter().all(|&b| b == b'0' || b == b'.') {
         out.remove(start);
     }
 }
@@ -67,8 +67,12 @@ fn write_fixed_fast(out: &mut String, value: f64, decimals: usize) -> bool {
             }
         }
     };
-    let int = (n / scale) as u64;
-    let frac = (n % scale) as u64;
+    // 64-bit division where the rounded value fits (it nearly always does:
+    // 128-bit division is a slow library call).
+    let (int, frac) = match u64::try_from(n) {
+        Ok(n) => (n / POW10[decimals], n % POW10[decimals]),
+        Err(_) => ((n / scale) as u64, (n % scale) as u64),
+    };
     if negative {
         out.push('-');
     }
@@ -83,7 +87,7 @@ fn write_fixed_fast(out: &mut String, value: f64, decimals: usize) -> bool {
             break;
         }
     }
-    out.push_str(std::str::from_utf8(&buf[i..]).unwrap_or("0"));
+    out.extend(buf[i..].iter().map(|&b| char::from(b)));
     if decimals > 0 {
         out.push('.');
         let mut d = [b'0'; 17];
@@ -92,7 +96,7 @@ fn write_fixed_fast(out: &mut String, value: f64, decimals: usize) -> bool {
             d[k] = b'0' + (v % 10) as u8;
             v /= 10;
         }
-        out.push_str(std::str::from_utf8(&d[..decimals]).unwrap_or(""));
+        out.extend(d[..decimals].iter().map(|&b| char::from(b)));
     }
     true
 }
