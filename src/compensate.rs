@@ -1220,16 +1220,12 @@ impl RunSummary {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::machine::chain::{ErrorMotion, JointKind};
+    use crate::machine::chain::ErrorMotion;
 
     fn zhao() -> Chain {
-        let mut c = Chain::new();
-        c.joint("C", JointKind::Revolute, Vector3::new(0.0, 0.0, -1.0));
-        c.joint("X", JointKind::Prismatic, Vector3::x());
-        c.joint("Z", JointKind::Prismatic, Vector3::z());
-        c.joint("B", JointKind::Revolute, Vector3::y());
-        c.translate(Vector3::new(0.0, 0.0, -20.0));
-        c
+        crate::machine::Machine::embedded("zhao2022-xzbc")
+            .expect("embedded fixture")
+            .chain
     }
 
     /// Micrometre-sized smooth errors on X, Z and B (C unmeasured).

@@ -9,8 +9,7 @@ use kinpost::geometric::table::RAD_PER_ARCSEC;
 use kinpost::geometric::{
     AxisErrors, Component, ErrorModel, FitOptions, FixedError, iso230_2, parse_tables,
 };
-use kinpost::machine::chain::{Chain, JointErrors, JointKind, NoErrors};
-use nalgebra::Vector3;
+use kinpost::machine::chain::{Chain, JointErrors, NoErrors};
 
 // ---------------------------------------------------------------- parsing
 
@@ -419,13 +418,9 @@ fn iso230_2_figures_on_a_hand_computable_dataset() {
 // ---------------------------------------------------------------- model
 
 fn zhao_chain() -> Chain {
-    let mut c = Chain::new();
-    c.joint("C", JointKind::Revolute, Vector3::new(0.0, 0.0, -1.0));
-    c.joint("X", JointKind::Prismatic, Vector3::x());
-    c.joint("Z", JointKind::Prismatic, Vector3::z());
-    c.joint("B", JointKind::Revolute, Vector3::y());
-    c.translate(Vector3::new(0.0, 0.0, -20.0));
-    c
+    kinpost::machine::Machine::embedded("zhao2022-xzbc")
+        .expect("embedded fixture")
+        .chain
 }
 
 fn zhao_model() -> ErrorModel {

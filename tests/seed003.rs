@@ -3,6 +3,9 @@
 //! what the paper's own inserted points (Table 6) really give, and the
 //! tolerance mode on a 600-block impeller-like program.
 
+mod seed003_tables;
+use seed003_tables::TABLE3;
+
 use kinpost::demo::impeller_poses;
 use kinpost::gcode::LineReader;
 use kinpost::linkage::nonlinear_error;
@@ -50,23 +53,6 @@ N40 X147.649 Y-1.998 Z-35.824 B39.844 A337.438
 N50 X146.552 Y-2.048 Z-34.946 B39.516 A337.756
 M30
 ";
-
-/// Table 3 of seed 003 (X Y Z B A), as printed.
-const TABLE3: [[f64; 5]; 13] = [
-    [150.891, -1.827, -38.483, 40.823, 336.463],
-    [150.915, -1.871, -38.515, 40.823, 336.626],
-    [149.805, -1.841, -37.568, 40.5, 336.626],
-    [149.828, -1.885, -37.6, 40.5, 336.789],
-    [149.852, -1.929, -37.633, 40.5, 336.952],
-    [148.722, -1.899, -36.68, 40.173, 336.952],
-    [148.746, -1.942, -36.712, 40.173, 337.115],
-    [148.769, -1.985, -36.745, 40.173, 337.276],
-    [147.626, -1.955, -35.792, 39.844, 337.276],
-    [147.649, -1.998, -35.824, 39.844, 337.438],
-    [147.672, -2.038, -35.856, 39.844, 337.597],
-    [146.529, -2.007, -34.914, 39.516, 337.597],
-    [146.552, -2.048, -34.946, 39.516, 337.756],
-];
 
 /// Machine axes (output order) of every motion block of a program, with modal carry-over.
 fn rows(machine: &Machine, text: &str) -> Vec<(Vec<f64>, bool)> {

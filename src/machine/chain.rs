@@ -912,13 +912,9 @@ mod tests {
     use super::*;
 
     fn zhao() -> Chain {
-        let mut c = Chain::new();
-        c.joint("C", JointKind::Revolute, Vector3::new(0.0, 0.0, -1.0));
-        c.joint("X", JointKind::Prismatic, Vector3::x());
-        c.joint("Z", JointKind::Prismatic, Vector3::z());
-        c.joint("B", JointKind::Revolute, Vector3::y());
-        c.translate(Vector3::new(0.0, 0.0, -20.0));
-        c
+        crate::machine::Machine::embedded("zhao2022-xzbc")
+            .expect("embedded fixture")
+            .chain
     }
 
     /// Error model used to check the Jacobian's error-derivative terms.

@@ -8,31 +8,21 @@ use kinpost::diagnose::{
     evaluate_trajectory, parse_effect_spec, sample_waypoints, simulate,
 };
 use kinpost::geometric::ErrorModel;
-use kinpost::machine::{Chain, JointKind};
+use kinpost::machine::Chain;
 use nalgebra::Vector3;
 
 /// zhao2022-xzbc: C X Z B + translate [0, 0, −20].
 pub fn zhao() -> Chain {
-    let mut c = Chain::new();
-    c.joint("C", JointKind::Revolute, Vector3::new(0.0, 0.0, -1.0));
-    c.joint("X", JointKind::Prismatic, Vector3::x());
-    c.joint("Z", JointKind::Prismatic, Vector3::z());
-    c.joint("B", JointKind::Revolute, Vector3::y());
-    c.translate(Vector3::new(0.0, 0.0, -20.0));
-    c
+    kinpost::machine::Machine::embedded("zhao2022-xzbc")
+        .expect("embedded fixture")
+        .chain
 }
 
 /// wang2023-xyzab: A X Y Z, translate [0, 0, 265], B, translate [0, 0, −265].
 pub fn wang() -> Chain {
-    let mut c = Chain::new();
-    c.joint("A", JointKind::Revolute, Vector3::new(-1.0, 0.0, 0.0));
-    c.joint("X", JointKind::Prismatic, Vector3::x());
-    c.joint("Y", JointKind::Prismatic, Vector3::y());
-    c.joint("Z", JointKind::Prismatic, Vector3::z());
-    c.translate(Vector3::new(0.0, 0.0, 265.0));
-    c.joint("B", JointKind::Revolute, Vector3::y());
-    c.translate(Vector3::new(0.0, 0.0, -265.0));
-    c
+    kinpost::machine::Machine::embedded("wang2023-xyzab")
+        .expect("embedded fixture")
+        .chain
 }
 
 /// Which seed machine.
