@@ -559,8 +559,12 @@ fn locate(prep: &Prepared, after: &[[f64; 3]], sigma: f64) -> Locate {
             let mid = speeds.len() / 2;
             speeds.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
             let med = speeds[mid];
+            // At a constant feed many samples sit at the median speed; they
+            // count as not above it whatever their last bits (a relative
+            // margin of 1e-6 keeps rounding from choosing their side).
+            let above = med * (1.0 + 1e-6);
             push(format!("speed > {med:.3} {unit}/s"), &|i| {
-                prep.vj(i, j).abs() > med
+                prep.vj(i, j).abs() > above
             });
         }
         let (lo, hi) = (0..n).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), i| {
