@@ -3,6 +3,8 @@
 
 use std::io::{self, Write};
 
+use super::address::Address;
+
 /// One physical line of an NC program, exactly as read, with its parse.
 ///
 /// The items tile [`Line::bytes`]: the first starts at 0, each one starts
@@ -64,8 +66,9 @@ pub enum ItemKind {
 /// An address and its number.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Word {
-    /// The address, uppercased: `"X"`, `"G"`, `"A3"`, `"R1"`, `"AP"`.
-    pub address: String,
+    /// The address, uppercased: `"X"`, `"G"`, `"A3"`, `"R1"`, `"AP"`
+    /// (inline, no allocation; compares with `&str`).
+    pub address: Address,
     /// The value of the number.
     pub value: f64,
     /// Byte offset in [`Line::bytes`] where the number's text starts (at its
@@ -80,7 +83,7 @@ pub struct Word {
 impl Word {
     /// `true` if the address is `address` (compared case-insensitively).
     pub fn is(&self, address: &str) -> bool {
-        self.address.eq_ignore_ascii_case(address)
+        self.address.is(address)
     }
 }
 

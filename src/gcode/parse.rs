@@ -18,6 +18,7 @@ use nom::{
     combinator::{opt, recognize},
 };
 
+use super::address::Address;
 use super::block::{Item, ItemKind, Line, Word};
 
 type In<'a> = &'a [u8];
@@ -143,16 +144,17 @@ fn number(i: In) -> PResult<(In, f64)> {
     }
 }
 
-/// A word as parsed: address text, number text, value, `=`?
+/// A word as parsed: address, number text, value, `=`?
 struct RawWord<'a> {
-    address: In<'a>,
+    address: Address,
     value_text: In<'a>,
     value: f64,
     assign: bool,
 }
 
 /// `assign_word = address_name, { blank }, "=", { blank }, number`
-/// where `address_name = letter, { letter }, { digit }` (`A3`, `R1`, `X`, `AP`).
+/// where `address_name = letter, { letter }, { digit }` (`A3`, `R1`, `X`, `AP`)
+/// of at most [`Address::MAX_LEN`] bytes.
 fn assign_word(i: In) -> PResult<RawWord> {
     let (rest, (address, _, _, _, (value_text, value))) = (
         recognize((
@@ -165,6 +167,9 @@ fn assign_word(i: In) -> PResult<RawWord> {
         number,
     )
         .parse_complete(i)?;
+    let Some(address) = Address::from_ascii(address) else {
+        return Err(nom::Err::Error(()));
+    };
     if !ends_separated(rest) {
         return Err(nom::Err::Error(()));
     }
@@ -187,6 +192,9 @@ fn plain_word(i: In) -> PResult<RawWord> {
         number,
     )
         .parse_complete(i)?;
+    let Some(address) = Address::from_ascii(address) else {
+        return Err(nom::Err::Error(()));
+    };
     if !ends_plain_word(rest) {
         return Err(nom::Err::Error(()));
     }
@@ -297,12 +305,11 @@ impl<'a> Builder<'a> {
     }
 
     fn push_word(&mut self, before: In<'a>, after: In<'a>, raw: RawWord<'a>) {
-        let address = String::from_utf8_lossy(raw.address).to_ascii_uppercase();
         // `value_text` is a sub-slice of `body`: its offset is a pointer difference.
         let value_start = self.body.offset(raw.value_text);
         let value_end = value_start + raw.value_text.len();
         let word = Word {
-            address,
+            address: raw.address,
             value: raw.value,
             value_start,
             value_end,
