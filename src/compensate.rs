@@ -800,6 +800,8 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
     let mut unused = Unused;
     let mut conv = GcodeConverter::new(machine, &mut unused, opts);
     let mut raw: Vec<Vec<u8>> = Vec::with_capacity(CHUNK_LINES);
+    // Parsed lines, their buffers reused from chunk to chunk.
+    let mut parsed: Vec<crate::gcode::Line> = Vec::with_capacity(CHUNK_LINES);
     let mut number = 0usize;
     let mut bytes_read = 0u64;
     let mut previous_th: Option<Vec<f64>> = None;
@@ -828,11 +830,16 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
         }
         let first = number + 1;
         number += filled;
-        let lines: Vec<crate::gcode::Line> = raw[..filled]
-            .par_iter()
+        if parsed.len() < filled {
+            parsed.resize_with(filled, Default::default);
+        }
+        let lines = &mut parsed[..filled];
+        lines
+            .par_iter_mut()
+            .zip(&raw[..filled])
             .enumerate()
-            .map(|(i, b)| crate::gcode::parse_line(b, first + i))
-            .collect();
+            .for_each(|(i, (line, b))| crate::gcode::parse_line_into(b, first + i, line));
+        let lines = &*lines;
         // Pass 1, in order: modal state, poses, analytic IK.
         text.clear();
         entries.clear();

@@ -426,12 +426,13 @@ pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
     let mut conv = GcodeConverter::new(machine, solver, opts);
     let mut bytes_read = 0u64;
     let mut buf = Vec::with_capacity(256);
-    for line in LineReader::new(input) {
+    let mut lines = LineReader::new(input);
+    while let Some(line) = lines.next_line() {
         let line = line.map_err(|e| Error::io(&opts.file_name, e))?;
         bytes_read += line.bytes.len() as u64;
         progress(bytes_read);
         buf.clear();
-        conv.convert(&line, &mut buf)?;
+        conv.convert(line, &mut buf)?;
         out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
     }
     Ok(conv.stats)

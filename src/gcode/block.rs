@@ -11,7 +11,10 @@ use super::address::Address;
 /// where the previous one ended, the last one ends at `bytes.len()`, and none
 /// is empty. Writing every item's bytes in order therefore reproduces the
 /// line byte for byte ([`Line::write_to`]).
-#[derive(Debug, Clone, PartialEq)]
+///
+/// The default is an empty line numbered 0, a buffer for
+/// [`parse_line_into`](super::parse_line_into).
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Line {
     /// 1-based line number in the file.
     pub number: usize,

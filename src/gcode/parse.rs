@@ -285,12 +285,12 @@ fn body_len(bytes: &[u8]) -> usize {
 }
 
 /// Builds the items of one line, tracking offsets.
-struct Builder<'a> {
+struct Builder<'a, 'v> {
     body: &'a [u8],
-    items: Vec<Item>,
+    items: &'v mut Vec<Item>,
 }
 
-impl<'a> Builder<'a> {
+impl<'a> Builder<'a, '_> {
     fn offset(&self, rest: In<'a>) -> usize {
         self.body.len() - rest.len()
     }
@@ -382,12 +382,45 @@ impl<'a> Builder<'a> {
 /// [`ItemKind::Opaque`] item. `number` is the 1-based line number; on line 1
 /// a leading UTF-8 byte order mark becomes an [`ItemKind::Bom`] item.
 pub fn parse_line(bytes: &[u8], number: usize) -> Line {
+    let mut items = Vec::with_capacity(16);
+    parse_items(bytes, number, &mut items);
+    let line = Line {
+        number,
+        bytes: bytes.to_vec(),
+        items,
+    };
+    debug_assert!(line.is_tiled(), "items do not tile line {number}");
+    line
+}
+
+/// Parse one physical line into `line`, reusing its buffers: after the
+/// first few lines, parsing allocates nothing. `line` then holds exactly
+/// what [`parse_line`]`(bytes, number)` returns.
+///
+/// ```
+/// use kinpost::gcode::{parse_line, parse_line_into, Line};
+///
+/// let mut line = Line::default();
+/// for (n, text) in ["G1 X1\n", "Y2 (two)\n"].iter().enumerate() {
+///     parse_line_into(text.as_bytes(), n + 1, &mut line);
+///     assert_eq!(line, parse_line(text.as_bytes(), n + 1));
+/// }
+/// ```
+pub fn parse_line_into(bytes: &[u8], number: usize, line: &mut Line) {
+    line.number = number;
+    line.bytes.clear();
+    line.bytes.extend_from_slice(bytes);
+    parse_items(bytes, number, &mut line.items);
+    debug_assert!(line.is_tiled(), "items do not tile line {number}");
+}
+
+/// The items of one physical line (`bytes`, line `number`), written to
+/// `items` (cleared first).
+pub(crate) fn parse_items(bytes: &[u8], number: usize, items: &mut Vec<Item>) {
+    items.clear();
     let body_end = body_len(bytes);
     let body = &bytes[..body_end];
-    let mut b = Builder {
-        body,
-        items: Vec::with_capacity(16),
-    };
+    let mut b = Builder { body, items };
     let mut rest = body;
 
     if number == 1
@@ -404,14 +437,15 @@ pub fn parse_line(bytes: &[u8], number: usize) -> Line {
         b.push(rest, r, ItemKind::Percent);
         b.percent_tail(r);
     } else {
-        if let Ok((r, _)) = block_delete(rest) {
+        if rest.first() == Some(&b'/')
+            && let Ok((r, _)) = block_delete(rest)
+        {
             b.push(rest, r, ItemKind::BlockDelete);
             rest = r;
         }
         b.block_items(rest);
     }
 
-    let mut items = b.items;
     if body_end < bytes.len() {
         items.push(Item {
             start: body_end,
@@ -419,13 +453,6 @@ pub fn parse_line(bytes: &[u8], number: usize) -> Line {
             kind: ItemKind::EndOfLine,
         });
     }
-    let line = Line {
-        number,
-        bytes: bytes.to_vec(),
-        items,
-    };
-    debug_assert!(line.is_tiled(), "items do not tile line {number}");
-    line
 }
 
 #[cfg(test)]

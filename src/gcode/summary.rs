@@ -153,8 +153,9 @@ impl fmt::Display for Summary {
 /// Streams: memory does not grow with the number of lines.
 pub fn summarize<R: BufRead>(reader: R) -> io::Result<Summary> {
     let mut s = Summary::default();
-    for line in LineReader::new(reader) {
-        s.add(&line?);
+    let mut lines = LineReader::new(reader);
+    while let Some(line) = lines.next_line() {
+        s.add(line?);
     }
     Ok(s)
 }
