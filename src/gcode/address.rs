@@ -67,6 +67,14 @@ impl Address {
         Some(a)
     }
 
+    /// The one-letter address `letter` (an ASCII letter), upper-cased.
+    pub(crate) fn letter(letter: u8) -> Address {
+        debug_assert!(letter.is_ascii_alphabetic());
+        let mut bytes = [0; Address::MAX_LEN];
+        bytes[0] = letter.to_ascii_uppercase();
+        Address { len: 1, bytes }
+    }
+
     /// The address as text (`"X"`, `"A3"`).
     pub fn as_str(&self) -> &str {
         const LETTERS: &str = "ABCDEFGHIJKLMNOPQRSTUVWXYZ";
@@ -232,9 +240,10 @@ mod tests {
         assert_eq!(map.get("X"), Some(&1));
         assert_eq!(format!("{x:?} {a3} [{x:>3}]"), "\"X\" A3 [  X]");
         assert_eq!(String::from(a3), "A3");
+        assert_eq!(Address::letter(b'q'), "Q");
         for c in b'a'..=b'z' {
             let s = char::from(c.to_ascii_uppercase()).to_string();
-            assert_eq!(Address::from_ascii(&[c]).unwrap().as_str(), s);
+            assert_eq!(Address::letter(c).as_str(), s);
         }
         assert_eq!(std::mem::size_of::<Address>(), 32);
     }
