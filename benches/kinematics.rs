@@ -1,6 +1,6 @@
 //! Criterion benchmarks: analytic IK, compensated poses per second on both
-//! seed machines, and post-processing throughput (post, and compensate
-//! through the chunked driver on all cores).
+//! seed machines, and post-processing throughput (parse alone, post, and
+//! compensate through the chunked driver on all cores).
 //! Run: `cargo bench --bench kinematics`; figures in docs/performance.md.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -8,6 +8,7 @@ use kinpost::compensate::{
     BlockRecord, CompensatingSolver, OnFail, Options, compensate_gcode, refine,
 };
 use kinpost::demo::{OffAxisLens, impeller_poses, lens_path, lens_program};
+use kinpost::gcode::LineReader;
 use kinpost::geometric::model::ErrorModel;
 use kinpost::machine::{IkSolver, Machine, Pose};
 use kinpost::post::{PostOptions, post_gcode};
@@ -63,6 +64,16 @@ fn bench(c: &mut Criterion) {
     let machine = Machine::embedded_default();
     let mut g = c.benchmark_group("post");
     g.throughput(Throughput::Bytes(program.len() as u64));
+    g.bench_function("zhao2022-lens parse only", |b| {
+        b.iter(|| {
+            let mut reader = LineReader::new(program.as_bytes());
+            let mut words = 0;
+            while let Some(line) = reader.next_line() {
+                words += line.unwrap().words().count();
+            }
+            words
+        })
+    });
     g.bench_function("zhao2022-lens", |b| {
         let opts = PostOptions::default();
         b.iter(|| {

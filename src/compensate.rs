@@ -872,13 +872,17 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
         }
         Ok(filled)
     };
-    // Parses `count` lines of `raw`, the first numbered `first` (stage 1).
-    let parse = |raw: &[Vec<u8>], first: usize| -> Vec<crate::gcode::Line> {
-        raw.iter()
-            .enumerate()
-            .map(|(i, b)| crate::gcode::parse_line(b, first + i))
-            .collect()
+    // Parses the lines of `raw`, the first numbered `first`, into `lines`
+    // (stage 1), reusing the lines' buffers.
+    let parse = |raw: &[Vec<u8>], first: usize, mut lines: Vec<crate::gcode::Line>| {
+        lines.resize_with(raw.len(), Default::default);
+        for (i, (b, line)) in raw.iter().zip(lines.iter_mut()).enumerate() {
+            crate::gcode::parse_line_into(b, first + i, line);
+        }
+        lines
     };
+    // Line vectors of written chunks, for reuse.
+    let mut spare: Vec<Vec<crate::gcode::Line>> = Vec::new();
     // Stage 2 of a parsed chunk.
     let mut first_pass = |conv: &mut GcodeConverter<'_>,
                           solver: &CompensatingSolver<'_>,
@@ -925,11 +929,11 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
     };
 
     // Stage 4 of a refined chunk; its first-pass error, if any, after its
-    // lines are written.
+    // lines are written. Gives the chunk's line vector back for reuse.
     let mut write = |conv: &mut GcodeConverter<'_>,
                      solver: &mut CompensatingSolver<'_>,
                      chunk: Chunk|
-     -> crate::error::Result<()> {
+     -> crate::error::Result<Vec<crate::gcode::Line>> {
         buf.clear();
         let mut done = chunk.jobs.into_iter();
         for entry in &chunk.entries {
@@ -950,7 +954,7 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
         records(&mut solver.records)?;
         match chunk.stop {
             Some(e) => Err(e),
-            None => Ok(()),
+            None => Ok(chunk.lines),
         }
     };
 
@@ -958,7 +962,7 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
     // this thread writes chunk k − 1 and runs the first pass of chunk k + 1.
     let mut raw_next: Vec<Vec<u8>> = Vec::with_capacity(CHUNK_LINES);
     let mut count = read(&mut raw)?;
-    let mut parsed = (count > 0).then(|| parse(&raw[..count], 1));
+    let mut parsed = (count > 0).then(|| parse(&raw[..count], 1, Vec::new()));
     number += count;
     count = read(&mut raw)?;
     let mut current: Option<Chunk> = None;
@@ -980,10 +984,11 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
             }
             if count > 0 && !stopped {
                 let (lines, slot) = (&raw[..count], &mut parsed_next);
-                scope.spawn(move |_| *slot = Some(parse(lines, first)));
+                let reuse = spare.pop().unwrap_or_default();
+                scope.spawn(move |_| *slot = Some(parse(lines, first, reuse)));
             }
             if let Some(p) = previous.take() {
-                write(&mut conv, solver, p)?;
+                spare.push(write(&mut conv, solver, p)?);
             }
             let next = match parsed.take() {
                 Some(lines) if !stopped => Some(first_pass(&mut conv, solver, lines)),

@@ -98,21 +98,31 @@ pub struct PostStats {
 struct AxisWriter<'m> {
     machine: &'m Machine,
     decimals: Vec<usize>,
+    /// `10^decimals` of each axis.
+    scales: Vec<f64>,
     /// Last values written (output order, file units), for modal output and G91.
     last: Option<Vec<f64>>,
+    /// Scratch for the values of the next block (its allocation reused).
+    values: Vec<f64>,
+    /// The words of the last block, their buffer reused.
+    text: String,
 }
 
 impl<'m> AxisWriter<'m> {
     fn new(machine: &'m Machine, decimals: Option<u32>) -> Self {
-        let decimals = machine
+        let decimals: Vec<usize> = machine
             .axes
             .iter()
             .map(|a| decimals.unwrap_or(a.decimals) as usize)
             .collect();
+        let scales = decimals.iter().map(|&d| 10f64.powi(d as i32)).collect();
         AxisWriter {
             machine,
             decimals,
+            scales,
             last: None,
+            values: Vec::with_capacity(machine.axes.len()),
+            text: String::with_capacity(128),
         }
     }
 
@@ -125,8 +135,9 @@ impl<'m> AxisWriter<'m> {
         absolute: bool,
         modal: bool,
         sep: &str,
-    ) -> std::result::Result<String, String> {
-        let mut values = Vec::with_capacity(self.machine.axes.len());
+    ) -> std::result::Result<&str, String> {
+        let mut values = std::mem::take(&mut self.values);
+        values.clear();
         for axis in &self.machine.axes {
             let v = crate::machine::output_value(axis, q[axis.joint]);
             let v = if axis.kind == crate::machine::JointKind::Prismatic {
@@ -137,11 +148,11 @@ impl<'m> AxisWriter<'m> {
             values.push(v);
         }
         // Round to the written precision so that incremental output does not drift.
-        for (v, d) in values.iter_mut().zip(&self.decimals) {
-            let s = 10f64.powi(*d as i32);
+        for (v, s) in values.iter_mut().zip(&self.scales) {
             *v = (*v * s).round() / s;
         }
-        let mut out = String::new();
+        let out = &mut self.text;
+        out.clear();
         for (k, axis) in self.machine.axes.iter().enumerate() {
             let previous = self.last.as_ref().map(|l| l[k]);
             if modal && previous == Some(values[k]) {
@@ -164,10 +175,11 @@ impl<'m> AxisWriter<'m> {
                 out.push_str(sep);
             }
             out.push_str(&axis.name);
-            push_fixed(&mut out, v, self.decimals[k]);
+            push_fixed(out, v, self.decimals[k]);
         }
-        self.last = Some(values);
-        Ok(out)
+        // The previous values become the next block's scratch.
+        self.values = self.last.replace(values).unwrap_or_default();
+        Ok(&self.text)
     }
 }
 
@@ -192,6 +204,9 @@ pub struct GcodeConverter<'a> {
     /// Machine axis positions (output order, mm / deg) followed through
     /// blocks in machine coordinates (pose mode off); unknown axes are 0.
     machine_ext: Vec<f64>,
+    /// The allocation of the vector of a block's words, kept from block to
+    /// block (empty between blocks).
+    words: Vec<WordRef<'static>>,
     /// What has been done so far.
     pub stats: PostStats,
 }
@@ -211,6 +226,7 @@ impl<'a> GcodeConverter<'a> {
             writer: AxisWriter::new(machine, opts.decimals),
             previous: None,
             machine_ext: vec![0.0; machine.axes.len()],
+            words: Vec::with_capacity(16),
             stats: PostStats::default(),
         }
     }
@@ -238,7 +254,7 @@ impl<'a> GcodeConverter<'a> {
             let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);
             Location::new(&opts.file_name, line.number, col)
         };
-        let mut words = Vec::new();
+        let mut words = recycle(std::mem::take(&mut self.words));
         let mut keywords = Vec::new();
         for (i, item) in line.items.iter().enumerate() {
             match &item.kind {
@@ -258,7 +274,9 @@ impl<'a> GcodeConverter<'a> {
                 String::from_utf8_lossy(&line.bytes),
             )
         };
-        let meaning = self.modal.apply(&words, &keywords).map_err(|e| {
+        let applied = self.modal.apply(&words, &keywords);
+        self.words = recycle(words);
+        let meaning = applied.map_err(|e| {
             // Text not understood in the block explains the failure best.
             match opaque_in_pose_block(line, true, true) {
                 Some(i) => opaque_error(i),
@@ -358,13 +376,24 @@ impl<'a> GcodeConverter<'a> {
         rewrite(
             line,
             &meaning.pose_items,
-            &words_text,
+            words_text,
             &meaning.tcp_codes,
             &meaning.tcp_offset_items,
             out,
         );
-        self.machine_ext = self.machine.to_external(&solved.q);
-        self.previous = Some(solved.q.clone());
+        for (e, axis) in self.machine_ext.iter_mut().zip(&self.machine.axes) {
+            *e = crate::machine::output_value(
+                axis,
+                solved.q.get(axis.joint).copied().unwrap_or(0.0),
+            );
+        }
+        match &mut self.previous {
+            Some(p) => {
+                p.clear();
+                p.extend_from_slice(&solved.q);
+            }
+            None => self.previous = Some(solved.q.clone()),
+        }
         Ok(Some(Converted {
             q: solved.q,
             meaning,
@@ -426,15 +455,32 @@ pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
     let mut conv = GcodeConverter::new(machine, solver, opts);
     let mut bytes_read = 0u64;
     let mut buf = Vec::with_capacity(256);
-    for line in LineReader::new(input) {
+    let mut lines = LineReader::new(input);
+    while let Some(line) = lines.next_line() {
         let line = line.map_err(|e| Error::io(&opts.file_name, e))?;
         bytes_read += line.bytes.len() as u64;
         progress(bytes_read);
         buf.clear();
-        conv.convert(&line, &mut buf)?;
+        conv.convert(line, &mut buf)?;
         out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
     }
     Ok(conv.stats)
+}
+
+/// `v` emptied, keeping its allocation, as a vector whose elements borrow
+/// for another lifetime: the words of each block borrow from that block's
+/// line, and one allocation serves them all. (Collecting a vector's
+/// `into_iter` into a vector of a type of the same size and alignment reuses
+/// its buffer; the map never runs, `v` being empty.)
+fn recycle<'x, 'y>(mut v: Vec<WordRef<'x>>) -> Vec<WordRef<'y>> {
+    v.clear();
+    v.into_iter()
+        .map(|w| WordRef {
+            address: "",
+            value: w.value,
+            item: w.item,
+        })
+        .collect()
 }
 
 /// The item index of an opaque item in a block that must be converted (or may
@@ -624,7 +670,7 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                     block.push_str(if motion == 0 { "G0 " } else { "G1 " });
                     motion_written = Some(motion);
                 }
-                block.push_str(&words);
+                block.push_str(words);
                 if motion == 1 && feed.is_some() && feed != feed_written {
                     block.push_str(" F");
                     push_fixed(&mut block, feed.unwrap_or(0.0), 1);
@@ -697,4 +743,25 @@ fn sanitize_comment(s: &str) -> String {
             c => c,
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recycle_keeps_the_allocation() {
+        let text = String::from("X");
+        let mut v = Vec::with_capacity(16);
+        v.push(WordRef {
+            address: text.as_str(),
+            value: 1.0,
+            item: 0,
+        });
+        let ptr = v.as_ptr() as usize;
+        let r: Vec<WordRef<'static>> = recycle(v);
+        assert!(r.is_empty());
+        assert_eq!(r.capacity(), 16);
+        assert_eq!(r.as_ptr() as usize, ptr);
+    }
 }

@@ -50,7 +50,7 @@ fn k(src: &str) -> Vec<String> {
 fn words(src: &[u8]) -> Vec<(String, f64)> {
     parse(src)
         .words()
-        .map(|w| (w.address.clone(), w.value))
+        .map(|w| (w.address.to_string(), w.value))
         .collect()
 }
 

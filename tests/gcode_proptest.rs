@@ -196,7 +196,7 @@ proptest! {
         let line = parse_line(src.as_bytes(), 1);
         check_line(&line)?;
         prop_assert!(!line.has_opaque(), "opaque in {:?}: {:?}", src, line.items);
-        let got: Vec<(String, f64)> = line.words().map(|w| (w.address.clone(), w.value)).collect();
+        let got: Vec<(String, f64)> = line.words().map(|w| (w.address.to_string(), w.value)).collect();
         let want: Vec<(String, f64)> = words.iter().map(|(l, (_, v), _)| (l.to_ascii_uppercase(), *v)).collect();
         prop_assert_eq!(got, want);
         for (w, (_, (num, _), _)) in line.words().zip(&words) {

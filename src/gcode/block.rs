@@ -3,13 +3,18 @@
 
 use std::io::{self, Write};
 
+use super::address::Address;
+
 /// One physical line of an NC program, exactly as read, with its parse.
 ///
 /// The items tile [`Line::bytes`]: the first starts at 0, each one starts
 /// where the previous one ended, the last one ends at `bytes.len()`, and none
 /// is empty. Writing every item's bytes in order therefore reproduces the
 /// line byte for byte ([`Line::write_to`]).
-#[derive(Debug, Clone, PartialEq)]
+///
+/// The default is an empty line numbered 0, a buffer for
+/// [`parse_line_into`](super::parse_line_into).
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Line {
     /// 1-based line number in the file.
     pub number: usize,
@@ -64,8 +69,9 @@ pub enum ItemKind {
 /// An address and its number.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Word {
-    /// The address, uppercased: `"X"`, `"G"`, `"A3"`, `"R1"`, `"AP"`.
-    pub address: String,
+    /// The address, uppercased: `"X"`, `"G"`, `"A3"`, `"R1"`, `"AP"`
+    /// (inline, no allocation; compares with `&str`).
+    pub address: Address,
     /// The value of the number.
     pub value: f64,
     /// Byte offset in [`Line::bytes`] where the number's text starts (at its
@@ -80,7 +86,7 @@ pub struct Word {
 impl Word {
     /// `true` if the address is `address` (compared case-insensitively).
     pub fn is(&self, address: &str) -> bool {
-        self.address.eq_ignore_ascii_case(address)
+        self.address.is(address)
     }
 }
 

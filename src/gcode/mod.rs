@@ -20,12 +20,14 @@
 //! assert_eq!(out, line.bytes);
 //! ```
 
+mod address;
 mod block;
 mod parse;
 mod reader;
 mod summary;
 
+pub use address::Address;
 pub use block::{Item, ItemKind, Line, Word};
-pub use parse::parse_line;
+pub use parse::{parse_line, parse_line_into};
 pub use reader::{LineReader, echo};
 pub use summary::{Summary, summarize};

@@ -9,15 +9,29 @@
 //! [`ItemKind::Opaque`] item. This keeps a later stage from misreading the
 //! tail of a line it cannot interpret (`X1.2.3 Y5` must not look like a move
 //! to `Y5`).
+//!
+//! Every production is a nom parser (`&[u8]` in, [`IResult`] out). The rare
+//! ones are composed from nom's combinators as the grammar reads; the ones
+//! every block is made of (words and their numbers) are written out byte by
+//! byte, because they run millions of times on a long program: the item
+//! alternatives are chosen by the item's first byte (each alternative of
+//! `item` starts with a byte of its own), the letters of an address are
+//! scanned once for `assign_word`, `keyword` and `word` together, and a
+//! number's value is computed while its digits are scanned. Words do not
+//! allocate (a word's address is an inline [`Address`]; only a keyword's
+//! name and a number of more than 19 digits do), and the items go into a
+//! vector the caller may reuse ([`parse_line_into`]).
+//! `tests/gcode_differential.rs` checks that every line is read exactly as
+//! the plainly composed parser of the grammar reads it.
 
 use nom::{
     IResult, Offset, Parser,
-    branch::alt,
     bytes::complete::{tag, take_till, take_while, take_while1},
-    character::complete::{char, digit0, digit1, one_of, satisfy},
-    combinator::{opt, recognize},
+    character::complete::{char, digit1, one_of, satisfy},
+    combinator::recognize,
 };
 
+use super::address::Address;
 use super::block::{Item, ItemKind, Line, Word};
 
 type In<'a> = &'a [u8];
@@ -49,6 +63,16 @@ const OWORD_KEYWORDS: &[&str] = &[
 /// (`XNAN`, `Xinf`).
 const NON_FINITE: &[&str] = &["nan", "inf", "infinity"];
 
+/// Powers of ten up to 10^19, all exact in an f64.
+const POW10: [f64; 20] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19,
+];
+
+fn fail<O>() -> PResult<'static, O> {
+    Err(nom::Err::Error(()))
+}
+
 fn is_blank(b: u8) -> bool {
     b == b' ' || b == b'\t'
 }
@@ -58,8 +82,10 @@ fn blank(i: In) -> PResult<In> {
     take_while1(is_blank).parse_complete(i)
 }
 
-fn blank0(i: In) -> PResult<In> {
-    take_while(is_blank).parse_complete(i)
+/// `{ blank }`: the input after any blanks at its start.
+fn skip_blanks(i: In) -> In {
+    let n = i.iter().take_while(|&&b| is_blank(b)).count();
+    &i[n..]
 }
 
 /// `paren_comment = "(", { any byte - ")" }, ")"`
@@ -72,8 +98,13 @@ fn semicolon_comment(i: In) -> PResult<In> {
     recognize((char(';'), take_while(|_| true))).parse_complete(i)
 }
 
+/// `comment = paren_comment | semicolon_comment`
 fn comment(i: In) -> PResult<In> {
-    alt((paren_comment, semicolon_comment)).parse_complete(i)
+    match i.first() {
+        Some(b'(') => paren_comment(i),
+        Some(b';') => semicolon_comment(i),
+        _ => fail(),
+    }
 }
 
 /// Does `rest` (what follows an item) allow the item to end here?
@@ -102,93 +133,139 @@ fn ends_checksum(rest: In) -> bool {
     ends_separated(rest) || rest.first() == Some(&b'(')
 }
 
-/// `unsigned = digit, { digit }, [ ".", { digit } ] | ".", digit, { digit }`
-fn unsigned(i: In) -> PResult<In> {
-    alt((
-        recognize((digit1, opt((char('.'), digit0)))),
-        recognize((char('.'), digit1)),
-    ))
-    .parse_complete(i)
+/// The digits of a number as they are scanned: how many, and the integer
+/// they spell (exact while there are at most [`Digits::EXACT`], so that it
+/// fits in a u64).
+#[derive(Default)]
+struct Digits {
+    value: u64,
+    count: usize,
 }
 
-/// `number = [ sign, { blank } ], unsigned`, returned as its source text.
-/// No exponent: in G-code `E` is an address (`X1E5` is `X1 E5`).
-fn number_text(i: In) -> PResult<In> {
-    recognize((opt((one_of("+-"), blank0)), unsigned)).parse_complete(i)
-}
+impl Digits {
+    /// The most digits whose integer is exact.
+    const EXACT: usize = 19;
 
-/// The value of a number's source text; `None` if it does not fit in an
-/// f64 (400 digits), so that an overflow never turns silently into `inf`.
-fn number_value(text: In) -> Option<f64> {
-    let v: f64 = if text.iter().any(|&b| is_blank(b)) {
-        let s: String = text
-            .iter()
-            .filter(|&&b| !is_blank(b))
-            .map(|&b| char::from(b))
-            .collect();
-        s.parse().ok()?
-    } else {
-        // Sign, digits and point only: always ASCII.
-        std::str::from_utf8(text).ok()?.parse().ok()?
-    };
-    v.is_finite().then_some(v)
-}
-
-/// A number with its value: `(rest, (text, value))`.
-fn number(i: In) -> PResult<(In, f64)> {
-    let (rest, text) = number_text(i)?;
-    match number_value(text) {
-        Some(v) => Ok((rest, (text, v))),
-        None => Err(nom::Err::Error(())),
+    /// Scans the digits `i` starts with, appending them; returns how many
+    /// there are.
+    fn scan(&mut self, i: In) -> usize {
+        let mut n = 0;
+        let mut value = self.value;
+        for &b in i {
+            let d = b.wrapping_sub(b'0');
+            if d > 9 {
+                break;
+            }
+            // Wraps only past 19 digits, when the count says it is not exact.
+            value = value.wrapping_mul(10).wrapping_add(u64::from(d));
+            n += 1;
+        }
+        self.value = value;
+        self.count += n;
+        n
     }
 }
 
-/// A word as parsed: address text, number text, value, `=`?
+/// `number = [ sign, { blank } ], unsigned` with
+/// `unsigned = digit, { digit }, [ ".", { digit } ] | ".", digit, { digit }`;
+/// returns the number's source text and its value. No exponent: in G-code
+/// `E` is an address (`X1E5` is `X1 E5`).
+///
+/// The value is the f64 nearest to the decimal number, as [`str::parse`]
+/// gives it: computed here when there are at most 19 digits and their
+/// integer is at most 2^53 (an exact integer divided by an exact power of
+/// ten, rounded once, is the nearest f64), else by `str::parse`. A number
+/// that does not fit in an f64 (400 digits) is not a number, so that an
+/// overflow never turns silently into `inf`.
+fn number(i: In) -> PResult<(In, f64)> {
+    let (negative, unsigned) = match i.first() {
+        Some(b'-') => (true, skip_blanks(&i[1..])),
+        Some(b'+') => (false, skip_blanks(&i[1..])),
+        _ => (false, i),
+    };
+    let mut digits = Digits::default();
+    let int_digits = digits.scan(unsigned);
+    let (frac_digits, len) = if unsigned.get(int_digits) == Some(&b'.') {
+        let n = digits.scan(&unsigned[int_digits + 1..]);
+        (n, int_digits + 1 + n)
+    } else {
+        (0, int_digits)
+    };
+    if int_digits + frac_digits == 0 {
+        return fail();
+    }
+    let rest = &unsigned[len..];
+    let text = &i[..i.len() - rest.len()];
+    let value = if digits.count <= Digits::EXACT && digits.value <= 1 << 53 {
+        let v = digits.value as f64 / POW10[frac_digits];
+        if negative { -v } else { v }
+    } else {
+        match slow_value(text) {
+            Some(v) => v,
+            None => return fail(),
+        }
+    };
+    Ok((rest, (text, value)))
+}
+
+/// The value of a number's source text by the standard library's parser
+/// (blanks after the sign removed); `None` if it is not finite.
+fn slow_value(text: In) -> Option<f64> {
+    let s: String = text
+        .iter()
+        .filter(|&&b| !is_blank(b))
+        .map(|&b| char::from(b))
+        .collect();
+    let v: f64 = s.parse().ok()?;
+    v.is_finite().then_some(v)
+}
+
+/// A word as parsed: address, number text, value, `=`?
 struct RawWord<'a> {
-    address: In<'a>,
+    address: Address,
     value_text: In<'a>,
     value: f64,
     assign: bool,
 }
 
 /// `assign_word = address_name, { blank }, "=", { blank }, number`
-/// where `address_name = letter, { letter }, { digit }` (`A3`, `R1`, `X`, `AP`).
-fn assign_word(i: In) -> PResult<RawWord> {
-    let (rest, (address, _, _, _, (value_text, value))) = (
-        recognize((
-            take_while1(|b: u8| b.is_ascii_alphabetic()),
-            take_while(|b: u8| b.is_ascii_digit()),
-        )),
-        blank0,
-        char('='),
-        blank0,
-        number,
-    )
-        .parse_complete(i)?;
-    if !ends_separated(rest) {
-        return Err(nom::Err::Error(()));
+/// where `address_name = letter, { letter }, { digit }` (`A3`, `R1`, `X`,
+/// `AP`) of at most [`Address::MAX_LEN`] bytes; `letters` is the length of
+/// the run of letters `i` starts with.
+fn assign_word(i: In, letters: usize) -> PResult<RawWord> {
+    let name_len = letters
+        + i[letters..]
+            .iter()
+            .take_while(|b| b.is_ascii_digit())
+            .count();
+    let after_name = skip_blanks(&i[name_len..]);
+    if after_name.first() != Some(&b'=') {
+        return fail();
     }
-    Ok((
-        rest,
-        RawWord {
-            address,
-            value_text,
-            value,
-            assign: true,
-        },
-    ))
+    let (rest, (value_text, value)) = number(skip_blanks(&after_name[1..]))?;
+    match Address::from_ascii(&i[..name_len]) {
+        Some(address) if ends_separated(rest) => Ok((
+            rest,
+            RawWord {
+                address,
+                value_text,
+                value,
+                assign: true,
+            },
+        )),
+        _ => fail(),
+    }
 }
 
 /// `word = letter, { blank }, number` (`G1`, `X-1.5`, `x.5`, `G 1`, `X - 3`).
 fn plain_word(i: In) -> PResult<RawWord> {
-    let (rest, (address, _, (value_text, value))) = (
-        recognize(satisfy(|c| c.is_ascii_alphabetic())),
-        blank0,
-        number,
-    )
-        .parse_complete(i)?;
+    let address = match i.first() {
+        Some(&b) if b.is_ascii_alphabetic() => Address::letter(b),
+        _ => return fail(),
+    };
+    let (rest, (value_text, value)) = number(skip_blanks(&i[1..]))?;
     if !ends_plain_word(rest) {
-        return Err(nom::Err::Error(()));
+        return fail();
     }
     Ok((
         rest,
@@ -203,20 +280,46 @@ fn plain_word(i: In) -> PResult<RawWord> {
 
 /// `keyword = letter, letter, { letter }` written in one case, followed by
 /// the end of the line, a blank or `;`; not an address letter followed by
-/// a spelling of NaN or infinity.
-fn keyword(i: In) -> PResult<In> {
-    let (rest, name) = take_while1(|b: u8| b.is_ascii_alphabetic()).parse_complete(i)?;
+/// a spelling of NaN or infinity. `letters` is the length of the run of
+/// letters `i` starts with.
+fn keyword(i: In, letters: usize) -> PResult<In> {
+    let (name, rest) = i.split_at(letters);
     let one_case =
         name.iter().all(u8::is_ascii_uppercase) || name.iter().all(u8::is_ascii_lowercase);
-    let tail = &name[1..];
+    let tail = name.get(1..).unwrap_or_default();
     let non_finite = NON_FINITE
         .iter()
         .any(|s| tail.eq_ignore_ascii_case(s.as_bytes()));
     if name.len() >= 2 && one_case && !non_finite && ends_separated(rest) {
         Ok((rest, name))
     } else {
-        Err(nom::Err::Error(()))
+        fail()
     }
+}
+
+/// What an item that starts with a letter is.
+enum Lettered<'a> {
+    Word(RawWord<'a>),
+    Keyword(In<'a>),
+}
+
+/// `assign_word | keyword | word`, tried in this order (as `item` lists
+/// them), on input that starts with a letter. The run of letters is
+/// scanned once for all three; a plain word has a single letter.
+fn lettered(i: In) -> PResult<Lettered> {
+    let letters = i.iter().take_while(|b| b.is_ascii_alphabetic()).count();
+    if letters == 0 {
+        return fail();
+    }
+    if let Ok((rest, w)) = assign_word(i, letters) {
+        return Ok((rest, Lettered::Word(w)));
+    }
+    if letters > 1 {
+        let (rest, name) = keyword(i, letters)?;
+        return Ok((rest, Lettered::Keyword(name)));
+    }
+    let (rest, w) = plain_word(i)?;
+    Ok((rest, Lettered::Word(w)))
 }
 
 /// `checksum = "*", digit, { digit }` (value fits in 32 bits).
@@ -227,7 +330,7 @@ fn checksum(i: In) -> PResult<u32> {
         .and_then(|s| s.parse::<u32>().ok());
     match value {
         Some(v) if ends_checksum(rest) => Ok((rest, v)),
-        _ => Err(nom::Err::Error(())),
+        _ => fail(),
     }
 }
 
@@ -237,9 +340,9 @@ fn checksum(i: In) -> PResult<u32> {
 fn oword_flow(i: In) -> PResult<In> {
     let (rest, (_, _, _, _, kw)) = (
         one_of("oO"),
-        blank0,
+        take_while(is_blank),
         digit1,
-        blank0,
+        take_while(is_blank),
         take_while1(|b: u8| b.is_ascii_alphabetic()),
     )
         .parse_complete(i)?;
@@ -249,7 +352,7 @@ fn oword_flow(i: In) -> PResult<In> {
     {
         Ok((rest, kw))
     } else {
-        Err(nom::Err::Error(()))
+        fail()
     }
 }
 
@@ -277,12 +380,12 @@ fn body_len(bytes: &[u8]) -> usize {
 }
 
 /// Builds the items of one line, tracking offsets.
-struct Builder<'a> {
+struct Builder<'a, 'v> {
     body: &'a [u8],
-    items: Vec<Item>,
+    items: &'v mut Vec<Item>,
 }
 
-impl<'a> Builder<'a> {
+impl<'a> Builder<'a, '_> {
     fn offset(&self, rest: In<'a>) -> usize {
         self.body.len() - rest.len()
     }
@@ -297,12 +400,11 @@ impl<'a> Builder<'a> {
     }
 
     fn push_word(&mut self, before: In<'a>, after: In<'a>, raw: RawWord<'a>) {
-        let address = String::from_utf8_lossy(raw.address).to_ascii_uppercase();
         // `value_text` is a sub-slice of `body`: its offset is a pointer difference.
         let value_start = self.body.offset(raw.value_text);
         let value_end = value_start + raw.value_text.len();
         let word = Word {
-            address,
+            address: raw.address,
             value: raw.value,
             value_start,
             value_end,
@@ -335,35 +437,41 @@ impl<'a> Builder<'a> {
         }
     }
 
-    /// The items of a block, after any block delete.
+    /// The items of a block, after any block delete. Each alternative of
+    /// `item` (blank, comment, checksum, assign_word, keyword, word) and
+    /// `oword_flow` begins with a byte no other begins with, so the first
+    /// byte picks the one that can match.
     fn block_items(&mut self, mut rest: In<'a>) {
-        while !rest.is_empty() {
+        while let Some(&first) = rest.first() {
             let before = rest;
-            if let Ok((r, _)) = blank(rest) {
-                self.push(before, r, ItemKind::Space);
-                rest = r;
-            } else if let Ok((r, _)) = comment(rest) {
-                self.push(before, r, ItemKind::Comment);
-                rest = r;
-            } else if let Ok((r, v)) = checksum(rest) {
-                self.push(before, r, ItemKind::Checksum(v));
-                rest = r;
-            } else if oword_flow(rest).is_ok() {
-                self.opaque(rest);
-                return;
-            } else if let Ok((r, raw)) = assign_word(rest) {
-                self.push_word(before, r, raw);
-                rest = r;
-            } else if let Ok((r, name)) = keyword(rest) {
-                let name = String::from_utf8_lossy(name).to_ascii_uppercase();
-                self.push(before, r, ItemKind::Keyword(name));
-                rest = r;
-            } else if let Ok((r, raw)) = plain_word(rest) {
-                self.push_word(before, r, raw);
-                rest = r;
-            } else {
-                self.opaque(rest);
-                return;
+            let parsed = match first {
+                b' ' | b'\t' => blank(rest).map(|(r, _)| (r, ItemKind::Space)),
+                b'(' | b';' => comment(rest).map(|(r, _)| (r, ItemKind::Comment)),
+                b'*' => checksum(rest).map(|(r, v)| (r, ItemKind::Checksum(v))),
+                b'o' | b'O' if oword_flow(rest).is_ok() => fail(),
+                b if b.is_ascii_alphabetic() => match lettered(rest) {
+                    Ok((r, Lettered::Word(raw))) => {
+                        self.push_word(before, r, raw);
+                        rest = r;
+                        continue;
+                    }
+                    Ok((r, Lettered::Keyword(name))) => {
+                        let name = String::from_utf8_lossy(name).to_ascii_uppercase();
+                        Ok((r, ItemKind::Keyword(name)))
+                    }
+                    Err(e) => Err(e),
+                },
+                _ => fail(),
+            };
+            match parsed {
+                Ok((r, kind)) => {
+                    self.push(before, r, kind);
+                    rest = r;
+                }
+                Err(_) => {
+                    self.opaque(rest);
+                    return;
+                }
             }
         }
     }
@@ -375,12 +483,45 @@ impl<'a> Builder<'a> {
 /// [`ItemKind::Opaque`] item. `number` is the 1-based line number; on line 1
 /// a leading UTF-8 byte order mark becomes an [`ItemKind::Bom`] item.
 pub fn parse_line(bytes: &[u8], number: usize) -> Line {
+    let mut items = Vec::with_capacity(16);
+    parse_items(bytes, number, &mut items);
+    let line = Line {
+        number,
+        bytes: bytes.to_vec(),
+        items,
+    };
+    debug_assert!(line.is_tiled(), "items do not tile line {number}");
+    line
+}
+
+/// Parse one physical line into `line`, reusing its buffers: after the
+/// first few lines, parsing allocates nothing. `line` then holds exactly
+/// what [`parse_line`]`(bytes, number)` returns.
+///
+/// ```
+/// use kinpost::gcode::{parse_line, parse_line_into, Line};
+///
+/// let mut line = Line::default();
+/// for (n, text) in ["G1 X1\n", "Y2 (two)\n"].iter().enumerate() {
+///     parse_line_into(text.as_bytes(), n + 1, &mut line);
+///     assert_eq!(line, parse_line(text.as_bytes(), n + 1));
+/// }
+/// ```
+pub fn parse_line_into(bytes: &[u8], number: usize, line: &mut Line) {
+    line.number = number;
+    line.bytes.clear();
+    line.bytes.extend_from_slice(bytes);
+    parse_items(bytes, number, &mut line.items);
+    debug_assert!(line.is_tiled(), "items do not tile line {number}");
+}
+
+/// The items of one physical line (`bytes`, line `number`), written to
+/// `items` (cleared first).
+pub(crate) fn parse_items(bytes: &[u8], number: usize, items: &mut Vec<Item>) {
+    items.clear();
     let body_end = body_len(bytes);
     let body = &bytes[..body_end];
-    let mut b = Builder {
-        body,
-        items: Vec::with_capacity(16),
-    };
+    let mut b = Builder { body, items };
     let mut rest = body;
 
     if number == 1
@@ -397,14 +538,15 @@ pub fn parse_line(bytes: &[u8], number: usize) -> Line {
         b.push(rest, r, ItemKind::Percent);
         b.percent_tail(r);
     } else {
-        if let Ok((r, _)) = block_delete(rest) {
+        if rest.first() == Some(&b'/')
+            && let Ok((r, _)) = block_delete(rest)
+        {
             b.push(rest, r, ItemKind::BlockDelete);
             rest = r;
         }
         b.block_items(rest);
     }
 
-    let mut items = b.items;
     if body_end < bytes.len() {
         items.push(Item {
             start: body_end,
@@ -412,13 +554,6 @@ pub fn parse_line(bytes: &[u8], number: usize) -> Line {
             kind: ItemKind::EndOfLine,
         });
     }
-    let line = Line {
-        number,
-        bytes: bytes.to_vec(),
-        items,
-    };
-    debug_assert!(line.is_tiled(), "items do not tile line {number}");
-    line
 }
 
 #[cfg(test)]
@@ -450,6 +585,45 @@ mod tests {
         assert!(number(b"nan").is_err());
         assert!(number(b"inf").is_err());
         assert!(number("9".repeat(400).as_bytes()).is_err());
+    }
+
+    #[test]
+    fn digit_runs() {
+        let mut text = Vec::new();
+        for (head, n) in [
+            (&b"12345678x"[..], 8),
+            (b"1234567x9", 7),
+            (b"x2345678", 0),
+            (b"123/5678", 3),
+            (b"123:5678", 3),
+            (b"\xff\xff1234567", 0),
+            (b"1234\xfa\xfa78", 4),
+            (b"1234567890123456789012", 22),
+            (b"12", 2),
+            (b"", 0),
+            (b"1234567890123456789 ", 19),
+            (b"12345678901234567890123", 23),
+            (b"0000000000000000000000001", 25),
+        ] {
+            // With the bytes after it of every kind, and near the end of the input.
+            for tail in [&b""[..], b"\n", b" X1.5 Y-2.25 Z3\r\n", b"99999999"] {
+                text.clear();
+                text.extend_from_slice(head);
+                text.extend_from_slice(tail);
+                let mut d = Digits::default();
+                let got = d.scan(&text);
+                let want = text.iter().take_while(|b| b.is_ascii_digit()).count();
+                assert!(
+                    got == want && (tail.first() == Some(&b'9') || got == n),
+                    "{text:?}"
+                );
+                if want <= Digits::EXACT {
+                    let s = std::str::from_utf8(&text[..want]).unwrap();
+                    assert_eq!(d.value, s.parse::<u64>().unwrap_or(0), "{s}");
+                }
+                assert_eq!(d.count, want);
+            }
+        }
     }
 
     #[test]

@@ -6,6 +6,7 @@ use std::io::{self, BufRead};
 
 use serde::Serialize;
 
+use super::address::Address;
 use super::block::{ItemKind, Line};
 use super::reader::LineReader;
 
@@ -51,6 +52,12 @@ pub struct Summary {
 impl Summary {
     /// Count one more line.
     pub fn add(&mut self, line: &Line) {
+        self.add_counting(line, None);
+    }
+
+    /// [`Summary::add`], with the words' addresses counted in `tally` (to be
+    /// merged into [`Summary::addresses`] at the end) when given.
+    fn add_counting(&mut self, line: &Line, mut tally: Option<&mut AddressTally>) {
         self.lines += 1;
         self.bytes += line.bytes.len() as u64;
         if line.is_blank() {
@@ -61,7 +68,10 @@ impl Summary {
             match &item.kind {
                 ItemKind::Word(w) => {
                     words_here += 1;
-                    count(&mut self.addresses, &w.address);
+                    match tally.as_deref_mut() {
+                        Some(t) => t.add(w.address),
+                        None => count(&mut self.addresses, &w.address),
+                    }
                 }
                 ItemKind::Keyword(k) => {
                     self.keyword_items += 1;
@@ -94,6 +104,35 @@ impl Summary {
             self.non_utf8_lines += 1;
         }
         self.final_newline = ending.ends_with(b"\n");
+    }
+}
+
+/// Word counts per address while a program streams through: one-letter
+/// addresses in an array, others in a map keyed by [`Address`] (no lookup
+/// of a `String` key per word).
+#[derive(Default)]
+struct AddressTally {
+    letters: [usize; 26],
+    others: BTreeMap<Address, usize>,
+}
+
+impl AddressTally {
+    fn add(&mut self, a: Address) {
+        match a.as_bytes() {
+            [l @ b'A'..=b'Z'] => self.letters[usize::from(l - b'A')] += 1,
+            _ => *self.others.entry(a).or_default() += 1,
+        }
+    }
+
+    /// Adds the counts to `map`.
+    fn merge_into(self, map: &mut BTreeMap<String, usize>) {
+        let letters = (b'A'..=b'Z').zip(self.letters).filter(|&(_, n)| n > 0);
+        for (l, n) in letters {
+            *map.entry(char::from(l).to_string()).or_default() += n;
+        }
+        for (a, n) in self.others {
+            *map.entry(a.to_string()).or_default() += n;
+        }
     }
 }
 
@@ -153,8 +192,31 @@ impl fmt::Display for Summary {
 /// Streams: memory does not grow with the number of lines.
 pub fn summarize<R: BufRead>(reader: R) -> io::Result<Summary> {
     let mut s = Summary::default();
-    for line in LineReader::new(reader) {
-        s.add(&line?);
+    let mut tally = AddressTally::default();
+    let mut lines = LineReader::new(reader);
+    while let Some(line) = lines.next_line() {
+        s.add_counting(line?, Some(&mut tally));
     }
+    tally.merge_into(&mut s.addresses);
     Ok(s)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Streaming with the tally counts what adding line by line counts.
+    #[test]
+    fn summarize_counts_as_add_does() {
+        let src = b"G1 X1 y2 A3=4 R12=1 AP=3\nTRAORI\nx5 z6 ; c\n(only)\n#1=2\nG0 X7\n";
+        let mut by_line = Summary::default();
+        for line in LineReader::new(&src[..]) {
+            by_line.add(&line.unwrap());
+        }
+        let streamed = summarize(&src[..]).unwrap();
+        assert_eq!(streamed, by_line);
+        assert_eq!(streamed.addresses.get("X"), Some(&3));
+        assert_eq!(streamed.addresses.get("A3"), Some(&1));
+        assert_eq!(streamed.addresses.get("R12"), Some(&1));
+    }
 }

@@ -10,12 +10,13 @@ use std::fmt::Write;
 /// values an axis word holds (|value| < 1e15, at most 17 decimals): the
 /// exact binary value times 10^decimals is rounded in 128-bit integers.
 pub fn push_fixed(out: &mut String, value: f64, decimals: usize) {
-    let start = out.len();
-    if !write_fixed_fast(out, value, decimals) {
-        let _ = write!(out, "{value:.decimals$}");
+    if write_fixed_fast(out, value, decimals) {
+        return;
     }
-    let written = &out.as_bytes()[start..];
-    if written.first() == Some(&b'-') && written[1..].iter().all(|&b| b == b'0' || b == b'.') {
+    let start = out.len();
+    let _ = write!(out, "{value:.decimals$}");
+    let written = &out[start..];
+    if written.starts_with('-') && written[1..].bytes().all(|b| b == b'0' || b == b'.') {
         out.remove(start);
     }
 }
@@ -31,8 +32,8 @@ const POW10: [u64; 18] = {
     p
 };
 
-/// Writes `value` with `decimals` decimals like `format!` does; `false`
-/// (nothing written) outside the fast path's range.
+/// Writes `value` with `decimals` decimals like `format!` does, but never
+/// a negative zero; `false` (nothing written) outside the fast path's range.
 fn write_fixed_fast(out: &mut String, value: f64, decimals: usize) -> bool {
     if !value.is_finite() || value.abs() >= 1e15 || decimals >= POW10.len() {
         return false;
@@ -67,37 +68,38 @@ fn write_fixed_fast(out: &mut String, value: f64, decimals: usize) -> bool {
             }
         }
     };
-    // 64-bit division where the rounded value fits (it nearly always does:
-    // 128-bit division is a slow library call).
+    // n < 10^15 · 10^17 needs 128 bits in general; most words fit in 64.
     let (int, frac) = match u64::try_from(n) {
         Ok(n) => (n / POW10[decimals], n % POW10[decimals]),
         Err(_) => ((n / scale) as u64, (n % scale) as u64),
     };
-    if negative {
-        out.push('-');
+    // Sign, up to 16 integer digits (|value| < 1e15 rounds to at most 1e15),
+    // the point and up to 17 decimals, in one buffer.
+    let mut buf = [b'0'; 40];
+    let mut len = 0;
+    // `-0.000` is written `0.000`.
+    if negative && (int != 0 || frac != 0) {
+        buf[0] = b'-';
+        len = 1;
     }
-    let mut buf = [0u8; 20];
-    let mut i = buf.len();
+    let digits = int.checked_ilog10().unwrap_or(0) as usize + 1;
     let mut v = int;
-    loop {
-        i -= 1;
-        buf[i] = b'0' + (v % 10) as u8;
+    for k in (len..len + digits).rev() {
+        buf[k] = b'0' + (v % 10) as u8;
         v /= 10;
-        if v == 0 {
-            break;
-        }
     }
-    out.extend(buf[i..].iter().map(|&b| char::from(b)));
+    len += digits;
     if decimals > 0 {
-        out.push('.');
-        let mut d = [b'0'; 17];
+        buf[len] = b'.';
         let mut v = frac;
-        for k in (0..decimals).rev() {
-            d[k] = b'0' + (v % 10) as u8;
+        for k in (len + 1..=len + decimals).rev() {
+            buf[k] = b'0' + (v % 10) as u8;
             v /= 10;
         }
-        out.extend(d[..decimals].iter().map(|&b| char::from(b)));
+        len += 1 + decimals;
     }
+    // Digits, sign and point only: ASCII.
+    out.push_str(std::str::from_utf8(&buf[..len]).unwrap_or_default());
     true
 }
 
@@ -126,7 +128,11 @@ mod tests {
         let check = |v: f64, d: usize| {
             let mut s = String::new();
             if write_fixed_fast(&mut s, v, d) {
-                assert_eq!(s, format!("{v:.d$}"), "{v:e} with {d} decimals");
+                let mut want = format!("{v:.d$}");
+                if want.starts_with('-') && want[1..].bytes().all(|b| b == b'0' || b == b'.') {
+                    want.remove(0);
+                }
+                assert_eq!(s, want, "{v:e} with {d} decimals");
             }
         };
         // Ties (exact halves), zeros, tiny and large values, every decimal count.

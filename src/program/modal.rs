@@ -253,7 +253,7 @@ impl ModalState {
 
         let mut meaning = BlockMeaning {
             pose: None,
-            pose_items: Vec::new(),
+            pose_items: Vec::with_capacity(words.len()),
             tcp_codes,
             tcp_offset_items,
             motion: self.motion,

@@ -34,7 +34,8 @@ pub fn gcode_poses<R: BufRead>(
     mut f: impl FnMut(PoseEvent) -> Result<()>,
 ) -> Result<()> {
     let mut modal = ModalState::new(start);
-    for line in LineReader::new(input) {
+    let mut lines = LineReader::new(input);
+    while let Some(line) = lines.next_line() {
         let line = line.map_err(|e| Error::io(file, e))?;
         let mut words = Vec::new();
         let mut keywords = Vec::new();
@@ -258,9 +259,10 @@ pub fn machine_axis_blocks<R: BufRead>(
     mut f: impl FnMut(AxisEvent) -> Result<()>,
 ) -> Result<()> {
     let mut tracker = MachineAxisTracker::new(machine);
-    for line in LineReader::new(input) {
+    let mut lines = LineReader::new(input);
+    while let Some(line) = lines.next_line() {
         let line = line.map_err(|e| Error::io(file, e))?;
-        let Some(b) = tracker.line(machine, &line, file)? else {
+        let Some(b) = tracker.line(machine, line, file)? else {
             continue;
         };
         let m = &b.meaning;
