@@ -44,7 +44,7 @@ kin_it=$(sed -n 's/.*Newton iterations: \(.*\)/\1/p' "$WORK/kinpost.log")
 peer_line=$(cat "$WORK/peer.log")
 
 printf '%-34s %8s s   tool-tip residual max %s mm (%s)\n' "kinpost compensate (all cores)" "$t_kin" "$kin_tip" "$kin_it"
-printf '%-34s %8s s\n' "kinpost compensate (1 thread)" "$t_kin1"
+printf '%-34s %8s s\n' "kinpost compensate (1 pool thread)" "$t_kin1"
 printf '%-34s %8s s   %s\n' "peer_numpy.py" "$t_peer" "$peer_line"
 awk -v p="$t_peer" -v k="$t_kin" -v k1="$t_kin1" 'BEGIN {
-  printf "ratio peer / kinpost: %.1fx (1 thread: %.1fx)\n", p / k, p / k1 }'
+  printf "ratio peer / kinpost: %.1fx (1 pool thread: %.1fx)\n", p / k, p / k1 }'
