@@ -823,7 +823,7 @@ struct Chunk {
 /// thread pool, this thread writes chunk *k − 1* (stage 4) and prepares
 /// chunk *k + 1* (stages 1–2), so the in-order work overlaps the parallel
 /// work. `records` receives the per-block records after each chunk (memory
-/// stays flat: at most three chunks are alive).
+/// stays flat: at most four chunks are alive).
 ///
 /// Unlike [`crate::post::post_gcode`] with the solver's
 /// [`crate::post::PoseSolver`] interface, which continues each IK from the
