@@ -732,7 +732,6 @@ impl IkSolver {
         }
         let mut dirs = [[0.0; 3]; super::chain::MAX_JOINTS];
         let p0 = self.chain.pose_and_prismatic_directions(q, &mut dirs);
-        let col = |c: usize| Vector3::from(dirs[self.prismatics[c]]);
         let b = target.tip - p0.tip;
         let dependent = || IkError::Unreachable {
             reason: "the linear axes are dependent at these rotary positions".into(),
@@ -748,39 +747,20 @@ impl IkSolver {
             }
             return Ok(p0);
         }
-        // Otherwise (nearly dependent axes, more than three): by SVD, which
+        // Otherwise (nearly dependent axes, other counts): by SVD, which
         // also decides whether the axes are dependent.
-        macro_rules! solve {
-            ($a:expr) => {{
-                let svd = $a.svd(true, true);
-                let smax = svd.singular_values.max();
-                let smin = svd.singular_values.min();
-                if smin.is_nan() || smin <= 1e-9 * smax.max(1.0) {
-                    return Err(dependent());
-                }
-                let x = svd.solve(&b, 0.0).map_err(failed)?;
-                for (c, &j) in self.prismatics.iter().enumerate() {
-                    q[j] = x[c];
-                }
-            }};
+        let m = self.prismatics.len();
+        let a = DMatrix::from_fn(3, m, |r, c| dirs[self.prismatics[c]][r]);
+        let b = DVector::from_column_slice(b.as_slice());
+        let svd = a.svd(true, true);
+        let smax = svd.singular_values.max();
+        let smin = svd.singular_values.min();
+        if smin.is_nan() || smin <= 1e-9 * smax.max(1.0) {
+            return Err(dependent());
         }
-        match self.prismatics.len() {
-            3 => solve!(Matrix3::from_columns(&[col(0), col(1), col(2)])),
-            2 => solve!(nalgebra::Matrix3x2::from_columns(&[col(0), col(1)])),
-            m => {
-                let a = DMatrix::from_fn(3, m, |r, c| dirs[self.prismatics[c]][r]);
-                let b = DVector::from_column_slice(b.as_slice());
-                let svd = a.svd(true, true);
-                let smax = svd.singular_values.max();
-                let smin = svd.singular_values.min();
-                if smin.is_nan() || smin <= 1e-9 * smax.max(1.0) {
-                    return Err(dependent());
-                }
-                let x = svd.solve(&b, 0.0).map_err(failed)?;
-                for (c, &j) in self.prismatics.iter().enumerate() {
-                    q[j] = x[c];
-                }
-            }
+        let x = svd.solve(&b, 0.0).map_err(failed)?;
+        for (c, &j) in self.prismatics.iter().enumerate() {
+            q[j] = x[c];
         }
         Ok(p0)
     }
