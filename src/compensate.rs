@@ -154,6 +154,10 @@ fn damp_into_caps(jp: &[Col], rp: &Vector3<f64>, caps: &Joints, n: usize, dq1: &
     }
 }
 
+/// A step no larger than this (relative to `1 + |q|`, mm or rad) is taken to
+/// be the last: see [`refine`].
+const FINAL_STEP: f64 = 1e-6;
+
 /// One step of the chosen method on the stack, or `None` when a matrix is
 /// too ill-conditioned for the QR path (the caller then uses [`step_svd`]).
 ///
@@ -165,10 +169,6 @@ fn damp_into_caps(jp: &[Col], rp: &Vector3<f64>, caps: &Joints, n: usize, dq1: &
 /// the same step as the SVD form with `N = I − J_p⁺ J_p` and every vector
 /// exactly in the null space up to rounding. Paper: least squares on the
 /// stacked 6×n Jacobian by QR.
-/// A step no larger than this (relative to `1 + |q|`, mm or rad) is taken to
-/// be the last: see [`refine`].
-const FINAL_STEP: f64 = 1e-6;
-
 fn step_qr(
     jac: &JacobianColumns,
     n: usize,
@@ -811,7 +811,7 @@ struct Chunk {
 ///
 /// The program goes through in chunks of lines, each in four stages:
 ///
-/// 1. its lines are read and parsed (in parallel);
+/// 1. its lines are read (this thread) and parsed (a pool task);
 /// 2. one sequential pass applies the modal state and solves the analytic IK
 ///    of each pose, continuing from the previous pose's theoretical solution
 ///    (branch choice and rotary unwinding need the order);
@@ -819,10 +819,10 @@ struct Chunk {
 /// 4. a last sequential pass applies the failure policy, backlash
 ///    pre-compensation and records in block order and writes the blocks.
 ///
-/// The stages are pipelined: while the refinements of chunk *k* run on the
-/// thread pool, this thread writes chunk *k − 1* (stage 4) and prepares
-/// chunk *k + 1* (stages 1–2), so the in-order work overlaps the parallel
-/// work. `records` receives the per-block records after each chunk (memory
+/// The stages are pipelined: while the pool refines chunk *k* (stage 3) and
+/// parses chunk *k + 2* (stage 1), this thread writes chunk *k − 1* (stage
+/// 4), runs the first pass of chunk *k + 1* (stage 2) and reads the lines
+/// after, so the in-order work overlaps the parallel work. `records` receives the per-block records after each chunk (memory
 /// stays flat: at most four chunks are alive).
 ///
 /// Unlike [`crate::post::post_gcode`] with the solver's
