@@ -39,7 +39,7 @@ fn bench(c: &mut Criterion) {
         g.throughput(Throughput::Elements(poses.len() as u64));
         g.bench_function("ik", |b| {
             b.iter(|| {
-                let mut prev: Option<Vec<f64>> = None;
+                let mut prev: Option<kinpost::machine::JointValues> = None;
                 for p in poses {
                     prev = Some(ik.solve(black_box(p), prev.as_deref()).unwrap().q);
                 }
@@ -49,7 +49,7 @@ fn bench(c: &mut Criterion) {
         g.bench_function("ik+compensate", |b| {
             let opts = Options::default();
             b.iter(|| {
-                let mut prev: Option<Vec<f64>> = None;
+                let mut prev: Option<kinpost::machine::JointValues> = None;
                 for p in poses {
                     let q = ik.solve(black_box(p), prev.as_deref()).unwrap().q;
                     let r = refine(&actual, &bound, p, &q, &opts);

@@ -180,7 +180,7 @@ impl<'a> Analyzer<'a> {
             tip_error_mm: d.norm(),
             tip_error_vector_mm: [d.x, d.y, d.z],
             orientation_error_urad: actual.axis_angle(target) * 1e6,
-            axes: self.machine.to_external(&q),
+            axes: self.machine.to_external(&q).to_vec(),
         });
         for (k, (_, _, joint, component)) in self.terms.iter().enumerate() {
             let only = OnlyTerm {
@@ -203,7 +203,7 @@ impl<'a> Analyzer<'a> {
             s.1 += e * e;
             s.2 = s.2.max(p.axis_angle(&ideal) * 1e6);
         }
-        self.previous = Some(q);
+        self.previous = Some(q.to_vec());
         Ok(())
     }
 

@@ -23,7 +23,9 @@
 //! of nanometres (see `docs/error-model.md`).
 
 use crate::linalg::{self, Col, Qr};
-use crate::machine::chain::{Chain, JacobianColumns, JointErrors, MAX_JOINTS, NoErrors, Pose};
+use crate::machine::chain::{
+    Chain, JacobianColumns, JointErrors, JointValues, MAX_JOINTS, NoErrors, Pose,
+};
 use crate::post::{GcodeConverter, PendingPose, PostOptions, PostStats};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 use std::io::{BufRead, Write};
@@ -70,7 +72,7 @@ impl Default for Options {
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Refined {
     /// Joint values (chain order, mm / rad).
-    pub q: Vec<f64>,
+    pub q: JointValues,
     /// Newton iterations taken.
     pub iterations: usize,
     /// Remaining tool-tip error on the actual machine, mm.
@@ -154,12 +156,17 @@ fn damp_into_caps(jp: &[Col], rp: &Vector3<f64>, caps: &Joints, n: usize, dq1: &
     }
 }
 
+/// The exact method keeps its Jacobian while every step shrinks the tool-tip
+/// residual at least this many times: see [`refine`].
+const CHORD_GAIN: f64 = 1e3;
+
 /// A step no larger than this (relative to `1 + |q|`, mm or rad) is taken to
 /// be the last: see [`refine`].
 const FINAL_STEP: f64 = 1e-6;
 
-/// One step of the chosen method on the stack, or `None` when a matrix is
-/// too ill-conditioned for the QR path (the caller then uses [`step_svd`]).
+/// The residual-independent part of one step of the chosen method, on the
+/// stack: the factorisations of [`Factored::step`] for one Jacobian, so that
+/// several steps can share them (see [`refine`]).
 ///
 /// Tip part: the minimum-norm solution of `J_p S x = r_p` by QR of
 /// `(J_p S)ᵀ`, `Δ₁ = S x`. Axis part: with `Z` an orthonormal basis of the
@@ -169,148 +176,222 @@ const FINAL_STEP: f64 = 1e-6;
 /// the same step as the SVD form with `N = I − J_p⁺ J_p` and every vector
 /// exactly in the null space up to rounding. Paper: least squares on the
 /// stacked 6×n Jacobian by QR.
-fn step_qr(
-    jac: &JacobianColumns,
+struct Factored {
     n: usize,
-    rp: &Vector3<f64>,
-    ro: &Vector3<f64>,
-    opts: &Options,
-    caps: &Joints,
-) -> Option<(Joints, Joints)> {
-    let mut d1 = [0.0; MAX_JOINTS];
-    let mut d2 = [0.0; MAX_JOINTS];
-    if opts.method == Method::Paper {
-        if n > linalg::COLS {
+    /// The paper's stacked 6×n problem.
+    paper: Option<Qr>,
+    /// QR of `(J_p S)ᵀ`.
+    scaled: Qr,
+    /// Joint scaling `S` (the trust-region caps).
+    caps: Joints,
+    /// The tip rows of the Jacobian (for the damped tip step).
+    jp_rows: [Col; 3],
+    /// The axis rows of the Jacobian.
+    jo_rows: [Col; 3],
+    /// Axis weights `W`.
+    weights: [f64; 3],
+    /// Dimension of the null space of `J_p` the axis part may use (0 when
+    /// the axis cannot move in it).
+    free: usize,
+    /// Orthonormal basis of that null space.
+    z: [Col; 3],
+    /// `B = W J_o Z` (3 × free).
+    b: [Col; 3],
+    /// QR of `B` when `free > 1`.
+    qb: Option<Qr>,
+}
+
+impl Factored {
+    /// Factors the step for the Jacobian `jac` (columns, chain order), or
+    /// `None` when a matrix is too ill-conditioned for the QR path (the
+    /// caller then uses [`step_svd`]).
+    fn new(jac: &JacobianColumns, n: usize, opts: &Options, caps: &Joints) -> Option<Factored> {
+        let empty = [[0.0; linalg::ROWS]; 3];
+        if opts.method == Method::Paper {
+            if n > linalg::COLS {
+                return None;
+            }
+            let cols: [Col; linalg::COLS] = std::array::from_fn(|c| {
+                let mut col = [0.0; linalg::ROWS];
+                if c < n {
+                    col[..6].copy_from_slice(&jac[c]);
+                }
+                col
+            });
+            let qr = Qr::new(&cols[..n], 6);
+            if qr.condition() > QR_CONDITION_LIMIT {
+                return None;
+            }
+            return Some(Factored {
+                n,
+                scaled: qr.clone(),
+                paper: Some(qr),
+                caps: *caps,
+                jp_rows: empty,
+                jo_rows: empty,
+                weights: opts.axis_weights,
+                free: 0,
+                z: empty,
+                b: empty,
+                qb: None,
+            });
+        }
+        if !(3..=linalg::ROWS).contains(&n) {
             return None;
         }
-        let cols: [Col; linalg::COLS] = std::array::from_fn(|c| {
+        // The tip rows, as columns of J_pᵀ (n×3), unscaled and scaled by caps.
+        let mut jpt = [[0.0; linalg::ROWS]; 3];
+        let mut jpst = [[0.0; linalg::ROWS]; 3];
+        for (r, (col, cols)) in jpt.iter_mut().zip(jpst.iter_mut()).enumerate() {
+            for c in 0..n {
+                col[c] = jac[c][r];
+                cols[c] = jac[c][r] * caps[c];
+            }
+        }
+        let scaled = Qr::new(&jpst, n);
+        if scaled.condition() > QR_CONDITION_LIMIT {
+            return None;
+        }
+        let jo_rows: [Col; 3] = std::array::from_fn(|r| {
+            let mut row = [0.0; linalg::ROWS];
+            for c in 0..n {
+                row[c] = jac[c][r + 3];
+            }
+            row
+        });
+        let mut f = Factored {
+            n,
+            paper: None,
+            scaled,
+            caps: *caps,
+            jp_rows: jpt,
+            jo_rows,
+            weights: opts.axis_weights,
+            free: 0,
+            z: empty,
+            b: empty,
+            qb: None,
+        };
+        // Null space of J_p and the weighted axis rows on it. With one free
+        // direction it is the scaled problem's null vector mapped back through S
+        // (J_p (S z) = (J_p S) z = 0), normalised; with more, an orthonormal
+        // basis from the QR of J_pᵀ itself.
+        let free = n - 3;
+        if free == 0 {
+            return Some(f);
+        }
+        if free > 3 {
+            return None;
+        }
+        f.z = if free == 1 {
+            let zs = f.scaled.q_column(3);
+            let mut z = [0.0; linalg::ROWS];
+            for k in 0..n {
+                z[k] = caps[k] * zs[k];
+            }
+            let norm = z[..n].iter().map(|x| x * x).sum::<f64>().sqrt();
+            if norm.is_nan() || norm <= 0.0 {
+                return None;
+            }
+            for x in z.iter_mut().take(n) {
+                *x /= norm;
+            }
+            [z, [0.0; linalg::ROWS], [0.0; linalg::ROWS]]
+        } else {
+            let plain = Qr::new(&jpt, n);
+            if plain.condition() > QR_CONDITION_LIMIT {
+                return None;
+            }
+            std::array::from_fn(|i| {
+                if i < free {
+                    plain.q_column(3 + i)
+                } else {
+                    [0.0; linalg::ROWS]
+                }
+            })
+        };
+        // B = W J_o Z (3 × free).
+        f.b = std::array::from_fn(|i| {
             let mut col = [0.0; linalg::ROWS];
-            if c < n {
-                col[..6].copy_from_slice(&jac[c]);
+            if i < free {
+                for (r, x) in col.iter_mut().take(3).enumerate() {
+                    *x = f.jo(r, &f.z[i]);
+                }
             }
             col
         });
-        let qr = Qr::new(&cols[..n], 6);
-        if qr.condition() > QR_CONDITION_LIMIT {
-            return None;
+        let scale = f.b[..free]
+            .iter()
+            .flat_map(|c| c[..3].iter())
+            .fold(0.0f64, |m, x| m.max(x.abs()));
+        if scale == 0.0 {
+            // The axis cannot move in the null space (or all weights are 0).
+            return Some(f);
         }
-        let mut r = [0.0; linalg::ROWS];
-        r[..6].copy_from_slice(&[rp.x, rp.y, rp.z, ro.x, ro.y, ro.z]);
-        let x = qr.least_squares(&r);
-        d1[..n].copy_from_slice(&x[..n]);
-        return Some((d1, d2));
-    }
-    if !(3..=linalg::ROWS).contains(&n) {
-        return None;
-    }
-    // The tip rows, as columns of J_pᵀ (n×3), unscaled and scaled by caps.
-    let mut jpt = [[0.0; linalg::ROWS]; 3];
-    let mut jpst = [[0.0; linalg::ROWS]; 3];
-    for (r, (col, cols)) in jpt.iter_mut().zip(jpst.iter_mut()).enumerate() {
-        for c in 0..n {
-            col[c] = jac[c][r];
-            cols[c] = jac[c][r] * caps[c];
-        }
-    }
-    let scaled = Qr::new(&jpst, n);
-    if scaled.condition() > QR_CONDITION_LIMIT {
-        return None;
-    }
-    let x = scaled.min_norm_transposed(&[rp.x, rp.y, rp.z, 0.0, 0.0, 0.0]);
-    for k in 0..n {
-        d1[k] = x[k] * caps[k];
-    }
-    let jp_rows: [Col; 3] = std::array::from_fn(|r| {
-        let mut row = [0.0; linalg::ROWS];
-        for c in 0..n {
-            row[c] = jac[c][r];
-        }
-        row
-    });
-    damp_into_caps(&jp_rows, rp, caps, n, &mut d1);
-    // Null space of J_p and the weighted axis rows on it. With one free
-    // direction it is the scaled problem's null vector mapped back through S
-    // (J_p (S z) = (J_p S) z = 0), normalised; with more, an orthonormal
-    // basis from the QR of J_pᵀ itself.
-    let w = &opts.axis_weights;
-    let jo =
-        |r: usize, v: &Col| -> f64 { w[r] * (0..n).map(|c| jac[c][r + 3] * v[c]).sum::<f64>() };
-    let free = n - 3;
-    if free == 0 {
-        return Some((d1, d2));
-    }
-    if free > 3 {
-        return None;
-    }
-    let z: [Col; 3] = if free == 1 {
-        let zs = scaled.q_column(3);
-        let mut z = [0.0; linalg::ROWS];
-        for k in 0..n {
-            z[k] = caps[k] * zs[k];
-        }
-        let norm = z[..n].iter().map(|x| x * x).sum::<f64>().sqrt();
-        if norm.is_nan() || norm <= 0.0 {
-            return None;
-        }
-        for x in z.iter_mut().take(n) {
-            *x /= norm;
-        }
-        [z, [0.0; linalg::ROWS], [0.0; linalg::ROWS]]
-    } else {
-        let plain = Qr::new(&jpt, n);
-        if plain.condition() > QR_CONDITION_LIMIT {
-            return None;
-        }
-        std::array::from_fn(|i| {
-            if i < free {
-                plain.q_column(3 + i)
-            } else {
-                [0.0; linalg::ROWS]
+        if free > 1 {
+            let qb = Qr::new(&f.b[..free], 3);
+            if qb.condition() > QR_CONDITION_LIMIT {
+                return None;
             }
-        })
-    };
-    // B = W J_o Z (3 × free), v = W r_o − W J_o Δ₁.
-    let b: [Col; 3] = std::array::from_fn(|i| {
-        let mut col = [0.0; linalg::ROWS];
-        if i < free {
-            for (r, x) in col.iter_mut().take(3).enumerate() {
-                *x = jo(r, &z[i]);
+            f.qb = Some(qb);
+        }
+        f.free = free;
+        Some(f)
+    }
+
+    /// Row `r` of `W J_o` applied to `v`.
+    fn jo(&self, r: usize, v: &Col) -> f64 {
+        self.weights[r] * (0..self.n).map(|c| self.jo_rows[r][c] * v[c]).sum::<f64>()
+    }
+
+    /// The step for the residuals `rp` (tip) and `ro` (axis), split into its
+    /// tip part and its axis part; the tip part damped just enough to stay
+    /// inside the trust region (the caps).
+    fn step(&self, rp: &Vector3<f64>, ro: &Vector3<f64>) -> (Joints, Joints) {
+        let n = self.n;
+        let mut d1 = [0.0; MAX_JOINTS];
+        let mut d2 = [0.0; MAX_JOINTS];
+        if let Some(qr) = &self.paper {
+            let mut r = [0.0; linalg::ROWS];
+            r[..6].copy_from_slice(&[rp.x, rp.y, rp.z, ro.x, ro.y, ro.z]);
+            let x = qr.least_squares(&r);
+            d1[..n].copy_from_slice(&x[..n]);
+            return (d1, d2);
+        }
+        let x = self
+            .scaled
+            .min_norm_transposed(&[rp.x, rp.y, rp.z, 0.0, 0.0, 0.0]);
+        for k in 0..n {
+            d1[k] = x[k] * self.caps[k];
+        }
+        damp_into_caps(&self.jp_rows, rp, &self.caps, n, &mut d1);
+        let free = self.free;
+        if free == 0 {
+            return (d1, d2);
+        }
+        // v = W r_o − W J_o Δ₁.
+        let mut v = [0.0; linalg::ROWS];
+        for (r, x) in v.iter_mut().take(3).enumerate() {
+            *x = self.weights[r] * ro[r] - self.jo(r, &d1);
+        }
+        let y: [f64; linalg::COLS] = match &self.qb {
+            None => {
+                // B⁺ v = Bᵀ v / |B|² for a single column.
+                let c = &self.b[0];
+                let nn: f64 = c[..3].iter().map(|x| x * x).sum();
+                let mut y = [0.0; linalg::COLS];
+                y[0] = (c[0] * v[0] + c[1] * v[1] + c[2] * v[2]) / nn;
+                y
+            }
+            Some(qb) => qb.least_squares(&v),
+        };
+        for (i, zi) in self.z.iter().enumerate().take(free) {
+            for k in 0..n {
+                d2[k] += zi[k] * y[i];
             }
         }
-        col
-    });
-    let mut v = [0.0; linalg::ROWS];
-    for (r, x) in v.iter_mut().take(3).enumerate() {
-        *x = w[r] * ro[r] - jo(r, &d1);
+        (d1, d2)
     }
-    let scale = b[..free]
-        .iter()
-        .flat_map(|c| c[..3].iter())
-        .fold(0.0f64, |m, x| m.max(x.abs()));
-    if scale == 0.0 {
-        // The axis cannot move in the null space (or all weights are 0).
-        return Some((d1, d2));
-    }
-    let y: [f64; linalg::COLS] = if free == 1 {
-        // B⁺ v = Bᵀ v / |B|² for a single column.
-        let c = &b[0];
-        let nn: f64 = c[..3].iter().map(|x| x * x).sum();
-        let mut y = [0.0; linalg::COLS];
-        y[0] = (c[0] * v[0] + c[1] * v[1] + c[2] * v[2]) / nn;
-        y
-    } else {
-        let qb = Qr::new(&b[..free], 3);
-        if qb.condition() > QR_CONDITION_LIMIT {
-            return None;
-        }
-        qb.least_squares(&v)
-    };
-    for (i, zi) in z.iter().enumerate().take(free) {
-        for k in 0..n {
-            d2[k] += zi[k] * y[i];
-        }
-    }
-    Some((d1, d2))
 }
 
 /// One step of the chosen method with heap matrices and SVD pseudo-inverses,
@@ -431,8 +512,14 @@ pub fn refine(
     let mut jac = [[0.0; 6]; MAX_JOINTS];
     let mut pose = eval(&q[..n], &mut jac);
     let start_pose = pose;
+    let mut factors = Factored::new(&jac, n, opts, &step_cap);
     let mut trial = [0.0; MAX_JOINTS];
     let mut jac2 = [[0.0; 6]; MAX_JOINTS];
+    // The exact method keeps its Jacobian while the steps contract fast
+    // (simplified Newton): every trial is then evaluated without one.
+    let chord = opts.method == Method::Exact;
+    // The Jacobian was evaluated at the current joint values.
+    let mut fresh = true;
     loop {
         let (rp, ro) = residual(target, &pose);
         let tip = rp.norm();
@@ -440,8 +527,10 @@ pub fn refine(
         if iterations >= opts.max_iterations {
             break;
         }
-        let (d1, d2) = step_qr(&jac, n, &rp, &ro, opts, &step_cap)
-            .unwrap_or_else(|| step_svd(&jac, n, &rp, &ro, opts, &step_cap[..n]));
+        let (d1, d2) = match &factors {
+            Some(f) => f.step(&rp, &ro),
+            None => step_svd(&jac, n, &rp, &ro, opts, &step_cap[..n]),
+        };
         // Trust region: scale the whole step so no axis moves too far.
         let mut scale = 1.0f64;
         for k in 0..n {
@@ -472,7 +561,7 @@ pub fn refine(
                 // computed if another step turns out to be needed.
                 let final_guess =
                     (0..n).all(|k| (trial[k] - q[k]).abs() <= FINAL_STEP * (1.0 + q[k].abs()));
-                let p2 = if final_guess {
+                let p2 = if chord || final_guess {
                     eval_pose(&trial[..n])
                 } else {
                     eval(&trial[..n], &mut jac2)
@@ -484,13 +573,21 @@ pub fn refine(
                     || tip2 <= tip.max(opts.tip_tolerance_mm) * (1.0 + 1e-9) + 1e-15;
                 let ax_ok = opts.method == Method::Paper || ax2 <= ax + 1e-15 || tip2 < 0.5 * tip;
                 if tip_ok && ax_ok {
-                    accepted = Some((p2, tip2, ax2, !final_guess));
+                    accepted = Some((p2, tip2, ax2, !chord && !final_guess));
                     break;
                 }
             }
             s2 *= 0.5;
         }
         let Some((p2, tip2, ax2, with_jacobian)) = accepted else {
+            if chord && !fresh {
+                // The kept Jacobian may be what fails: evaluate it here
+                // and try again before giving up.
+                pose = eval(&q[..n], &mut jac);
+                factors = Factored::new(&jac, n, opts, &step_cap);
+                fresh = true;
+                continue;
+            }
             // No step improves within the bounds: this is the best there is.
             converged = tip <= opts.tip_tolerance_mm;
             break;
@@ -500,6 +597,7 @@ pub fn refine(
         pose = p2;
         if with_jacobian {
             std::mem::swap(&mut jac, &mut jac2);
+            factors = Factored::new(&jac, n, opts, &step_cap);
         }
         // Converged when the tip is met and neither the tip nor the axis
         // improves any more at floating-point level: the tip is at that
@@ -518,14 +616,25 @@ pub fn refine(
             converged = true;
             break;
         }
-        if !with_jacobian {
+        if chord {
+            // Keep the Jacobian while a step gains at least CHORD_GAIN on
+            // the tip (or the tip is at its floor); otherwise evaluate it
+            // where the iteration stands.
+            fresh = false;
+            if tip2 > floor && tip2 * CHORD_GAIN > tip {
+                pose = eval(&q[..n], &mut jac);
+                factors = Factored::new(&jac, n, opts, &step_cap);
+                fresh = true;
+            }
+        } else if !with_jacobian {
             pose = eval(&q[..n], &mut jac);
+            factors = Factored::new(&jac, n, opts, &step_cap);
         }
     }
     Refined {
         tip_residual_mm: pose.tip_distance(target),
         axis_residual_rad: pose.axis_angle(target),
-        q: q[..n].to_vec(),
+        q: q[..n].iter().copied().collect(),
         iterations,
         converged,
         start_pose,
@@ -549,7 +658,7 @@ pub struct BlockRecord {
     /// Remaining orientation error after compensation, µrad.
     pub orientation_residual_urad: f64,
     /// Compensation per axis (compensated − theoretical), output order, mm / deg.
-    pub compensation: Vec<f64>,
+    pub compensation: JointValues,
 }
 
 /// What to do with a block that does not converge or breaks a limit.
@@ -589,7 +698,7 @@ pub struct CompensatingSolver<'a> {
     /// Direction of the last motion of each joint (+1, −1, 0 before any).
     pub last_direction: Vec<f64>,
     /// The last joint values before backlash pre-compensation.
-    pub last_target: Option<Vec<f64>>,
+    pub last_target: Option<JointValues>,
 }
 
 impl CompensatingSolver<'_> {
@@ -645,7 +754,7 @@ impl CompensatingSolver<'_> {
         &self,
         pose: &Pose,
         previous: Option<&[f64]>,
-    ) -> std::result::Result<Vec<f64>, String> {
+    ) -> std::result::Result<JointValues, String> {
         self.ik
             .solve(pose, previous)
             .map(|s| s.q)
@@ -663,7 +772,7 @@ impl CompensatingSolver<'_> {
     pub fn commit(
         &mut self,
         pose: &Pose,
-        th: Vec<f64>,
+        th: JointValues,
         r: Refined,
         line: usize,
     ) -> std::result::Result<crate::post::SolvedPose, String> {
@@ -713,7 +822,8 @@ impl CompensatingSolver<'_> {
         let mut q = q;
         if !self.backlash.is_empty() {
             if self.last_direction.len() != q.len() {
-                self.last_direction = vec![0.0; q.len()];
+                self.last_direction.clear();
+                self.last_direction.resize(q.len(), 0.0);
             }
             let target = q.clone();
             for &(j, value) in &self.backlash {
@@ -787,7 +897,7 @@ enum Entry {
 struct Job {
     line: usize,
     pending: PendingPose,
-    th: Vec<f64>,
+    th: JointValues,
     refined: Option<Refined>,
 }
 
@@ -851,7 +961,7 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
     let mut raw: Vec<Vec<u8>> = Vec::with_capacity(CHUNK_LINES);
     let mut number = 0usize;
     let mut bytes_read = 0u64;
-    let mut previous_th: Option<Vec<f64>> = None;
+    let mut previous_th: Option<JointValues> = None;
     let mut buf = Vec::new();
     let mut eof = false;
 

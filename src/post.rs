@@ -32,7 +32,7 @@ pub trait PoseSolver {
 #[derive(Debug, Clone, PartialEq)]
 pub struct SolvedPose {
     /// Joint values, chain order, mm / rad.
-    pub q: Vec<f64>,
+    pub q: crate::machine::chain::JointValues,
     /// Angle by which the reachable tool axis misses the programmed one, rad
     /// (non-zero on four-axis machines for poses off the machine's cone).
     pub axis_miss_rad: f64,
@@ -187,7 +187,7 @@ impl<'m> AxisWriter<'m> {
 #[derive(Debug, Clone)]
 pub struct Converted {
     /// Joint values (chain order, mm / rad).
-    pub q: Vec<f64>,
+    pub q: crate::machine::chain::JointValues,
     /// What the block meant (modal state, items).
     pub meaning: crate::program::BlockMeaning,
 }
@@ -200,7 +200,7 @@ pub struct GcodeConverter<'a> {
     opts: &'a PostOptions,
     modal: ModalState,
     writer: AxisWriter<'a>,
-    previous: Option<Vec<f64>>,
+    previous: Option<crate::machine::chain::JointValues>,
     /// Machine axis positions (output order, mm / deg) followed through
     /// blocks in machine coordinates (pose mode off); unknown axes are 0.
     machine_ext: Vec<f64>,
@@ -387,13 +387,7 @@ impl<'a> GcodeConverter<'a> {
                 solved.q.get(axis.joint).copied().unwrap_or(0.0),
             );
         }
-        match &mut self.previous {
-            Some(p) => {
-                p.clear();
-                p.extend_from_slice(&solved.q);
-            }
-            None => self.previous = Some(solved.q.clone()),
-        }
+        self.previous = Some(solved.q.clone());
         Ok(Some(Converted {
             q: solved.q,
             meaning,
@@ -593,7 +587,7 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     let io = |e: std::io::Error| Error::io("<output>", e);
     let mut stats = PostStats::default();
     let mut writer = AxisWriter::new(machine, opts.decimals);
-    let mut previous: Option<Vec<f64>> = None;
+    let mut previous: Option<crate::machine::chain::JointValues> = None;
     let mut axis = Vector3::z();
     let mut rapid_next = false;
     let mut units = Units::Mm;

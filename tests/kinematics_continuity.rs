@@ -27,7 +27,7 @@ fn sweep(
                 "{} block {k}",
                 m.name
             );
-            prev = Some(sol.q.clone());
+            prev = Some(sol.q.to_vec());
             sol
         })
         .collect()
@@ -54,7 +54,7 @@ fn continuous_c_is_unwound_through_360() {
     let c = joint(&m, "C");
     // Continuing a program that is at C = 300°: the output runs on to 420°.
     let start = m.to_internal(&values[0]);
-    let sols = sweep(&m, &poses(&m, &values), Some(start));
+    let sols = sweep(&m, &poses(&m, &values), Some(start.to_vec()));
     for (k, s) in sols.iter().enumerate() {
         assert!(
             (s.q[c].to_degrees() - (300.0 + 0.5 * k as f64)).abs() < 1e-9,
@@ -78,7 +78,11 @@ fn continuous_a_of_wang2023_is_unwound_past_two_turns() {
         .map(|k| vec![100.0, 5.0, -30.0, 20.0, 330.0 + 1.0 * k as f64])
         .collect();
     let a = joint(&m, "A");
-    let sols = sweep(&m, &poses(&m, &values), Some(m.to_internal(&values[0])));
+    let sols = sweep(
+        &m,
+        &poses(&m, &values),
+        Some(m.to_internal(&values[0]).to_vec()),
+    );
     assert!((sols[400].q[a].to_degrees() - 730.0).abs() < 1e-9);
     for w in sols.windows(2) {
         assert!((w[1].q[a] - w[0].q[a] - 1f64.to_radians()).abs() < 1e-9);
@@ -217,7 +221,11 @@ fn zhao_tilted_crossing_takes_c_from_the_tool_axis() {
             ]
         })
         .collect();
-    let sols = sweep(&m, &poses(&m, &values), Some(m.to_internal(&values[0])));
+    let sols = sweep(
+        &m,
+        &poses(&m, &values),
+        Some(m.to_internal(&values[0]).to_vec()),
+    );
     let c = joint(&m, "C");
     for (k, s) in sols.iter().enumerate() {
         assert!(

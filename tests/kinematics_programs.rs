@@ -110,8 +110,8 @@ fn convert(machine: &Machine, poses: &[Pose]) -> (Vec<Vec<f64>>, Vec<usize>) {
         if sol.singular {
             singular.push(k);
         }
-        previous = Some(sol.q.clone());
-        all.push(sol.q);
+        previous = Some(sol.q.to_vec());
+        all.push(sol.q.to_vec());
     }
     (all, singular)
 }

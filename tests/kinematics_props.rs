@@ -46,7 +46,7 @@ fn random_q(m: &Machine, u: &[f64]) -> Vec<f64> {
         .zip(u)
         .map(|(a, u)| axis_value(a, *u))
         .collect();
-    m.to_internal(&values)
+    m.to_internal(&values).to_vec()
 }
 
 fn same_joint(m: &Machine, j: usize, a: f64, b: f64) -> bool {

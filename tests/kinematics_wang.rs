@@ -97,7 +97,7 @@ fn table2_rows_round_trip_through_ik() {
         for (got, want) in m.to_external(&sol.q).iter().zip(row) {
             assert!((got - want).abs() < 1e-9, "{got} vs {want}");
         }
-        prev = Some(sol.q);
+        prev = Some(sol.q.to_vec());
     }
 }
 

@@ -53,8 +53,8 @@ fn run_method(
     let mut qs = Vec::new();
     for (i, p) in poses.iter().enumerate() {
         let s = solver.solve(p, prev.as_deref(), i + 1).unwrap();
-        prev = Some(s.q.clone());
-        qs.push(s.q);
+        prev = Some(s.q.to_vec());
+        qs.push(s.q.to_vec());
     }
     (RunSummary::new(machine, method, &solver.records), qs)
 }
@@ -197,7 +197,7 @@ fn analyze_agrees_with_an_independent_evaluation() {
         let q = ik.solve(p, prev.as_deref()).unwrap().q;
         let (tip, axis) = independent_pose(&model, &q);
         independent.push(((tip - p.tip).norm(), axis.normalize().cross(&p.axis).norm()));
-        prev = Some(q);
+        prev = Some(q.to_vec());
     }
     let a = an.finish();
     for (b, (e, eps)) in a.blocks.iter().zip(&independent) {

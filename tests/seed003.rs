@@ -187,7 +187,7 @@ fn table6_printed_points_do_not_give_036_um() {
             Vector3::new(r[3], r[4], r[5]),
         );
         let q = ik.solve(&p, qs.last().map(|v| v.as_slice())).unwrap().q;
-        qs.push(q);
+        qs.push(q.to_vec());
     }
     let errs: Vec<f64> = qs
         .windows(2)

@@ -99,7 +99,7 @@ pub fn program_waypoints(
                 feed,
                 block: ev.line as u64,
             });
-            prev = Some(q);
+            prev = Some(q.to_vec());
             Ok(())
         };
         program_poses(&mut inp.reader, &head, &name, start, &mut on_pose)?;

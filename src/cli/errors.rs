@@ -196,8 +196,8 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
                 .solve(&ev.pose, ik_prev.as_deref())
                 .map_err(|e| Error::input(loc, e.to_string()))?
                 .q;
-            ik_prev = Some(q.clone());
-            step(ev.line, q);
+            ik_prev = Some(q.to_vec());
+            step(ev.line, q.to_vec());
             Ok(())
         };
         program_poses(&mut inp.reader, &head, &name, start, &mut on_pose)?;

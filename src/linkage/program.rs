@@ -347,7 +347,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                         .iter()
                         .position(|it| matches!(&it.kind, ItemKind::Word(w) if w.address == "F"));
                     let b = Block {
-                        q: cv.q,
+                        q: cv.q.to_vec(),
                         motion: cv.meaning.motion,
                         units: cv.meaning.units,
                         absolute: cv.meaning.absolute,

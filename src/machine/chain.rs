@@ -23,6 +23,11 @@ use nalgebra::{Matrix3, Matrix4, OMatrix, U6, Unit, Vector3, Vector4, Vector6};
 /// Largest number of joints a chain may have (X, Y, Z, A, B, C, plus one spare).
 pub const MAX_JOINTS: usize = 7;
 
+/// Joint values of one pose (chain order, mm and rad), held inline: a
+/// chain has at most [`MAX_JOINTS`] joints, so the per-pose paths never
+/// allocate for them.
+pub type JointValues = arrayvec::ArrayVec<f64, MAX_JOINTS>;
+
 /// Whether a joint translates or rotates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]

@@ -11,7 +11,7 @@
 //! errors (an unknown element kind, a zero axis vector, a duplicate joint,
 //! ...) at the key or value concerned.
 
-use super::chain::{Chain, Element, JointKind, MAX_JOINTS};
+use super::chain::{Chain, Element, JointKind, JointValues, MAX_JOINTS};
 use super::jsonpos::{Seg, Target, line_col, line_text, locate};
 use super::rotary::{RotaryMode, input_value, output_value};
 use crate::error::{Error, Location, Result};
@@ -169,8 +169,8 @@ impl Machine {
     /// Axis values in output order and file units (mm, degrees) → joint
     /// values in chain order and internal units (mm, rad). Missing values
     /// count as 0.
-    pub fn to_internal(&self, values: &[f64]) -> Vec<f64> {
-        let mut q = vec![0.0; self.chain.dof()];
+    pub fn to_internal(&self, values: &[f64]) -> JointValues {
+        let mut q: JointValues = std::iter::repeat_n(0.0, self.chain.dof()).collect();
         for (k, axis) in self.axes.iter().enumerate() {
             if let Some(slot) = q.get_mut(axis.joint) {
                 *slot = input_value(axis, values.get(k).copied().unwrap_or(0.0));
@@ -182,7 +182,7 @@ impl Machine {
     /// Joint values in chain order and internal units → axis values in
     /// output order and file units, as written ([`output_value`]: modulo
     /// axes wrapped to `[0, 360)`). Missing joints count as 0.
-    pub fn to_external(&self, q: &[f64]) -> Vec<f64> {
+    pub fn to_external(&self, q: &[f64]) -> JointValues {
         self.axes
             .iter()
             .map(|a| output_value(a, q.get(a.joint).copied().unwrap_or(0.0)))

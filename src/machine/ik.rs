@@ -27,7 +27,7 @@
 //! report how far the reachable axis misses the programmed one
 //! ([`IkSolution::axis_miss_rad`]); the caller decides whether that is an error.
 
-use super::chain::{Chain, Element, JointKind, NoErrors, Pose, rotation3};
+use super::chain::{Chain, Element, JointKind, JointValues, NoErrors, Pose, rotation3};
 use super::file::{AxisSpec, Machine};
 use super::newton_ik::{self, NewtonOptions};
 use super::rotary::{RotaryMode, angle_diff, choose_turn, within_limits};
@@ -105,7 +105,7 @@ impl std::fmt::Display for Family {
 pub struct IkSolution {
     /// Joint values, chain order, mm and rad (rotaries unwound towards the
     /// previous block; modulo axes in `[0, 2π)`).
-    pub q: Vec<f64>,
+    pub q: JointValues,
     /// Angle between the tool axis the machine reaches with `q` and the
     /// programmed one, rad (≈ 0 for five-axis machines; the cone miss of a
     /// four-axis machine).
@@ -230,6 +230,15 @@ pub struct IkSolver {
     options: IkOptions,
 }
 
+/// Most solution branches of any family (subproblem 2 has two).
+const MAX_BRANCHES: usize = 2;
+
+/// The solution branches of one pose, inline.
+type Branches = arrayvec::ArrayVec<IkSolution, MAX_BRANCHES>;
+
+/// The raw branches of one pose, inline.
+type RawBranches = arrayvec::ArrayVec<Raw, MAX_BRANCHES>;
+
 /// A branch before unwinding and the linear solve.
 struct Raw {
     /// Joint values (the first `dof` are used).
@@ -260,7 +269,7 @@ fn subproblem2(
     k2: &Vector3<f64>,
     p: &Vector3<f64>,
     q: &Vector3<f64>,
-) -> Vec<(f64, f64)> {
+) -> arrayvec::ArrayVec<(f64, f64), 2> {
     let c12 = k1.dot(k2);
     let denom = c12 * c12 - 1.0;
     let alpha = (c12 * k2.dot(p) - k1.dot(q)) / denom;
@@ -268,11 +277,11 @@ fn subproblem2(
     let cross = k1.cross(k2);
     let g2 = (p.norm_squared() - alpha * alpha - beta * beta - 2.0 * alpha * beta * c12)
         / cross.norm_squared();
-    let gammas: Vec<f64> = if g2 > 1e-24 {
+    let gammas: arrayvec::ArrayVec<f64, 2> = if g2 > 1e-24 {
         let g = g2.sqrt();
-        vec![g, -g]
+        [g, -g].into_iter().collect()
     } else {
-        vec![0.0]
+        [0.0].into_iter().collect()
     };
     gammas
         .into_iter()
@@ -479,7 +488,9 @@ impl IkSolver {
     /// are not applied here (see [`IkSolver::check_limits`]); an empty list
     /// means no branch could be computed (see [`IkSolver::solve`] for why).
     pub fn branches(&self, pose: &Pose, previous: Option<&[f64]>) -> Vec<IkSolution> {
-        self.candidates(pose, previous).unwrap_or_default()
+        self.candidates(pose, previous)
+            .map(|c| c.into_iter().collect())
+            .unwrap_or_default()
     }
 
     /// The solution for `pose` nearest the previous block's joint values
@@ -487,29 +498,34 @@ impl IkSolver {
     pub fn solve(&self, pose: &Pose, previous: Option<&[f64]>) -> Result<IkSolution, IkError> {
         let cands = self.candidates(pose, previous)?;
         let reference = self.reference(previous);
-        let valid: Vec<&IkSolution> = cands
-            .iter()
-            .filter(|s| self.check_limits(&s.q).is_ok())
-            .collect();
-        let pick = |set: &[&IkSolution]| -> Option<IkSolution> {
-            let best_miss = set
-                .iter()
-                .map(|s| s.axis_miss_rad)
-                .fold(f64::INFINITY, f64::min);
-            set.iter()
+        let valid: [bool; MAX_BRANCHES] = std::array::from_fn(|i| {
+            cands
+                .get(i)
+                .is_some_and(|s| self.check_limits(&s.q).is_ok())
+        });
+        // The branch with the least axis miss (ties within MISS_TIE_RAD)
+        // nearest the reference, among those `keep` admits.
+        let pick = |keep: &dyn Fn(usize) -> bool| -> Option<&IkSolution> {
+            let set = || {
+                cands
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| keep(*i))
+                    .map(|(_, s)| s)
+            };
+            let best_miss = set().map(|s| s.axis_miss_rad).fold(f64::INFINITY, f64::min);
+            set()
                 .filter(|s| s.axis_miss_rad <= best_miss + MISS_TIE_RAD)
                 .min_by(|a, b| {
                     self.distance(&a.q, &reference)
                         .total_cmp(&self.distance(&b.q, &reference))
                         .then(a.branch.cmp(&b.branch))
                 })
-                .map(|s| (*s).clone())
         };
-        if let Some(s) = pick(&valid) {
-            return Ok(s);
+        if let Some(s) = pick(&|i| valid[i]) {
+            return Ok(s.clone());
         }
-        let all: Vec<&IkSolution> = cands.iter().collect();
-        match pick(&all) {
+        match pick(&|_| true) {
             Some(nearest) => {
                 Err(self
                     .check_limits(&nearest.q)
@@ -580,11 +596,7 @@ impl IkSolver {
         r
     }
 
-    fn candidates(
-        &self,
-        pose: &Pose,
-        previous: Option<&[f64]>,
-    ) -> Result<Vec<IkSolution>, IkError> {
+    fn candidates(&self, pose: &Pose, previous: Option<&[f64]>) -> Result<Branches, IkError> {
         let axis_norm = pose.axis.norm();
         if !pose.tip.iter().all(|v| v.is_finite())
             || axis_norm.is_nan()
@@ -629,30 +641,34 @@ impl IkSolver {
                 &self.bounds(),
                 &self.options.newton,
             )?;
-            let mut q = r.q;
+            let mut q: JointValues = r.q.into_iter().collect();
             self.unwind(&mut q, &reference);
-            return Ok(vec![IkSolution {
+            let mut one = Branches::new();
+            one.push(IkSolution {
                 q,
                 axis_miss_rad: r.axis_residual_rad,
                 singular: false,
                 branch: 0,
-            }]);
+            });
+            return Ok(one);
         }
         let raws = match self.family {
-            Family::ThreeAxis => vec![Raw {
+            Family::ThreeAxis => [Raw {
                 q: [0.0; super::chain::MAX_JOINTS],
                 singular: false,
                 branch: 0,
-            }],
+            }]
+            .into_iter()
+            .collect(),
             Family::FourAxis1R3T => self.orient_1r(&target, &reference),
             Family::FiveAxis2R3T => self.orient_2r(&target, &reference),
             Family::FourAxisRTTR => self.orient_rttr(&target, &reference),
-            Family::Generic => Vec::new(),
+            Family::Generic => RawBranches::new(),
         };
-        let mut out = Vec::with_capacity(raws.len());
+        let mut out = Branches::new();
         let mut last_err = None;
         for raw in raws {
-            let mut q = raw.q[..n].to_vec();
+            let mut q: JointValues = raw.q[..n].iter().copied().collect();
             self.unwind(&mut q, &reference);
             // The tool axis does not depend on the linear axes.
             let axis_miss_rad = match self.solve_prismatics(&mut q, &target) {
@@ -765,7 +781,7 @@ impl IkSolver {
         Ok(p0)
     }
 
-    fn orient_1r(&self, target: &Pose, reference: &[f64]) -> Vec<Raw> {
+    fn orient_1r(&self, target: &Pose, reference: &[f64]) -> RawBranches {
         let j1 = self.revolutes[0];
         let k = self.u(j1);
         let p = self.segs[1] * Vector3::z();
@@ -776,14 +792,16 @@ impl IkSolver {
             None => (reference[j1], true),
         };
         q[j1] = t;
-        vec![Raw {
+        [Raw {
             q,
             singular,
             branch: 0,
         }]
+        .into_iter()
+        .collect()
     }
 
-    fn orient_2r(&self, target: &Pose, reference: &[f64]) -> Vec<Raw> {
+    fn orient_2r(&self, target: &Pose, reference: &[f64]) -> RawBranches {
         let (j1, j2) = (self.revolutes[0], self.revolutes[1]);
         let k1 = self.u(j1);
         let k2 = self.segs[1] * self.u(j2);
@@ -798,11 +816,13 @@ impl IkSolver {
             let mut q = [0.0; super::chain::MAX_JOINTS];
             q[j1] = t1;
             q[j2] = t2;
-            return vec![Raw {
+            return [Raw {
                 q,
                 singular: true,
                 branch: 0,
-            }];
+            }]
+            .into_iter()
+            .collect();
         }
         subproblem2(&k1, &k2, &p, &qt)
             .into_iter()
@@ -820,9 +840,9 @@ impl IkSolver {
             .collect()
     }
 
-    fn orient_rttr(&self, target: &Pose, reference: &[f64]) -> Vec<Raw> {
+    fn orient_rttr(&self, target: &Pose, reference: &[f64]) -> RawBranches {
         let Some(f) = &self.rttr else {
-            return Vec::new();
+            return RawBranches::new();
         };
         let (j1, j2) = (self.revolutes[0], self.revolutes[1]);
         let u1 = self.u(j1);
@@ -850,7 +870,7 @@ impl IkSolver {
             ([t, t + PI], false)
         };
         let count = if singular { 1 } else { 2 };
-        let mut out = Vec::with_capacity(2);
+        let mut out = RawBranches::new();
         for (b, &t1) in t1s[..count].iter().enumerate() {
             // Tool axis in the frame before the second revolute.
             let back = self.segs[1].transpose() * (rotation3(&Unit::new_unchecked(u1), -t1) * o);

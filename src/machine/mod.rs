@@ -13,7 +13,7 @@ mod jsonpos;
 pub mod newton_ik;
 pub mod rotary;
 
-pub use chain::{Chain, ErrorMotion, JointErrors, JointKind, NoErrors, Pose};
+pub use chain::{Chain, ErrorMotion, JointErrors, JointKind, JointValues, NoErrors, Pose};
 pub use file::{AxisSpec, Machine};
 pub use ik::{Family, IkError, IkOptions, IkSolution, IkSolver};
 pub use rotary::{RotaryMode, output_value};

@@ -243,7 +243,7 @@ impl MachineAxisTracker {
             self.ext[k] = if meaning.absolute { v } else { self.ext[k] + v };
         }
         Ok(Some(MachineBlock {
-            q: machine.to_internal(&self.ext),
+            q: machine.to_internal(&self.ext).to_vec(),
             meaning,
             axis_items,
         }))
