@@ -81,7 +81,11 @@ pub struct Refined {
     pub axis_residual_rad: f64,
     /// Whether the tip tolerance was reached (or the step became negligible).
     pub converged: bool,
-    /// The actual machine's pose at `q0` (where the refinement started).
+    /// Tool-tip error at `q0` (where the refinement started), mm.
+    pub start_tip_mm: f64,
+    /// Tool-axis error at `q0`, rad.
+    pub start_axis_rad: f64,
+    /// The actual machine's pose at `q0`.
     #[serde(skip)]
     pub start_pose: Pose,
     /// The actual machine's pose at `q`.
@@ -122,6 +126,10 @@ fn damped(j: &DMatrix<f64>, r: &DVector<f64>, scale: &[f64], lambda: f64) -> DVe
 
 /// Joint-space vectors of the refinement (entries past the dof unused).
 type Joints = [f64; MAX_JOINTS];
+
+/// Largest condition estimate of the Gram matrix `(J_p S)(J_p S)ᵀ` for
+/// the closed-form tip step ([`Factored::factor_gram`]); above it the QR path.
+const GRAM_CONDITION_LIMIT: f64 = 1e8;
 
 /// Problems whose (small) matrices have a condition number above this are
 /// handed to the SVD path; below it the Householder QR solution is accurate
@@ -177,10 +185,12 @@ const FINAL_STEP: f64 = 1e-6;
 /// exactly in the null space up to rounding. Paper: least squares on the
 /// stacked 6×n Jacobian by QR.
 struct Factored {
+    /// The last [`Factored::factor`] succeeded.
+    usable: bool,
     n: usize,
-    /// The paper's stacked 6×n problem.
-    paper: Option<Qr>,
-    /// QR of `(J_p S)ᵀ`.
+    /// The paper's stacked 6×n problem (factored in `scaled`).
+    paper: bool,
+    /// QR of `(J_p S)ᵀ` (of the stacked Jacobian for the paper's step).
     scaled: Qr,
     /// Joint scaling `S` (the trust-region caps).
     caps: Joints,
@@ -197,19 +207,61 @@ struct Factored {
     z: [Col; 3],
     /// `B = W J_o Z` (3 × free).
     b: [Col; 3],
-    /// QR of `B` when `free > 1`.
-    qb: Option<Qr>,
+    /// QR of `J_pᵀ` (null-space basis), then of `B`, when `free > 1`.
+    aux: Qr,
+    /// The tip step is solved through the Gram matrix (see
+    /// [`Factored::factor_gram`]) instead of `scaled`.
+    gram: bool,
+    /// Rows of `J_p S` (Gram path).
+    a_rows: [Col; 3],
+    /// `((J_p S)(J_p S)ᵀ)⁻¹` (Gram path).
+    gram_inv: [[f64; 3]; 3],
 }
 
 impl Factored {
-    /// Factors the step for the Jacobian `jac` (columns, chain order), or
-    /// `None` when a matrix is too ill-conditioned for the QR path (the
-    /// caller then uses [`step_svd`]).
-    fn new(jac: &JacobianColumns, n: usize, opts: &Options, caps: &Joints) -> Option<Factored> {
-        let empty = [[0.0; linalg::ROWS]; 3];
-        if opts.method == Method::Paper {
+    /// Nothing factored yet.
+    const EMPTY: Factored = Factored {
+        usable: false,
+        n: 0,
+        paper: false,
+        scaled: Qr::EMPTY,
+        caps: [0.0; MAX_JOINTS],
+        jp_rows: [[0.0; linalg::ROWS]; 3],
+        jo_rows: [[0.0; linalg::ROWS]; 3],
+        weights: [0.0; 3],
+        free: 0,
+        z: [[0.0; linalg::ROWS]; 3],
+        b: [[0.0; linalg::ROWS]; 3],
+        aux: Qr::EMPTY,
+        gram: false,
+        a_rows: [[0.0; linalg::ROWS]; 3],
+        gram_inv: [[0.0; 3]; 3],
+    };
+
+    /// Factors the step for the Jacobian `jac` (columns, chain order), in
+    /// place; `false` (and `usable` false) when a matrix is too
+    /// ill-conditioned for the QR path (the caller then uses [`step_svd`]).
+    fn factor(&mut self, jac: &JacobianColumns, n: usize, opts: &Options, caps: &Joints) -> bool {
+        self.usable = self.factor_qr(jac, n, opts, caps);
+        self.usable
+    }
+
+    fn factor_qr(
+        &mut self,
+        jac: &JacobianColumns,
+        n: usize,
+        opts: &Options,
+        caps: &Joints,
+    ) -> bool {
+        self.n = n;
+        self.caps = *caps;
+        self.weights = opts.axis_weights;
+        self.free = 0;
+        self.gram = false;
+        self.paper = opts.method == Method::Paper;
+        if self.paper {
             if n > linalg::COLS {
-                return None;
+                return false;
             }
             let cols: [Col; linalg::COLS] = std::array::from_fn(|c| {
                 let mut col = [0.0; linalg::ROWS];
@@ -218,125 +270,171 @@ impl Factored {
                 }
                 col
             });
-            let qr = Qr::new(&cols[..n], 6);
-            if qr.condition() > QR_CONDITION_LIMIT {
-                return None;
-            }
-            return Some(Factored {
-                n,
-                scaled: qr.clone(),
-                paper: Some(qr),
-                caps: *caps,
-                jp_rows: empty,
-                jo_rows: empty,
-                weights: opts.axis_weights,
-                free: 0,
-                z: empty,
-                b: empty,
-                qb: None,
-            });
+            self.scaled.factor(&cols[..n], 6);
+            return self.scaled.condition() <= QR_CONDITION_LIMIT;
         }
         if !(3..=linalg::ROWS).contains(&n) {
-            return None;
+            return false;
         }
         // The tip rows, as columns of J_pᵀ (n×3), unscaled and scaled by caps.
-        let mut jpt = [[0.0; linalg::ROWS]; 3];
         let mut jpst = [[0.0; linalg::ROWS]; 3];
-        for (r, (col, cols)) in jpt.iter_mut().zip(jpst.iter_mut()).enumerate() {
+        for (r, (col, cols)) in self.jp_rows.iter_mut().zip(jpst.iter_mut()).enumerate() {
+            *col = [0.0; linalg::ROWS];
             for c in 0..n {
                 col[c] = jac[c][r];
                 cols[c] = jac[c][r] * caps[c];
             }
         }
-        let scaled = Qr::new(&jpst, n);
-        if scaled.condition() > QR_CONDITION_LIMIT {
-            return None;
-        }
-        let jo_rows: [Col; 3] = std::array::from_fn(|r| {
-            let mut row = [0.0; linalg::ROWS];
+        for (r, row) in self.jo_rows.iter_mut().enumerate() {
+            *row = [0.0; linalg::ROWS];
             for c in 0..n {
                 row[c] = jac[c][r + 3];
             }
-            row
-        });
-        let mut f = Factored {
-            n,
-            paper: None,
-            scaled,
-            caps: *caps,
-            jp_rows: jpt,
-            jo_rows,
-            weights: opts.axis_weights,
-            free: 0,
-            z: empty,
-            b: empty,
-            qb: None,
-        };
+        }
+        if (n == 3 || n == 4) && self.factor_gram(&jpst, n) {
+            return true;
+        }
+        self.scaled.factor(&jpst, n);
+        if self.scaled.condition() > QR_CONDITION_LIMIT {
+            return false;
+        }
         // Null space of J_p and the weighted axis rows on it. With one free
         // direction it is the scaled problem's null vector mapped back through S
         // (J_p (S z) = (J_p S) z = 0), normalised; with more, an orthonormal
         // basis from the QR of J_pᵀ itself.
         let free = n - 3;
         if free == 0 {
-            return Some(f);
+            return true;
         }
         if free > 3 {
-            return None;
+            return false;
         }
-        f.z = if free == 1 {
-            let zs = f.scaled.q_column(3);
+        if free == 1 {
+            let zs = self.scaled.q_column(3);
             let mut z = [0.0; linalg::ROWS];
             for k in 0..n {
                 z[k] = caps[k] * zs[k];
             }
             let norm = z[..n].iter().map(|x| x * x).sum::<f64>().sqrt();
             if norm.is_nan() || norm <= 0.0 {
-                return None;
+                return false;
             }
             for x in z.iter_mut().take(n) {
                 *x /= norm;
             }
-            [z, [0.0; linalg::ROWS], [0.0; linalg::ROWS]]
+            self.z[0] = z;
         } else {
-            let plain = Qr::new(&jpt, n);
-            if plain.condition() > QR_CONDITION_LIMIT {
-                return None;
+            self.aux.factor(&self.jp_rows, n);
+            if self.aux.condition() > QR_CONDITION_LIMIT {
+                return false;
             }
-            std::array::from_fn(|i| {
-                if i < free {
-                    plain.q_column(3 + i)
-                } else {
-                    [0.0; linalg::ROWS]
-                }
-            })
-        };
+            for i in 0..free {
+                self.z[i] = self.aux.q_column(3 + i);
+            }
+        }
         // B = W J_o Z (3 × free).
-        f.b = std::array::from_fn(|i| {
+        for i in 0..free {
             let mut col = [0.0; linalg::ROWS];
-            if i < free {
-                for (r, x) in col.iter_mut().take(3).enumerate() {
-                    *x = f.jo(r, &f.z[i]);
-                }
+            for (r, x) in col.iter_mut().take(3).enumerate() {
+                *x = self.jo(r, &self.z[i]);
             }
-            col
-        });
-        let scale = f.b[..free]
+            self.b[i] = col;
+        }
+        let scale = self.b[..free]
             .iter()
             .flat_map(|c| c[..3].iter())
             .fold(0.0f64, |m, x| m.max(x.abs()));
         if scale == 0.0 {
             // The axis cannot move in the null space (or all weights are 0).
-            return Some(f);
+            return true;
         }
         if free > 1 {
-            let qb = Qr::new(&f.b[..free], 3);
-            if qb.condition() > QR_CONDITION_LIMIT {
-                return None;
+            self.aux.factor(&self.b[..free], 3);
+            if self.aux.condition() > QR_CONDITION_LIMIT {
+                return false;
             }
-            f.qb = Some(qb);
         }
-        f.free = free;
-        Some(f)
+        self.free = free;
+        true
+    }
+
+    /// The tip step and (for four joints) the null direction of `J_p` for a
+    /// well-conditioned problem of three or four joints, the common case, in
+    /// closed form: with `A = J_p S` (rows `a`), the minimum-norm solution of
+    /// `A x = r_p` is `Aᵀ (A Aᵀ)⁻¹ r_p`, the 3×3 inverse by cofactors; the null
+    /// vector of the 3×4 `A` is its generalised cross product (the signed 3×3
+    /// minors), mapped back through `S`. Used only when the Gram matrix's
+    /// condition estimate `‖G‖_F ‖G⁻¹‖_F` is at most [`GRAM_CONDITION_LIMIT`]
+    /// (`cond(A)` up to 10⁴, where squaring the condition still leaves the
+    /// step far more accurate than the next Newton step needs); otherwise
+    /// `false`, and the caller takes the Householder QR path.
+    fn factor_gram(&mut self, a: &[Col; 3], n: usize) -> bool {
+        let dot = |i: usize, j: usize| (0..n).map(|k| a[i][k] * a[j][k]).sum::<f64>();
+        let g = [
+            [dot(0, 0), dot(0, 1), dot(0, 2)],
+            [0.0, dot(1, 1), dot(1, 2)],
+            [0.0, 0.0, dot(2, 2)],
+        ];
+        let (g00, g01, g02, g11, g12, g22) = (g[0][0], g[0][1], g[0][2], g[1][1], g[1][2], g[2][2]);
+        // Cofactors of the symmetric G.
+        let c00 = g11 * g22 - g12 * g12;
+        let c01 = g02 * g12 - g01 * g22;
+        let c02 = g01 * g12 - g02 * g11;
+        let c11 = g00 * g22 - g02 * g02;
+        let c12 = g01 * g02 - g00 * g12;
+        let c22 = g00 * g11 - g01 * g01;
+        let det = g00 * c00 + g01 * c01 + g02 * c02;
+        if det.is_nan() || det <= 0.0 {
+            return false;
+        }
+        let inv = [
+            [c00 / det, c01 / det, c02 / det],
+            [c01 / det, c11 / det, c12 / det],
+            [c02 / det, c12 / det, c22 / det],
+        ];
+        let frob = |m: &[[f64; 3]; 3]| m.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
+        let full = [[g00, g01, g02], [g01, g11, g12], [g02, g12, g22]];
+        let cond = frob(&full) * frob(&inv);
+        if cond.is_nan() || cond > GRAM_CONDITION_LIMIT {
+            return false;
+        }
+        if n == 4 {
+            // z_k = (−1)^k det(A without column k), then S z, normalised.
+            let minor = |c0: usize, c1: usize, c2: usize| {
+                a[0][c0] * (a[1][c1] * a[2][c2] - a[1][c2] * a[2][c1])
+                    - a[0][c1] * (a[1][c0] * a[2][c2] - a[1][c2] * a[2][c0])
+                    + a[0][c2] * (a[1][c0] * a[2][c1] - a[1][c1] * a[2][c0])
+            };
+            let zs = [
+                minor(1, 2, 3),
+                -minor(0, 2, 3),
+                minor(0, 1, 3),
+                -minor(0, 1, 2),
+            ];
+            let mut z = [0.0; linalg::ROWS];
+            for k in 0..4 {
+                z[k] = self.caps[k] * zs[k];
+            }
+            let norm = z[..4].iter().map(|x| x * x).sum::<f64>().sqrt();
+            if norm.is_nan() || norm <= 0.0 {
+                return false;
+            }
+            for x in z.iter_mut().take(4) {
+                *x /= norm;
+            }
+            self.z[0] = z;
+            let mut col = [0.0; linalg::ROWS];
+            for (r, x) in col.iter_mut().take(3).enumerate() {
+                *x = self.jo(r, &z);
+            }
+            self.b[0] = col;
+            let movable = col[..3].iter().any(|x| *x != 0.0);
+            self.free = if movable { 1 } else { 0 };
+        }
+        self.a_rows = *a;
+        self.gram_inv = inv;
+        self.gram = true;
+        true
     }
 
     /// Row `r` of `W J_o` applied to `v`.
@@ -351,16 +449,28 @@ impl Factored {
         let n = self.n;
         let mut d1 = [0.0; MAX_JOINTS];
         let mut d2 = [0.0; MAX_JOINTS];
-        if let Some(qr) = &self.paper {
+        if self.paper {
             let mut r = [0.0; linalg::ROWS];
             r[..6].copy_from_slice(&[rp.x, rp.y, rp.z, ro.x, ro.y, ro.z]);
-            let x = qr.least_squares(&r);
+            let x = self.scaled.least_squares(&r);
             d1[..n].copy_from_slice(&x[..n]);
             return (d1, d2);
         }
-        let x = self
-            .scaled
-            .min_norm_transposed(&[rp.x, rp.y, rp.z, 0.0, 0.0, 0.0]);
+        let x = if self.gram {
+            // Aᵀ (A Aᵀ)⁻¹ r_p.
+            let g = &self.gram_inv;
+            let y: [f64; 3] =
+                std::array::from_fn(|i| g[i][0] * rp.x + g[i][1] * rp.y + g[i][2] * rp.z);
+            let a = &self.a_rows;
+            let mut x = [0.0; linalg::ROWS];
+            for k in 0..n {
+                x[k] = a[0][k] * y[0] + a[1][k] * y[1] + a[2][k] * y[2];
+            }
+            x
+        } else {
+            self.scaled
+                .min_norm_transposed(&[rp.x, rp.y, rp.z, 0.0, 0.0, 0.0])
+        };
         for k in 0..n {
             d1[k] = x[k] * self.caps[k];
         }
@@ -374,16 +484,15 @@ impl Factored {
         for (r, x) in v.iter_mut().take(3).enumerate() {
             *x = self.weights[r] * ro[r] - self.jo(r, &d1);
         }
-        let y: [f64; linalg::COLS] = match &self.qb {
-            None => {
-                // B⁺ v = Bᵀ v / |B|² for a single column.
-                let c = &self.b[0];
-                let nn: f64 = c[..3].iter().map(|x| x * x).sum();
-                let mut y = [0.0; linalg::COLS];
-                y[0] = (c[0] * v[0] + c[1] * v[1] + c[2] * v[2]) / nn;
-                y
-            }
-            Some(qb) => qb.least_squares(&v),
+        let y: [f64; linalg::COLS] = if free == 1 {
+            // B⁺ v = Bᵀ v / |B|² for a single column.
+            let c = &self.b[0];
+            let nn: f64 = c[..3].iter().map(|x| x * x).sum();
+            let mut y = [0.0; linalg::COLS];
+            y[0] = (c[0] * v[0] + c[1] * v[1] + c[2] * v[2]) / nn;
+            y
+        } else {
+            self.aux.least_squares(&v)
         };
         for (i, zi) in self.z.iter().enumerate().take(free) {
             for k in 0..n {
@@ -473,6 +582,24 @@ pub fn refine(
     q0: &[f64],
     opts: &Options,
 ) -> Refined {
+    thread_local! {
+        /// The factorisations of [`refine`], kept per thread (a few kB that
+        /// would otherwise be cleared for every pose).
+        static FACTORS: std::cell::RefCell<Factored> =
+            const { std::cell::RefCell::new(Factored::EMPTY) };
+    }
+    FACTORS.with_borrow_mut(|factors| refine_with(chain, errors, target, q0, opts, factors))
+}
+
+/// [`refine`] with the caller's factorisation space.
+fn refine_with(
+    chain: &Chain,
+    errors: &dyn JointErrors,
+    target: &Pose,
+    q0: &[f64],
+    opts: &Options,
+    factors: &mut Factored,
+) -> Refined {
     let n = q0.len();
     assert!(
         n <= MAX_JOINTS && n == chain.dof(),
@@ -512,7 +639,11 @@ pub fn refine(
     let mut jac = [[0.0; 6]; MAX_JOINTS];
     let mut pose = eval(&q[..n], &mut jac);
     let start_pose = pose;
-    let mut factors = Factored::new(&jac, n, opts, &step_cap);
+    // The residuals of `pose`, carried from step to step.
+    let mut tip = pose.tip_distance(target);
+    let mut ax = pose.axis_angle(target);
+    let (start_tip, start_ax) = (tip, ax);
+    factors.factor(&jac, n, opts, &step_cap);
     let mut trial = [0.0; MAX_JOINTS];
     let mut jac2 = [[0.0; 6]; MAX_JOINTS];
     // The exact method keeps its Jacobian while the steps contract fast
@@ -522,14 +653,13 @@ pub fn refine(
     let mut fresh = true;
     loop {
         let (rp, ro) = residual(target, &pose);
-        let tip = rp.norm();
-        let ax = pose.axis_angle(target);
         if iterations >= opts.max_iterations {
             break;
         }
-        let (d1, d2) = match &factors {
-            Some(f) => f.step(&rp, &ro),
-            None => step_svd(&jac, n, &rp, &ro, opts, &step_cap[..n]),
+        let (d1, d2) = if factors.usable {
+            factors.step(&rp, &ro)
+        } else {
+            step_svd(&jac, n, &rp, &ro, opts, &step_cap[..n])
         };
         // Trust region: scale the whole step so no axis moves too far.
         let mut scale = 1.0f64;
@@ -584,7 +714,8 @@ pub fn refine(
                 // The kept Jacobian may be what fails: evaluate it here
                 // and try again before giving up.
                 pose = eval(&q[..n], &mut jac);
-                factors = Factored::new(&jac, n, opts, &step_cap);
+                (tip, ax) = (pose.tip_distance(target), pose.axis_angle(target));
+                factors.factor(&jac, n, opts, &step_cap);
                 fresh = true;
                 continue;
             }
@@ -597,18 +728,22 @@ pub fn refine(
         pose = p2;
         if with_jacobian {
             std::mem::swap(&mut jac, &mut jac2);
-            factors = Factored::new(&jac, n, opts, &step_cap);
+            factors.factor(&jac, n, opts, &step_cap);
         }
+        let (last_tip, last_ax) = (tip, ax);
+        (tip, ax) = (tip2, ax2);
         // Converged when the tip is met and neither the tip nor the axis
         // improves any more at floating-point level: the tip is at that
         // level, or it stopped improving.
         // Floating-point floor of the tip: a few ulps of the coordinates.
         let floor = 1e-14 * (1.0 + target.tip.amax());
-        let tip_settled =
-            tip2 <= opts.tip_tolerance_mm && (tip2 <= floor || tip - tip2 <= floor + 1e-9 * tip);
-        let ax_settled = ax - ax2 <= 1e-15 + 1e-9 * ax;
+        let tip_settled = tip2 <= opts.tip_tolerance_mm
+            && (tip2 <= floor || last_tip - tip2 <= floor + 1e-9 * last_tip);
+        let ax_settled = last_ax - ax2 <= 1e-15 + 1e-9 * last_ax;
         if opts.method == Method::Paper {
-            if (tip - tip2).abs() <= floor + 1e-9 * tip && (ax - ax2).abs() <= 1e-15 + 1e-9 * ax {
+            if (last_tip - tip2).abs() <= floor + 1e-9 * last_tip
+                && (last_ax - ax2).abs() <= 1e-15 + 1e-9 * last_ax
+            {
                 converged = true;
                 break;
             }
@@ -621,19 +756,23 @@ pub fn refine(
             // the tip (or the tip is at its floor); otherwise evaluate it
             // where the iteration stands.
             fresh = false;
-            if tip2 > floor && tip2 * CHORD_GAIN > tip {
+            if tip2 > floor && tip2 * CHORD_GAIN > last_tip {
                 pose = eval(&q[..n], &mut jac);
-                factors = Factored::new(&jac, n, opts, &step_cap);
+                (tip, ax) = (pose.tip_distance(target), pose.axis_angle(target));
+                factors.factor(&jac, n, opts, &step_cap);
                 fresh = true;
             }
         } else if !with_jacobian {
             pose = eval(&q[..n], &mut jac);
-            factors = Factored::new(&jac, n, opts, &step_cap);
+            (tip, ax) = (pose.tip_distance(target), pose.axis_angle(target));
+            factors.factor(&jac, n, opts, &step_cap);
         }
     }
     Refined {
-        tip_residual_mm: pose.tip_distance(target),
-        axis_residual_rad: pose.axis_angle(target),
+        tip_residual_mm: tip,
+        axis_residual_rad: ax,
+        start_tip_mm: start_tip,
+        start_axis_rad: start_ax,
         q: q[..n].iter().copied().collect(),
         iterations,
         converged,
@@ -776,12 +915,13 @@ impl CompensatingSolver<'_> {
         r: Refined,
         line: usize,
     ) -> std::result::Result<crate::post::SolvedPose, String> {
-        let before = r.start_pose;
         let failure = if !r.converged || r.tip_residual_mm > self.accept_tip_mm {
             Some(format!(
                 "compensation did not converge: tool-tip residual {:.3e} mm after {} iterations (accepted: {:.1e} mm)",
                 r.tip_residual_mm, r.iterations, self.accept_tip_mm
             ))
+        } else if self.ik.within_all_limits(&r.q) {
+            None
         } else {
             self.ik
                 .check_limits(&r.q)
@@ -797,7 +937,7 @@ impl CompensatingSolver<'_> {
                         .push(format!("line {line}: {msg}; theoretical axes kept"));
                     th.clone()
                 }
-                OnFail::Best if self.ik.check_limits(&r.q).is_ok() => {
+                OnFail::Best if self.ik.within_all_limits(&r.q) => {
                     self.warnings.push(format!(
                         "line {line}: {msg}; best compensation within bounds kept"
                     ));
@@ -814,10 +954,11 @@ impl CompensatingSolver<'_> {
         // Backlash: the axis lags its command by value/2 against the direction
         // of its last motion, so command value/2 further in that direction.
         // Where the machine really goes (after its backlash): what the record reports.
-        let after = if q == r.q {
-            r.pose
+        let (after_tip, after_axis) = if q == r.q {
+            (r.tip_residual_mm, r.axis_residual_rad)
         } else {
-            self.actual_chain.pose(&q, self.errors)
+            let after = self.actual_chain.pose(&q, self.errors);
+            (after.tip_distance(pose), after.axis_angle(pose))
         };
         let mut q = q;
         if !self.backlash.is_empty() {
@@ -842,10 +983,10 @@ impl CompensatingSolver<'_> {
         self.records.push(BlockRecord {
             line,
             iterations: r.iterations,
-            tip_error_before_mm: before.tip_distance(pose),
-            tip_residual_mm: after.tip_distance(pose),
-            orientation_error_before_urad: before.axis_angle(pose) * 1e6,
-            orientation_residual_urad: after.axis_angle(pose) * 1e6,
+            tip_error_before_mm: r.start_tip_mm,
+            tip_residual_mm: after_tip,
+            orientation_error_before_urad: r.start_axis_rad * 1e6,
+            orientation_residual_urad: after_axis * 1e6,
             compensation: ext_c
                 .iter()
                 .zip(&ext_t)
@@ -868,7 +1009,7 @@ impl CompensatingSolver<'_> {
 }
 
 /// Lines per chunk of [`compensate_gcode`].
-const CHUNK_LINES: usize = 4096;
+const CHUNK_LINES: usize = 512;
 
 /// A solver for [`GcodeConverter`] that is never called (the chunked driver
 /// solves outside the converter).

@@ -28,20 +28,32 @@ pub struct Qr {
 }
 
 impl Qr {
+    /// An empty factorisation (to be filled by [`Qr::factor`]).
+    pub const EMPTY: Qr = Qr {
+        m: 0,
+        k: 0,
+        v: [[0.0; ROWS]; COLS],
+        beta: [0.0; COLS],
+        r: [[0.0; COLS]; COLS],
+    };
+
     /// Factors the matrix whose columns are `a` (each with `m` valid rows).
     pub fn new(a: &[Col], m: usize) -> Qr {
+        let mut qr = Qr::EMPTY;
+        qr.factor(a, m);
+        qr
+    }
+
+    /// [`Qr::new`] in place.
+    pub fn factor(&mut self, a: &[Col], m: usize) {
         let k = a.len();
         assert!(k <= COLS && k <= m && m <= ROWS, "QR of a {m}×{k} matrix");
         let mut w = [[0.0; ROWS]; COLS];
         w[..k].copy_from_slice(a);
-        let mut qr = Qr {
-            m,
-            k,
-            v: [[0.0; ROWS]; COLS],
-            beta: [0.0; COLS],
-            r: [[0.0; COLS]; COLS],
-        };
+        self.m = m;
+        self.k = k;
         for j in 0..k {
+            self.beta[j] = 0.0;
             let norm = w[j][j..m].iter().map(|x| x * x).sum::<f64>().sqrt();
             if norm > 0.0 {
                 let alpha = if w[j][j] > 0.0 { -norm } else { norm };
@@ -57,17 +69,16 @@ impl Qr {
                             *x -= s * vi;
                         }
                     }
-                    qr.v[j] = v;
-                    qr.beta[j] = beta;
+                    self.v[j] = v;
+                    self.beta[j] = beta;
                 }
                 // Exactly the reflected value; the entries below are zero.
                 w[j][j] = alpha;
             }
             for c in j..k {
-                qr.r[j][c] = w[c][j];
+                self.r[j][c] = w[c][j];
             }
         }
-        qr
     }
 
     fn reflect(&self, j: usize, x: &mut Col) {

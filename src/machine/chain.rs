@@ -476,6 +476,13 @@ pub fn rotation3(u: &Unit<Vector3<f64>>, theta: f64) -> Matrix3<f64> {
     Matrix3::identity() + k * s + k * k * (1.0 - c)
 }
 
+/// `v` turned by `theta` (rad) about the unit axis `u` (Rodrigues on the
+/// vector: `v cos θ + (u × v) sin θ + u (u·v)(1 − cos θ)`).
+pub fn rotate(u: &Vector3<f64>, theta: f64, v: &Vector3<f64>) -> Vector3<f64> {
+    let (s, c) = theta.sin_cos();
+    v * c + u.cross(v) * s + u * (u.dot(v) * (1.0 - c))
+}
+
 /// Homogeneous rotation by `theta` (rad) about unit axis `u` through the origin.
 pub fn rotation(u: &Unit<Vector3<f64>>, theta: f64) -> Matrix4<f64> {
     let mut m = Matrix4::identity();
@@ -663,14 +670,66 @@ impl Chain {
         t.unwrap_or(Affine::IDENTITY)
     }
 
+    /// The tool tip and axis of the precomputed chain by one backward pass
+    /// of the two vectors (`T·[0,0,0,1]`, `T·[0,0,1,0]`): each element maps
+    /// a point and a direction instead of multiplying 3×4 matrices.
+    fn pose_backward(c: &Compiled, q: &[f64], errors: &dyn JointErrors) -> Pose {
+        let skip = errors.is_empty();
+        let mut tip = [0.0; 3];
+        let mut ax = [0.0, 0.0, 1.0];
+        for step in c.steps.iter().rev() {
+            match step {
+                Step::Fixed(m) => {
+                    tip = m.point(&tip);
+                    ax = m.dir(&ax);
+                }
+                Step::Joint(j) => {
+                    let jc = &c.joints[*j];
+                    let v = q[*j];
+                    if !skip && let Some(e) = errors.error(*j, v) {
+                        // E = [I + [ε]ₓ | δ] (small-angle form, as `transform`).
+                        let d = |x: &[f64; 3]| {
+                            [
+                                x[0] - e[5] * x[1] + e[4] * x[2],
+                                e[5] * x[0] + x[1] - e[3] * x[2],
+                                -e[4] * x[0] + e[3] * x[1] + x[2],
+                            ]
+                        };
+                        let t = d(&tip);
+                        tip = [t[0] + e[0], t[1] + e[1], t[2] + e[2]];
+                        ax = d(&ax);
+                    }
+                    match jc.kind {
+                        JointKind::Prismatic => {
+                            for (t, u) in tip.iter_mut().zip(jc.u) {
+                                *t += u * v;
+                            }
+                        }
+                        JointKind::Revolute => {
+                            let r = jc.rotation(v);
+                            let rot = |x: &[f64; 3]| -> [f64; 3] {
+                                std::array::from_fn(|i| {
+                                    r[i][0] * x[0] + r[i][1] * x[1] + r[i][2] * x[2]
+                                })
+                            };
+                            tip = rot(&tip);
+                            ax = rot(&ax);
+                        }
+                    }
+                }
+            }
+        }
+        Pose {
+            tip: Vector3::new(tip[0], tip[1], tip[2]),
+            axis: Vector3::new(ax[0], ax[1], ax[2]),
+        }
+    }
+
     /// Forward kinematics: tool tip `T·[0,0,0,1]` and tool axis `T·[0,0,1,0]`.
     pub fn pose(&self, q: &[f64], errors: &dyn JointErrors) -> Pose {
         debug_assert_eq!(q.len(), self.joints.len());
-        match self.with_compiled(|c| Self::forward(c, q, errors)) {
-            Some(t) => Pose {
-                tip: Vector3::new(t.m[0][3], t.m[1][3], t.m[2][3]),
-                axis: Vector3::new(t.m[0][2], t.m[1][2], t.m[2][2]),
-            },
+        match self.with_compiled(|c| Self::pose_backward(c, q, errors)) {
+            Some(pose) => pose,
             None => {
                 let t = self.transform_general(q, errors);
                 Pose {
@@ -734,30 +793,76 @@ impl Chain {
         dirs: &mut [[f64; 3]; MAX_JOINTS],
     ) -> Pose {
         let compiled = self.with_compiled(|c| {
-            let mut prefix: Option<Affine> = None;
-            for step in &c.steps {
-                let m = match step {
-                    Step::Fixed(m) => *m,
+            // Each revolute joint's rotation, once.
+            let mut rots = [[[0.0; 3]; 3]; MAX_JOINTS];
+            for (j, jc) in c.joints.iter().enumerate() {
+                if jc.kind == JointKind::Revolute {
+                    rots[j] = jc.rotation(q[j]);
+                }
+            }
+            // The directions need the rotation of the prefix before each
+            // prismatic joint: a forward pass of 3×3 rotations up to the
+            // last one.
+            let last = c.steps.iter().rposition(
+                |s| matches!(s, Step::Joint(j) if c.joints[*j].kind == JointKind::Prismatic),
+            );
+            let mut rot: Option<[[f64; 3]; 3]> = None;
+            for step in &c.steps[..last.map_or(0, |l| l + 1)] {
+                let r = match step {
+                    Step::Fixed(m) => std::array::from_fn(|i| [m.m[i][0], m.m[i][1], m.m[i][2]]),
                     Step::Joint(j) => {
                         let jc = &c.joints[*j];
                         if jc.kind == JointKind::Prismatic {
-                            dirs[*j] = match &prefix {
-                                Some(p) => p.dir(&jc.u),
+                            dirs[*j] = match &rot {
+                                Some(p) => std::array::from_fn(|i| {
+                                    p[i][0] * jc.u[0] + p[i][1] * jc.u[1] + p[i][2] * jc.u[2]
+                                }),
                                 None => jc.u,
                             };
+                            continue;
                         }
-                        jc.transform(q[*j], None).0
+                        rots[*j]
                     }
                 };
-                prefix = Some(match prefix {
-                    None => m,
-                    Some(p) => p.mul(&m),
+                rot = Some(match rot {
+                    None => r,
+                    Some(p) => mul3(&p, &r),
                 });
             }
-            let t = prefix.unwrap_or(Affine::IDENTITY);
+            // The pose: one backward pass of the tip and the axis.
+            let mut tip = [0.0; 3];
+            let mut ax = [0.0, 0.0, 1.0];
+            for step in c.steps.iter().rev() {
+                match step {
+                    Step::Fixed(m) => {
+                        tip = m.point(&tip);
+                        ax = m.dir(&ax);
+                    }
+                    Step::Joint(j) => {
+                        let jc = &c.joints[*j];
+                        match jc.kind {
+                            JointKind::Prismatic => {
+                                for (t, u) in tip.iter_mut().zip(jc.u) {
+                                    *t += u * q[*j];
+                                }
+                            }
+                            JointKind::Revolute => {
+                                let r = &rots[*j];
+                                let rot = |x: &[f64; 3]| -> [f64; 3] {
+                                    std::array::from_fn(|i| {
+                                        r[i][0] * x[0] + r[i][1] * x[1] + r[i][2] * x[2]
+                                    })
+                                };
+                                tip = rot(&tip);
+                                ax = rot(&ax);
+                            }
+                        }
+                    }
+                }
+            }
             Pose {
-                tip: Vector3::new(t.m[0][3], t.m[1][3], t.m[2][3]),
-                axis: Vector3::new(t.m[0][2], t.m[1][2], t.m[2][2]),
+                tip: Vector3::new(tip[0], tip[1], tip[2]),
+                axis: Vector3::new(ax[0], ax[1], ax[2]),
             }
         });
         match compiled {

@@ -27,11 +27,11 @@
 //! report how far the reachable axis misses the programmed one
 //! ([`IkSolution::axis_miss_rad`]); the caller decides whether that is an error.
 
-use super::chain::{Chain, Element, JointKind, JointValues, NoErrors, Pose, rotation3};
+use super::chain::{Chain, Element, JointKind, JointValues, NoErrors, Pose, rotate};
 use super::file::{AxisSpec, Machine};
 use super::newton_ik::{self, NewtonOptions};
 use super::rotary::{RotaryMode, angle_diff, choose_turn, within_limits};
-use nalgebra::{DMatrix, DVector, Matrix3, Matrix4, Unit, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix4, Vector3};
 use std::f64::consts::PI;
 
 /// Default largest tool-axis miss a caller should accept silently, rad.
@@ -498,11 +498,8 @@ impl IkSolver {
     pub fn solve(&self, pose: &Pose, previous: Option<&[f64]>) -> Result<IkSolution, IkError> {
         let cands = self.candidates(pose, previous)?;
         let reference = self.reference(previous);
-        let valid: [bool; MAX_BRANCHES] = std::array::from_fn(|i| {
-            cands
-                .get(i)
-                .is_some_and(|s| self.check_limits(&s.q).is_ok())
-        });
+        let valid: [bool; MAX_BRANCHES] =
+            std::array::from_fn(|i| cands.get(i).is_some_and(|s| self.within_all_limits(&s.q)));
         // The branch with the least axis miss (ties within MISS_TIE_RAD)
         // nearest the reference, among those `keep` admits.
         let pick = |keep: &dyn Fn(usize) -> bool| -> Option<&IkSolution> {
@@ -538,6 +535,14 @@ impl IkSolver {
                 reason: "no solution branch".into(),
             }),
         }
+    }
+
+    /// Whether every joint of `q` (chain order, internal units) is within
+    /// its axis limits: [`IkSolver::check_limits`] without building the error.
+    pub fn within_all_limits(&self, q: &[f64]) -> bool {
+        self.output_order
+            .iter()
+            .all(|&j| within_limits(&self.axes[j], q.get(j).copied().unwrap_or(f64::NAN)))
     }
 
     /// `Ok` when every joint of `q` (chain order, internal units) is within
@@ -811,7 +816,7 @@ impl IkSolver {
             // Tool axis along the first rotary: it is free; keep it and turn
             // the second rotary onto the axis.
             let t1 = reference[j1];
-            let back = rotation3(&Unit::new_unchecked(k1), -t1) * qt;
+            let back = rotate(&k1, -t1, &qt);
             let t2 = subproblem1(&k2, &p, &back, 0.0).unwrap_or_else(|| reference[j2]);
             let mut q = [0.0; super::chain::MAX_JOINTS];
             q[j1] = t1;
@@ -873,7 +878,7 @@ impl IkSolver {
         let mut out = RawBranches::new();
         for (b, &t1) in t1s[..count].iter().enumerate() {
             // Tool axis in the frame before the second revolute.
-            let back = self.segs[1].transpose() * (rotation3(&Unit::new_unchecked(u1), -t1) * o);
+            let back = self.segs[1].transpose() * rotate(&u1, -t1, &o);
             let pz = self.segs[2] * Vector3::z();
             let (t2, s2) = match subproblem1(&u2, &pz, &back, self.options.singular_tol_rad) {
                 Some(t2) => (t2, false),
@@ -924,7 +929,9 @@ fn gram_schmidt_solve(
     }
     let frob2: f64 = r.iter().flatten().map(|v| v * v).sum();
     let det: f64 = (0..m).map(|i| r[i][i]).product();
-    let bound = 1e-6 * frob2.powf(m as f64 / 2.0);
+    // ‖R‖_F^m without `powf` (m is 2 or 3).
+    let norm_m = if m == 2 { frob2 } else { frob2 * frob2.sqrt() };
+    let bound = 1e-6 * norm_m;
     if !bound.is_finite() || det.is_nan() || det.abs() < bound {
         return None;
     }
@@ -942,6 +949,8 @@ fn gram_schmidt_solve(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::machine::chain::rotation3;
+    use nalgebra::Unit;
 
     fn solver(name: &str) -> (Machine, IkSolver) {
         let m = Machine::embedded(name).unwrap();
