@@ -95,9 +95,24 @@ impl MergedAxis {
         })
     }
 
-    /// Error motions and their derivatives per unit of position (mm or
-    /// degree) at `pos`: the same as [`AxisErrors::error_at`].
+    /// Error motions and their derivatives at `pos` (mm, or degrees for a
+    /// rotary axis); [`AxisErrors::error_at`] to rounding.
     pub fn error_at(&self, pos: f64) -> (ErrorMotion, ErrorMotion) {
+        self.evaluate(pos, true)
+    }
+
+    /// Whether positions are in degrees (a rotary axis).
+    pub fn is_rotary(&self) -> bool {
+        self.rotary
+    }
+
+    /// The error motions alone at `pos` (the first half of
+    /// [`MergedAxis::error_at`], without the derivatives).
+    pub fn value_at(&self, pos: f64) -> ErrorMotion {
+        self.evaluate(pos, false).0
+    }
+
+    fn evaluate(&self, pos: f64, derivative: bool) -> (ErrorMotion, ErrorMotion) {
         let x = if self.rotary {
             super::model::wrap_angle(pos, (self.lo, self.hi))
         } else {
@@ -118,7 +133,9 @@ impl MergedAxis {
             let mut d = ErrorMotion::zeros();
             for (k, [a0, a1, a2, a3]) in cubics.iter().enumerate() {
                 e[k] = ((a3 * u + a2) * u + a1) * u + a0;
-                d[k] = ((3.0 * a3 * u + 2.0 * a2) * u + a1) * inv_w;
+                if derivative {
+                    d[k] = ((3.0 * a3 * u + 2.0 * a2) * u + a1) * inv_w;
+                }
             }
             return (e, d);
         };

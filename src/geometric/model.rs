@@ -756,6 +756,15 @@ impl BoundErrors<'_> {
 
 impl JointErrors for BoundErrors<'_> {
     fn error(&self, joint: usize, q: f64) -> Option<ErrorMotion> {
+        // The merged splines without their derivatives, where nothing else
+        // adds to this joint (the common case).
+        if self.terms.is_empty()
+            && let Some(m) = self.merged.get(joint).and_then(Option::as_ref)
+        {
+            self.per_joint.get(joint).copied().flatten()?;
+            let pos = if m.is_rotary() { q.to_degrees() } else { q };
+            return Some(m.value_at(pos));
+        }
         self.evaluate(joint, q).map(|(e, _)| e)
     }
 

@@ -488,7 +488,7 @@ impl IkSolver {
     /// are not applied here (see [`IkSolver::check_limits`]); an empty list
     /// means no branch could be computed (see [`IkSolver::solve`] for why).
     pub fn branches(&self, pose: &Pose, previous: Option<&[f64]>) -> Vec<IkSolution> {
-        self.candidates(pose, previous)
+        self.candidates(pose, previous, false)
             .map(|c| c.into_iter().collect())
             .unwrap_or_default()
     }
@@ -496,7 +496,7 @@ impl IkSolver {
     /// The solution for `pose` nearest the previous block's joint values
     /// `previous` (chain order, internal units), within the axis limits.
     pub fn solve(&self, pose: &Pose, previous: Option<&[f64]>) -> Result<IkSolution, IkError> {
-        let cands = self.candidates(pose, previous)?;
+        let cands = self.candidates(pose, previous, true)?;
         let reference = self.reference(previous);
         let valid: [bool; MAX_BRANCHES] =
             std::array::from_fn(|i| cands.get(i).is_some_and(|s| self.within_all_limits(&s.q)));
@@ -601,7 +601,17 @@ impl IkSolver {
         r
     }
 
-    fn candidates(&self, pose: &Pose, previous: Option<&[f64]>) -> Result<Branches, IkError> {
+    /// The solution branches of `pose`, rotaries unwound towards
+    /// `previous`. With `nearest_only`, a second branch is not completed when
+    /// it cannot be chosen: the first (the one whose rotaries are nearer the
+    /// reference) is within the limits, meets the tool axis (miss within
+    /// `MISS_TIE_RAD`), and is nearer than the second's rotaries alone.
+    fn candidates(
+        &self,
+        pose: &Pose,
+        previous: Option<&[f64]>,
+        nearest_only: bool,
+    ) -> Result<Branches, IkError> {
         let axis_norm = pose.axis.norm();
         if !pose.tip.iter().all(|v| v.is_finite())
             || axis_norm.is_nan()
@@ -670,30 +680,76 @@ impl IkSolver {
             Family::FourAxisRTTR => self.orient_rttr(&target, &reference),
             Family::Generic => RawBranches::new(),
         };
+        let unwound: arrayvec::ArrayVec<JointValues, MAX_BRANCHES> = raws
+            .iter()
+            .map(|raw| {
+                let mut q: JointValues = raw.q[..n].iter().copied().collect();
+                self.unwind(&mut q, &reference);
+                q
+            })
+            .collect();
+        // The linear axes and the miss of one branch.
+        let complete = |i: usize| -> Result<IkSolution, IkError> {
+            let mut q = unwound[i].clone();
+            // The tool axis does not depend on the linear axes.
+            let reached = self.solve_prismatics(&mut q, &target)?;
+            Ok(IkSolution {
+                q,
+                axis_miss_rad: reached.axis_angle(&target),
+                singular: raws[i].singular,
+                branch: raws[i].branch,
+            })
+        };
+        let mut done: [Option<Result<IkSolution, IkError>>; MAX_BRANCHES] = [None, None];
+        if nearest_only && raws.len() == 2 {
+            let lower = [
+                self.rotary_distance(&unwound[0], &reference),
+                self.rotary_distance(&unwound[1], &reference),
+            ];
+            let (first, other) = if lower[1] < lower[0] { (1, 0) } else { (0, 1) };
+            let sol = complete(first);
+            if let Ok(s) = &sol
+                && s.axis_miss_rad <= MISS_TIE_RAD
+                && self.within_all_limits(&s.q)
+                && self.distance(&s.q, &reference) < lower[other]
+            {
+                let mut one = Branches::new();
+                one.extend(sol);
+                return Ok(one);
+            }
+            done[first] = Some(sol);
+        }
         let mut out = Branches::new();
         let mut last_err = None;
-        for raw in raws {
-            let mut q: JointValues = raw.q[..n].iter().copied().collect();
-            self.unwind(&mut q, &reference);
-            // The tool axis does not depend on the linear axes.
-            let axis_miss_rad = match self.solve_prismatics(&mut q, &target) {
-                Ok(reached) => reached.axis_angle(&target),
-                Err(e) => {
-                    last_err = Some(e);
-                    continue;
-                }
-            };
-            out.push(IkSolution {
-                q,
-                axis_miss_rad,
-                singular: raw.singular,
-                branch: raw.branch,
-            });
+        for (i, slot) in done.iter_mut().enumerate().take(raws.len()) {
+            match slot.take().unwrap_or_else(|| complete(i)) {
+                Ok(s) => out.push(s),
+                Err(e) => last_err = Some(e),
+            }
         }
         match (out.is_empty(), last_err) {
             (true, Some(e)) => Err(e),
             _ => Ok(out),
         }
+    }
+
+    /// The rotary part of [`IkSolver::distance`]: a lower bound of it (the
+    /// same non-negative terms in the same order, fewer of them).
+    fn rotary_distance(&self, q: &[f64], reference: &[f64]) -> f64 {
+        q.iter()
+            .zip(reference)
+            .enumerate()
+            .map(|(j, (a, b))| {
+                let d = match self.axes[j].kind {
+                    JointKind::Prismatic => 0.0,
+                    JointKind::Revolute if self.axes[j].rotary == RotaryMode::Modulo => {
+                        angle_diff(*a, *b)
+                    }
+                    JointKind::Revolute => a - b,
+                };
+                d * d
+            })
+            .sum()
     }
 
     /// Start of the Newton fallback without a previous block: 0, moved into
