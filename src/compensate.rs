@@ -572,9 +572,15 @@ pub const MAX_COMPENSATION_RAD: f64 = 5e-3;
 /// refinement then stops with the best compensation within bounds
 /// (`converged == false`).
 ///
-/// The steps are computed on the stack (Householder QR of the 3×n and 6×n
-/// problems, chains of at most [`MAX_JOINTS`] joints); a problem whose
-/// matrices are ill-conditioned is solved with SVD pseudo-inverses instead.
+/// The steps are computed on the stack (`Factored`: a closed-form Gram
+/// solve for three or four joints, Householder QR of the 3×n and 6×n
+/// problems otherwise, chains of at most [`MAX_JOINTS`] joints); a problem
+/// whose matrices are ill-conditioned is solved with SVD pseudo-inverses
+/// instead. With [`Method::Exact`] the Jacobian and its factorisation are
+/// kept from step to step while each step shrinks the tool-tip residual at
+/// least `CHORD_GAIN` times (simplified Newton; the trial points are then
+/// evaluated without a Jacobian), and evaluated again where a step gains
+/// less or fails; the other methods evaluate theirs at every step.
 pub fn refine(
     chain: &Chain,
     errors: &dyn JointErrors,
