@@ -85,12 +85,6 @@ pub struct Refined {
     pub start_tip_mm: f64,
     /// Tool-axis error at `q0`, rad.
     pub start_axis_rad: f64,
-    /// The actual machine's pose at `q0`.
-    #[serde(skip)]
-    pub start_pose: Pose,
-    /// The actual machine's pose at `q`.
-    #[serde(skip)]
-    pub pose: Pose,
 }
 
 fn residual(target: &Pose, p: &Pose) -> (Vector3<f64>, Vector3<f64>) {
@@ -507,7 +501,8 @@ impl Factored {
 /// split into its tip part and its axis part (the paper's stacked step is
 /// all "tip part"). The tip part is damped just enough to stay inside the
 /// trust region `caps` (Levenberg–Marquardt). The reference form of
-/// [`step_qr`], used where that one declines (ill-conditioned matrices).
+/// the QR path of [`Factored`], used where that one declines
+/// (ill-conditioned matrices).
 fn step_svd(
     jac: &JacobianColumns,
     n: usize,
@@ -644,7 +639,6 @@ fn refine_with(
     let mut converged = false;
     let mut jac = [[0.0; 6]; MAX_JOINTS];
     let mut pose = eval(&q[..n], &mut jac);
-    let start_pose = pose;
     // The residuals of `pose`, carried from step to step.
     let mut tip = pose.tip_distance(target);
     let mut ax = pose.axis_angle(target);
@@ -782,8 +776,6 @@ fn refine_with(
         q: q[..n].iter().copied().collect(),
         iterations,
         converged,
-        start_pose,
-        pose,
     }
 }
 

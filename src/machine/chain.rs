@@ -673,7 +673,14 @@ impl Chain {
     /// The tool tip and axis of the precomputed chain by one backward pass
     /// of the two vectors (`T·[0,0,0,1]`, `T·[0,0,1,0]`): each element maps
     /// a point and a direction instead of multiplying 3×4 matrices.
-    fn pose_backward(c: &Compiled, q: &[f64], errors: &dyn JointErrors) -> Pose {
+    /// `rots`: the revolute joints' rotations when the caller has them
+    /// already (by joint index), else each is computed here.
+    fn pose_backward(
+        c: &Compiled,
+        q: &[f64],
+        errors: &dyn JointErrors,
+        rots: Option<&[[[f64; 3]; 3]; MAX_JOINTS]>,
+    ) -> Pose {
         let skip = errors.is_empty();
         let mut tip = [0.0; 3];
         let mut ax = [0.0, 0.0, 1.0];
@@ -706,7 +713,10 @@ impl Chain {
                             }
                         }
                         JointKind::Revolute => {
-                            let r = jc.rotation(v);
+                            let r = match rots {
+                                Some(rots) => rots[*j],
+                                None => jc.rotation(v),
+                            };
                             let rot = |x: &[f64; 3]| -> [f64; 3] {
                                 std::array::from_fn(|i| {
                                     r[i][0] * x[0] + r[i][1] * x[1] + r[i][2] * x[2]
@@ -728,7 +738,7 @@ impl Chain {
     /// Forward kinematics: tool tip `T·[0,0,0,1]` and tool axis `T·[0,0,1,0]`.
     pub fn pose(&self, q: &[f64], errors: &dyn JointErrors) -> Pose {
         debug_assert_eq!(q.len(), self.joints.len());
-        match self.with_compiled(|c| Self::pose_backward(c, q, errors)) {
+        match self.with_compiled(|c| Self::pose_backward(c, q, errors, None)) {
             Some(pose) => pose,
             None => {
                 let t = self.transform_general(q, errors);
@@ -830,40 +840,7 @@ impl Chain {
                 });
             }
             // The pose: one backward pass of the tip and the axis.
-            let mut tip = [0.0; 3];
-            let mut ax = [0.0, 0.0, 1.0];
-            for step in c.steps.iter().rev() {
-                match step {
-                    Step::Fixed(m) => {
-                        tip = m.point(&tip);
-                        ax = m.dir(&ax);
-                    }
-                    Step::Joint(j) => {
-                        let jc = &c.joints[*j];
-                        match jc.kind {
-                            JointKind::Prismatic => {
-                                for (t, u) in tip.iter_mut().zip(jc.u) {
-                                    *t += u * q[*j];
-                                }
-                            }
-                            JointKind::Revolute => {
-                                let r = &rots[*j];
-                                let rot = |x: &[f64; 3]| -> [f64; 3] {
-                                    std::array::from_fn(|i| {
-                                        r[i][0] * x[0] + r[i][1] * x[1] + r[i][2] * x[2]
-                                    })
-                                };
-                                tip = rot(&tip);
-                                ax = rot(&ax);
-                            }
-                        }
-                    }
-                }
-            }
-            Pose {
-                tip: Vector3::new(tip[0], tip[1], tip[2]),
-                axis: Vector3::new(ax[0], ax[1], ax[2]),
-            }
+            Self::pose_backward(c, q, &NoErrors, Some(&rots))
         });
         match compiled {
             Some(pose) => pose,

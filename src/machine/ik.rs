@@ -572,12 +572,17 @@ impl IkSolver {
     /// travel in rad (shortest way for modulo axes), linear travel scaled by
     /// `LINEAR_WEIGHT_PER_MM`; squared sum.
     pub fn distance(&self, q: &[f64], reference: &[f64]) -> f64 {
+        self.weighted_distance(q, reference, LINEAR_WEIGHT_PER_MM)
+    }
+
+    /// [`IkSolver::distance`] with linear travel weighted by `per_mm`.
+    fn weighted_distance(&self, q: &[f64], reference: &[f64], per_mm: f64) -> f64 {
         q.iter()
             .zip(reference)
             .enumerate()
             .map(|(j, (a, b))| {
                 let d = match self.axes[j].kind {
-                    JointKind::Prismatic => (a - b) * LINEAR_WEIGHT_PER_MM,
+                    JointKind::Prismatic => (a - b) * per_mm,
                     JointKind::Revolute if self.axes[j].rotary == RotaryMode::Modulo => {
                         angle_diff(*a, *b)
                     }
@@ -734,22 +739,9 @@ impl IkSolver {
     }
 
     /// The rotary part of [`IkSolver::distance`]: a lower bound of it (the
-    /// same non-negative terms in the same order, fewer of them).
+    /// same non-negative terms in the same order, the linear ones zero).
     fn rotary_distance(&self, q: &[f64], reference: &[f64]) -> f64 {
-        q.iter()
-            .zip(reference)
-            .enumerate()
-            .map(|(j, (a, b))| {
-                let d = match self.axes[j].kind {
-                    JointKind::Prismatic => 0.0,
-                    JointKind::Revolute if self.axes[j].rotary == RotaryMode::Modulo => {
-                        angle_diff(*a, *b)
-                    }
-                    JointKind::Revolute => a - b,
-                };
-                d * d
-            })
-            .sum()
+        self.weighted_distance(q, reference, 0.0)
     }
 
     /// Start of the Newton fallback without a previous block: 0, moved into
