@@ -880,7 +880,7 @@ impl crate::post::PoseSolver for CompensatingSolver<'_> {
     ) -> std::result::Result<crate::post::SolvedPose, String> {
         let th = self.theoretical(pose, previous)?;
         let r = self.refine_block(pose, &th);
-        self.commit(pose, th, r, line)
+        self.commit(pose, &th, &r, line)
     }
 }
 
@@ -909,8 +909,8 @@ impl CompensatingSolver<'_> {
     pub fn commit(
         &mut self,
         pose: &Pose,
-        th: JointValues,
-        r: Refined,
+        th: &JointValues,
+        r: &Refined,
         line: usize,
     ) -> std::result::Result<crate::post::SolvedPose, String> {
         let failure = if !r.converged || r.tip_residual_mm > self.accept_tip_mm {
@@ -977,7 +977,7 @@ impl CompensatingSolver<'_> {
             self.last_target = Some(target);
         }
         let ext_c = self.machine.to_external(&q);
-        let ext_t = self.machine.to_external(&th);
+        let ext_t = self.machine.to_external(th);
         self.records.push(BlockRecord {
             line,
             iterations: r.iterations,
@@ -1184,18 +1184,18 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
                      chunk: Chunk|
      -> crate::error::Result<Vec<crate::gcode::Line>> {
         buf.clear();
-        let mut done = chunk.jobs.into_iter();
+        let mut done = chunk.jobs.iter();
         for entry in &chunk.entries {
             match *entry {
                 Entry::Text(a, b) => buf.extend_from_slice(&chunk.text[a..b]),
                 Entry::Pose => {
                     let job = done.next().expect("one job per pose entry");
                     let line = &chunk.lines[job.line];
-                    let refined = job.refined.expect("refined in stage 3");
+                    let refined = job.refined.as_ref().expect("refined in stage 3");
                     let solved = solver
-                        .commit(&job.pending.pose, job.th, refined, line.number)
+                        .commit(&job.pending.pose, &job.th, refined, line.number)
                         .map_err(|m| conv.solve_error(line, &job.pending, m))?;
-                    conv.finish(line, job.pending, solved, &mut buf)?;
+                    conv.finish(line, &job.pending, &solved, &mut buf)?;
                 }
             }
         }

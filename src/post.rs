@@ -9,7 +9,7 @@ use crate::cl::{ClReader, ClStatement, FeedUnit, SpindleDir};
 use crate::error::{Error, Location, Result};
 use crate::gcode::{ItemKind, Line, LineReader};
 use crate::machine::{IkSolver, Machine, Pose};
-use crate::program::format::push_fixed;
+use crate::program::format::{push_fixed, push_scaled, scaled_integer};
 use crate::program::{ModalState, PoseStart, TcpCode, Units, WordRef};
 use nalgebra::Vector3;
 use std::io::{BufRead, Write};
@@ -104,8 +104,13 @@ struct AxisWriter<'m> {
     last: Option<Vec<f64>>,
     /// Scratch for the values of the next block (its allocation reused).
     values: Vec<f64>,
-    /// The words of the last block, their buffer reused.
-    text: String,
+    /// Scratch for the values of the next block as integers in units of the
+    /// last written decimal, when they fit (see [`scaled_integer`]).
+    scaled: Vec<Option<i64>>,
+    /// The words of the last block (ASCII), their buffer reused.
+    text: Vec<u8>,
+    /// Scratch for a word formatted through floating point.
+    scratch: String,
 }
 
 impl<'m> AxisWriter<'m> {
@@ -122,7 +127,9 @@ impl<'m> AxisWriter<'m> {
             scales,
             last: None,
             values: Vec::with_capacity(machine.axes.len()),
-            text: String::with_capacity(128),
+            scaled: Vec::with_capacity(machine.axes.len()),
+            text: Vec::with_capacity(128),
+            scratch: String::new(),
         }
     }
 
@@ -135,21 +142,25 @@ impl<'m> AxisWriter<'m> {
         absolute: bool,
         modal: bool,
         sep: &str,
-    ) -> std::result::Result<&str, String> {
+    ) -> std::result::Result<&[u8], String> {
         let mut values = std::mem::take(&mut self.values);
         values.clear();
-        for axis in &self.machine.axes {
+        self.scaled.clear();
+        // Round to the written precision so that incremental output does not
+        // drift: the value kept is the double nearest the rounded decimal.
+        for (axis, s) in self.machine.axes.iter().zip(&self.scales) {
             let v = crate::machine::output_value(axis, q[axis.joint]);
             let v = if axis.kind == crate::machine::JointKind::Prismatic {
                 v / units.mm_per_unit()
             } else {
                 v
             };
-            values.push(v);
-        }
-        // Round to the written precision so that incremental output does not drift.
-        for (v, s) in values.iter_mut().zip(&self.scales) {
-            *v = (*v * s).round() / s;
+            let scaled = scaled_integer(v * s);
+            values.push(match scaled {
+                Some(i) => i as f64 / s,
+                None => (v * s).round() / s,
+            });
+            self.scaled.push(scaled);
         }
         let out = &mut self.text;
         out.clear();
@@ -158,11 +169,20 @@ impl<'m> AxisWriter<'m> {
             if modal && previous == Some(values[k]) {
                 continue;
             }
-            let v = if absolute {
-                values[k]
+            if !out.is_empty() {
+                out.extend_from_slice(sep.as_bytes());
+            }
+            out.extend_from_slice(axis.name.as_bytes());
+            if absolute {
+                match self.scaled[k] {
+                    Some(i) => push_scaled(out, i, self.decimals[k]),
+                    None => push_fixed_bytes(out, &mut self.scratch, values[k], self.decimals[k]),
+                }
             } else {
                 match previous {
-                    Some(p) => values[k] - p,
+                    Some(p) => {
+                        push_fixed_bytes(out, &mut self.scratch, values[k] - p, self.decimals[k])
+                    }
                     None => {
                         return Err(format!(
                             "incremental output (G91) needs an earlier absolute position of axis {}",
@@ -170,17 +190,19 @@ impl<'m> AxisWriter<'m> {
                         ));
                     }
                 }
-            };
-            if !out.is_empty() {
-                out.push_str(sep);
             }
-            out.push_str(&axis.name);
-            push_fixed(out, v, self.decimals[k]);
         }
         // The previous values become the next block's scratch.
         self.values = self.last.replace(values).unwrap_or_default();
         Ok(&self.text)
     }
+}
+
+/// [`push_fixed`] onto bytes, through the reused `scratch`.
+fn push_fixed_bytes(out: &mut Vec<u8>, scratch: &mut String, value: f64, decimals: usize) {
+    scratch.clear();
+    push_fixed(scratch, value, decimals);
+    out.extend_from_slice(scratch.as_bytes());
 }
 
 /// A converted pose block.
@@ -241,7 +263,11 @@ impl<'a> GcodeConverter<'a> {
             .solver
             .solve(&pending.pose, self.previous.as_deref(), line.number)
             .map_err(|m| self.solve_error(line, &pending, m))?;
-        self.finish(line, pending, solved, out)
+        self.finish(line, &pending, &solved, out)?;
+        Ok(Some(Converted {
+            q: solved.q,
+            meaning: pending.meaning,
+        }))
     }
 
     /// First half of [`GcodeConverter::convert`]: the modal state and the
@@ -303,7 +329,7 @@ impl<'a> GcodeConverter<'a> {
                 rewrite(
                     line,
                     &[],
-                    "",
+                    b"",
                     &meaning.tcp_codes,
                     &meaning.tcp_offset_items,
                     out,
@@ -337,12 +363,12 @@ impl<'a> GcodeConverter<'a> {
     pub fn finish(
         &mut self,
         line: &Line,
-        pending: PendingPose,
-        solved: SolvedPose,
+        pending: &PendingPose,
+        solved: &SolvedPose,
         out: &mut Vec<u8>,
-    ) -> Result<Option<Converted>> {
+    ) -> Result<()> {
         let opts = self.opts;
-        let meaning = pending.meaning;
+        let meaning = &pending.meaning;
         let loc = |item: Option<usize>| {
             let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);
             Location::new(&opts.file_name, line.number, col)
@@ -388,10 +414,7 @@ impl<'a> GcodeConverter<'a> {
             );
         }
         self.previous = Some(solved.q.clone());
-        Ok(Some(Converted {
-            q: solved.q,
-            meaning,
-        }))
+        Ok(())
     }
 }
 
@@ -511,61 +534,115 @@ fn separator(line: &Line, replace: &[usize]) -> &'static str {
 pub fn rewrite(
     line: &Line,
     replace: &[usize],
-    words: &str,
+    words: &[u8],
     tcp: &[TcpCode],
     drop: &[usize],
     out: &mut Vec<u8>,
 ) {
-    let mut pending_space: Option<&[u8]> = None;
+    // Kept bytes are copied in runs: items tile the line, so consecutive
+    // kept items (and the spaces kept between them) are one range.
+    let line_start = out.len();
+    let mut run = Run::default();
+    let mut pending_space: Option<(usize, usize)> = None;
+    let mut swallow_space = false;
     let mut inserted = false;
+    let mut next_replaced = replace.iter().copied().peekable();
     for (i, item) in line.items.iter().enumerate() {
-        let bytes = line.item_bytes(item);
+        let span = (item.start, item.end);
         if matches!(item.kind, ItemKind::Space) {
-            if let Some(p) = pending_space {
-                out.extend_from_slice(p);
+            if std::mem::take(&mut swallow_space) {
+                // The space after a word dropped at the start of the line
+                // goes with it; the indentation before it stays pending.
+                continue;
             }
-            pending_space = Some(bytes);
+            if let Some(p) = pending_space {
+                run.keep(line, p, out);
+            }
+            pending_space = Some(span);
             continue;
         }
-        if replace.binary_search(&i).is_ok() {
+        swallow_space = false;
+        while next_replaced.next_if(|&r| r < i).is_some() {}
+        if next_replaced.next_if_eq(&i).is_some() {
             if !inserted {
                 inserted = true;
                 if !words.is_empty() {
                     if let Some(p) = pending_space {
-                        out.extend_from_slice(p);
+                        run.keep(line, p, out);
                     }
-                    out.extend_from_slice(words.as_bytes());
+                    run.flush(line, out);
+                    out.extend_from_slice(words);
                 }
             }
             pending_space = None;
             continue;
         }
         if drop.contains(&i) {
-            pending_space = pending_space.filter(|_| out.is_empty());
+            // A space before a dropped word goes with it, except at the
+            // start of the line, where the space after it goes instead.
+            let at_start = out.len() == line_start && run.is_empty();
+            pending_space = pending_space.filter(|_| at_start);
+            swallow_space = at_start;
             continue;
         }
         if let Some(p) = pending_space.take() {
-            out.extend_from_slice(p);
+            run.keep(line, p, out);
         }
         match tcp
             .iter()
             .find(|c| matches!(c, TcpCode::FanucOn(k) | TcpCode::SiemensOn(k) if *k == i))
         {
             Some(TcpCode::FanucOn(_)) => {
+                run.flush(line, out);
                 // Keep the letter's case as written.
-                let g = if bytes.first() == Some(&b'g') {
+                let g = if line.item_bytes(item).first() == Some(&b'g') {
                     b"g49"
                 } else {
                     b"G49"
                 };
                 out.extend_from_slice(g);
             }
-            Some(TcpCode::SiemensOn(_)) => out.extend_from_slice(b"TRAFOOF"),
-            None => out.extend_from_slice(bytes),
+            Some(TcpCode::SiemensOn(_)) => {
+                run.flush(line, out);
+                out.extend_from_slice(b"TRAFOOF");
+            }
+            None => run.keep(line, span, out),
         }
     }
     if let Some(p) = pending_space {
-        out.extend_from_slice(p);
+        run.keep(line, p, out);
+    }
+    run.flush(line, out);
+}
+
+/// A range of a line's bytes waiting to be copied by [`rewrite`].
+#[derive(Default)]
+struct Run {
+    start: usize,
+    end: usize,
+}
+
+impl Run {
+    fn is_empty(&self) -> bool {
+        self.start == self.end
+    }
+
+    /// Keeps the bytes `span` of `line`: extends the run if they follow it,
+    /// else copies the run out and starts a new one.
+    fn keep(&mut self, line: &Line, span: (usize, usize), out: &mut Vec<u8>) {
+        if span.0 != self.end || self.is_empty() {
+            self.flush(line, out);
+            self.start = span.0;
+        }
+        self.end = span.1;
+    }
+
+    /// Copies the run out.
+    fn flush(&mut self, line: &Line, out: &mut Vec<u8>) {
+        if self.start < self.end {
+            out.extend_from_slice(&line.bytes[self.start..self.end]);
+        }
+        self.start = self.end;
     }
 }
 
@@ -664,7 +741,8 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                     block.push_str(if motion == 0 { "G0 " } else { "G1 " });
                     motion_written = Some(motion);
                 }
-                block.push_str(words);
+                // Axis names and digits: ASCII.
+                block.push_str(std::str::from_utf8(words).unwrap_or_default());
                 if motion == 1 && feed.is_some() && feed != feed_written {
                     block.push_str(" F");
                     push_fixed(&mut block, feed.unwrap_or(0.0), 1);
@@ -757,5 +835,36 @@ mod tests {
         assert!(r.is_empty());
         assert_eq!(r.capacity(), 16);
         assert_eq!(r.as_ptr() as usize, ptr);
+    }
+
+    /// The rewritten line does not depend on what the output already holds
+    /// (a dropped offset word at the start of a line keeps the indentation
+    /// before it), and kept bytes are copied as they were.
+    #[test]
+    fn rewrite_is_line_local() {
+        let line = crate::gcode::parse_line(b"  H1 G43.4 X1 Y2 Z3 I0 J0 K1 (tcp)\n", 1);
+        let is = |a: &str| {
+            line.items
+                .iter()
+                .position(|it| line.item_bytes(it) == a.as_bytes())
+                .unwrap()
+        };
+        let replace = [is("X1"), is("Y2"), is("Z3"), is("I0"), is("J0"), is("K1")];
+        let tcp = [TcpCode::FanucOn(is("G43.4"))];
+        let drop = [is("H1")];
+        let mut fresh = Vec::new();
+        rewrite(&line, &replace, b"X0.1 Z-2.0", &tcp, &drop, &mut fresh);
+        assert_eq!(String::from_utf8_lossy(&fresh), "  G49 X0.1 Z-2.0 (tcp)\n");
+        let mut after = b"N10 G0 X0\n".to_vec();
+        rewrite(&line, &replace, b"X0.1 Z-2.0", &tcp, &drop, &mut after);
+        assert_eq!(&after[10..], &fresh[..]);
+        let line = crate::gcode::parse_line(b"H1 G43.4 X1\n", 2);
+        let mut out = Vec::new();
+        rewrite(&line, &[4], b"X2", &[TcpCode::FanucOn(2)], &[0], &mut out);
+        assert_eq!(String::from_utf8_lossy(&out), "G49 X2\n");
+        // Nothing replaced: the bytes as they came.
+        let mut same = Vec::new();
+        rewrite(&line, &[], b"", &[], &[], &mut same);
+        assert_eq!(same, line.bytes);
     }
 }

@@ -482,7 +482,14 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             words.push_str(&f);
         }
         text.clear();
-        rewrite(&mline, &replace, words.trim_start(), &[], &[], &mut text);
+        rewrite(
+            &mline,
+            &replace,
+            words.trim_start().as_bytes(),
+            &[],
+            &[],
+            &mut text,
+        );
         out.write_all(&text).map_err(io)?;
     }
     Ok(report)

@@ -103,6 +103,94 @@ fn write_fixed_fast(out: &mut String, value: f64, decimals: usize) -> bool {
     true
 }
 
+/// Largest magnitude of a scaled integer that [`scaled_integer`] hands out:
+/// below 2^50 the nearest double to `n / 10^d` prints back as `n` exactly
+/// (its rounding error times 10^d is below |n| · 2^-53 < 1/8).
+const SCALED_LIMIT: f64 = (1u64 << 50) as f64;
+
+/// `x` rounded half away from zero (as [`f64::round`]) as an integer, if
+/// |x| < 2^50; `None` otherwise (and for NaN).
+///
+/// Without SSE4.1 `f64::round` is a library call; the integer conversion
+/// truncates in one instruction and the fraction `x - trunc(x)` is exact.
+#[inline]
+pub fn scaled_integer(x: f64) -> Option<i64> {
+    if !(x.abs() < SCALED_LIMIT) {
+        return None;
+    }
+    let t = x as i64;
+    let f = x - t as f64;
+    Some(if f >= 0.5 {
+        t + 1
+    } else if f <= -0.5 {
+        t - 1
+    } else {
+        t
+    })
+}
+
+/// Appends the integer `n` read as `n / 10^decimals`, with exactly `decimals`
+/// decimals and never a negative zero: the text [`push_fixed`] writes for
+/// the double nearest `n / 10^decimals` when |n| < 2^50 (see
+/// [`scaled_integer`]), without going through floating point.
+pub fn push_scaled(out: &mut Vec<u8>, n: i64, decimals: usize) {
+    // A sign, up to 20 digits, a point and zeros padding small values.
+    let mut buf = [b'0'; 48];
+    let decimals = decimals.min(24);
+    let mut pos = buf.len();
+    let mut v = n.unsigned_abs();
+    // Exactly `decimals` fractional digits, two at a time.
+    let mut left = decimals;
+    while left >= 2 {
+        let r = 2 * (v % 100) as usize;
+        v /= 100;
+        pos -= 2;
+        buf[pos..pos + 2].copy_from_slice(&DIGIT_PAIRS[r..r + 2]);
+        left -= 2;
+    }
+    if left == 1 {
+        pos -= 1;
+        buf[pos] = b'0' + (v % 10) as u8;
+        v /= 10;
+    }
+    if decimals > 0 {
+        pos -= 1;
+        buf[pos] = b'.';
+    }
+    // The integer part, at least one digit.
+    while v >= 100 {
+        let r = 2 * (v % 100) as usize;
+        v /= 100;
+        pos -= 2;
+        buf[pos..pos + 2].copy_from_slice(&DIGIT_PAIRS[r..r + 2]);
+    }
+    if v >= 10 {
+        let r = 2 * v as usize;
+        pos -= 2;
+        buf[pos..pos + 2].copy_from_slice(&DIGIT_PAIRS[r..r + 2]);
+    } else {
+        pos -= 1;
+        buf[pos] = b'0' + v as u8;
+    }
+    if n < 0 {
+        pos -= 1;
+        buf[pos] = b'-';
+    }
+    out.extend_from_slice(&buf[pos..]);
+}
+
+/// "00" to "99".
+const DIGIT_PAIRS: [u8; 200] = {
+    let mut t = [0u8; 200];
+    let mut i = 0;
+    while i < 100 {
+        t[2 * i] = b'0' + (i / 10) as u8;
+        t[2 * i + 1] = b'0' + (i % 10) as u8;
+        i += 1;
+    }
+    t
+};
+
 /// `value` with exactly `decimals` decimals, without a negative zero.
 pub fn fixed(value: f64, decimals: usize) -> String {
     let mut s = String::new();
@@ -120,6 +208,76 @@ mod tests {
         assert_eq!(fixed(-1.5, 3), "-1.500");
         assert_eq!(fixed(2.0, 0), "2");
         assert_eq!(fixed(-0.0, 2), "0.00");
+    }
+
+    /// Integers written with a decimal point read exactly as the nearest
+    /// double formatted with `push_fixed`.
+    #[test]
+    fn scaled_integers_print_as_their_nearest_double() {
+        let check = |n: i64, d: usize| {
+            let mut a = Vec::new();
+            push_scaled(&mut a, n, d);
+            let b = fixed(n as f64 / 10f64.powi(d as i32), d);
+            assert_eq!(String::from_utf8(a).unwrap(), b, "{n} with {d} decimals");
+        };
+        for d in 0..10 {
+            for n in [
+                0,
+                1,
+                -1,
+                9,
+                -9,
+                10,
+                99,
+                100,
+                12345,
+                -12345,
+                1 << 40,
+                -(1 << 49),
+            ] {
+                check(n, d);
+            }
+        }
+        let mut s: u64 = 7;
+        for _ in 0..200_000 {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let bits = (s >> 33) % 50;
+            let n = ((s >> 11) & ((1u64 << bits) - 1)) as i64;
+            let n = if s & 1 == 1 { -n } else { n };
+            check(n, (s >> 5) as usize % 10);
+        }
+    }
+
+    /// `scaled_integer` rounds as `f64::round` does.
+    #[test]
+    fn scaled_integer_rounds_half_away_from_zero() {
+        for x in [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.5,
+            2.5,
+            -2.5,
+            0.49999999999999994,
+            -0.49999999999999994,
+            1e15 + 0.5,
+            4503599627370495.5 / 4.0,
+        ] {
+            assert_eq!(scaled_integer(x), Some(x.round() as i64), "{x}");
+        }
+        assert_eq!(scaled_integer(f64::NAN), None);
+        assert_eq!(scaled_integer(1e16), None);
+        let mut s: u64 = 11;
+        for _ in 0..200_000 {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let x = ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 10f64.powi((s % 16) as i32);
+            assert_eq!(scaled_integer(x), Some(x.round() as i64), "{x}");
+        }
     }
 
     /// The fast path writes exactly what `format!` writes.

@@ -93,13 +93,21 @@ pub enum TcpCode {
     SiemensOn(usize),
 }
 
+/// Pose words a block's [`BlockMeaning::pose_items`] holds without
+/// allocating: one of each of the nine pose addresses.
+pub const POSE_ITEMS_INLINE: usize = 9;
+
+/// The item indices of a block's pose words.
+pub type PoseItems = smallvec::SmallVec<[usize; POSE_ITEMS_INLINE]>;
+
 /// What one block means.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BlockMeaning {
     /// The tool pose this block commands (tip in mm, unit axis), if it is a pose block.
     pub pose: Option<(Vector3<f64>, Vector3<f64>)>,
-    /// Items of the words that describe the pose (X Y Z I J K A3 B3 C3), to be replaced.
-    pub pose_items: Vec<usize>,
+    /// Items of the words that describe the pose (X Y Z I J K A3 B3 C3), to
+    /// be replaced, in order (inline up to [`POSE_ITEMS_INLINE`]).
+    pub pose_items: PoseItems,
     /// TCP-on codes to be rewritten to their machine-coordinate equivalent.
     pub tcp_codes: Vec<TcpCode>,
     /// Item of the `H` (or `D`) word that goes with a Fanuc TCP code, dropped with it.
@@ -253,7 +261,7 @@ impl ModalState {
 
         let mut meaning = BlockMeaning {
             pose: None,
-            pose_items: Vec::with_capacity(words.len()),
+            pose_items: PoseItems::new(),
             tcp_codes,
             tcp_offset_items,
             motion: self.motion,
@@ -436,7 +444,7 @@ mod tests {
         let (tip, axis) = b.pose.unwrap();
         assert_eq!(tip, Vector3::new(1.0, 2.0, 3.0));
         assert_eq!(axis, Vector3::z());
-        assert_eq!(b.pose_items, vec![2, 4, 6]);
+        assert_eq!(b.pose_items.as_slice(), [2, 4, 6]);
         let b = m
             .apply(&[w("X", 5.0, 0), w("I", 0.6, 2), w("K", 0.8, 4)], &[])
             .unwrap();
