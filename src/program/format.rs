@@ -115,7 +115,7 @@ const SCALED_LIMIT: f64 = (1u64 << 50) as f64;
 /// truncates in one instruction and the fraction `x - trunc(x)` is exact.
 #[inline]
 pub fn scaled_integer(x: f64) -> Option<i64> {
-    if !(x.abs() < SCALED_LIMIT) {
+    if x.is_nan() || x.abs() >= SCALED_LIMIT {
         return None;
     }
     let t = x as i64;
