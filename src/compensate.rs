@@ -622,17 +622,26 @@ fn refine_with(
             MAX_COMPENSATION_MM
         };
     }
+    // The exact method's steps are micro-radians: the sines and cosines of
+    // its rotaries follow from those at `q0` by the addition theorem.
+    let near = (opts.method == Method::Exact).then(|| chain.trig_at(q0));
     let eval = |q: &[f64], jac: &mut JacobianColumns| -> Pose {
-        match opts.method {
-            Method::Exact => chain.pose_and_jacobian_into(q, errors, jac),
-            Method::Theoretical | Method::Paper => {
+        match (opts.method, &near) {
+            (Method::Exact, Some(near)) => chain.pose_and_jacobian_near(q, errors, jac, near),
+            (Method::Exact, None) => chain.pose_and_jacobian_into(q, errors, jac),
+            (Method::Theoretical | Method::Paper, _) => {
                 chain.pose_and_jacobian_into(q, &NoErrors, jac);
                 chain.pose(q, errors)
             }
         }
     };
     // The pose alone, where the Jacobian is not needed.
-    let eval_pose = |q: &[f64]| -> Pose { chain.pose(q, errors) };
+    let eval_pose = |q: &[f64]| -> Pose {
+        match &near {
+            Some(near) => chain.pose_near(q, errors, near),
+            None => chain.pose(q, errors),
+        }
+    };
     let mut q = [0.0; MAX_JOINTS];
     q[..n].copy_from_slice(q0);
     let mut iterations = 0;

@@ -335,30 +335,55 @@ impl ErrorModel {
                 axis_names.push(a);
             }
         }
-        for axis in axis_names {
+        // Every column's samples, in order (axis, then component).
+        struct ColumnData<'t> {
+            axis: usize,
+            comp: Component,
+            name: String,
+            first_table: &'t ErrorTable,
+            x: Vec<f64>,
+            y: Vec<f64>,
+        }
+        let mut data: Vec<ColumnData> = Vec::new();
+        for (a, axis) in axis_names.iter().enumerate() {
+            for comp in Component::ALL {
+                let mut column: Option<ColumnData> = None;
+                for t in tables.iter().filter(|t| t.axis.eq_ignore_ascii_case(axis)) {
+                    if let Some(c) = t.column(comp) {
+                        let d = column.get_or_insert_with(|| ColumnData {
+                            axis: a,
+                            comp,
+                            name: c.name.clone(),
+                            first_table: t,
+                            x: Vec::new(),
+                            y: Vec::new(),
+                        });
+                        d.x.extend_from_slice(&t.positions);
+                        d.y.extend_from_slice(&c.values);
+                    }
+                }
+                data.extend(column);
+            }
+        }
+        // The fits are independent (cross-validation makes each one a
+        // few milliseconds): one per core.
+        let fits: Vec<_> = {
+            use rayon::prelude::*;
+            data.par_iter()
+                .map(|d| bspline::fit(&d.x, &d.y, &opts.spline()))
+                .collect()
+        };
+        let mut fitted = data.into_iter().zip(fits).peekable();
+        for (a, axis) in axis_names.into_iter().enumerate() {
             let of_axis: Vec<&ErrorTable> = tables
                 .iter()
                 .filter(|t| t.axis.eq_ignore_ascii_case(&axis))
                 .collect();
             let rotary = is_rotary_axis(&axis);
             let mut columns = Vec::new();
-            for comp in Component::ALL {
-                let mut x = Vec::new();
-                let mut y = Vec::new();
-                let mut name = None;
-                let mut first_table = None;
-                for t in &of_axis {
-                    if let Some(c) = t.column(comp) {
-                        x.extend_from_slice(&t.positions);
-                        y.extend_from_slice(&c.values);
-                        name.get_or_insert_with(|| c.name.clone());
-                        first_table.get_or_insert(*t);
-                    }
-                }
-                let (Some(name), Some(t0)) = (name, first_table) else {
-                    continue;
-                };
-                let f = bspline::fit(&x, &y, &opts.spline()).map_err(|e| {
+            while let Some((d, f)) = fitted.next_if(|(d, _)| d.axis == a) {
+                let (comp, name, t0) = (d.comp, d.name, d.first_table);
+                let f = f.map_err(|e| {
                     Error::input(table_loc(t0), format!("axis {axis}, column {name}: {e}"))
                 })?;
                 let k = comp.display_factor();

@@ -163,11 +163,28 @@ impl Pose {
     }
 
     /// Angle between tool axes, rad (robust near zero: uses atan2 of the
-    /// cross and dot products rather than acos).
+    /// cross and dot products rather than acos). The angle does not depend
+    /// on the lengths, so the axes are not normalised; NaN when one is zero.
+    ///
+    /// Below 1e-3 rad (residual orientation errors are micro-radians) the
+    /// arctangent of `t = |a × b| / (a · b)` is its series
+    /// `t − t³/3 + t⁵/5`: the first omitted term, t⁷/7, is relatively
+    /// t⁶/7 < 1.5e-19 of it, far under an ulp.
+    #[inline]
     pub fn axis_angle(&self, other: &Pose) -> f64 {
-        let a = self.axis.normalize();
-        let b = other.axis.normalize();
-        a.cross(&b).norm().atan2(a.dot(&b))
+        let (a, b) = (&self.axis, &other.axis);
+        if a.norm_squared() == 0.0 || b.norm_squared() == 0.0 {
+            return f64::NAN;
+        }
+        let s = a.cross(b).norm();
+        let c = a.dot(b);
+        if c > 0.0 && s <= 1e-3 * c {
+            let t = s / c;
+            let t2 = t * t;
+            t - t * t2 * (1.0 / 3.0 - t2 * (1.0 / 5.0))
+        } else {
+            s.atan2(c)
+        }
     }
 }
 
@@ -195,6 +212,52 @@ pub struct Chain {
     /// Joints in chain order (the order of `q`).
     pub joints: Vec<Joint>,
     compiled: Compiled,
+}
+
+/// The sines and cosines of a chain's revolute joints at joint values `q0`
+/// ([`Chain::trig_at`]): near `q0` those of `q = q0 + d` follow by the
+/// addition theorem, `sin q = sin q0 · cos d + cos q0 · sin d`, with
+/// `sin d` and `cos d` from their series, which for |d| ≤ 1e-4 rad are
+/// exact to far below an ulp (the first omitted terms are d⁵/120 < 1e-22
+/// and d⁶/720 < 2e-27). The Newton refinement's steps are micro-radians,
+/// so its trial points cost no `sin_cos` call.
+#[derive(Debug, Clone, Copy)]
+pub struct NearTrig {
+    q0: [f64; MAX_JOINTS],
+    sc: [(f64, f64); MAX_JOINTS],
+}
+
+impl NearTrig {
+    /// Largest |q − q0| handled by the addition theorem, rad.
+    const NEAR_RAD: f64 = 1e-4;
+
+    /// `(sin q, cos q)` of joint `j`.
+    #[inline]
+    pub fn sin_cos(&self, j: usize, q: f64) -> (f64, f64) {
+        let d = q - self.q0[j];
+        if d.abs() > Self::NEAR_RAD || d.is_nan() {
+            return q.sin_cos();
+        }
+        if d == 0.0 {
+            return self.sc[j];
+        }
+        let d2 = d * d;
+        let sd = d - d * d2 * (1.0 / 6.0);
+        let cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0));
+        let (s0, c0) = self.sc[j];
+        (s0 * cd + c0 * sd, c0 * cd - s0 * sd)
+    }
+}
+
+/// Where [`Chain::pose_backward`] takes the revolute joints' rotations from.
+#[derive(Clone, Copy)]
+enum Rotations<'a> {
+    /// Computed from the joint values.
+    Compute,
+    /// Given by the caller, by joint index.
+    Given(&'a [[[f64; 3]; 3]; MAX_JOINTS]),
+    /// From sines and cosines near known ones.
+    Near(&'a NearTrig),
 }
 
 /// An affine transform `[R | t]` (row-major, the last row `0 0 0 1`
@@ -268,6 +331,12 @@ impl Affine {
     }
 }
 
+/// `r d` for a 3×3 `r` (row-major).
+#[inline]
+fn rot3_apply(r: &[[f64; 3]; 3], d: &[f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| r[i][0] * d[0] + r[i][1] * d[1] + r[i][2] * d[2])
+}
+
 /// `a · b` for 3×3 matrices (row-major), nalgebra's summation order.
 #[inline]
 fn mul3(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
@@ -314,6 +383,12 @@ impl JointConst {
     #[inline]
     fn rotation(&self, theta: f64) -> [[f64; 3]; 3] {
         let (s, c) = theta.sin_cos();
+        self.rotation_sc(s, c)
+    }
+
+    /// [`JointConst::rotation`] from the sine `s` and cosine `c` of θ.
+    #[inline]
+    fn rotation_sc(&self, s: f64, c: f64) -> [[f64; 3]; 3] {
         let omc = 1.0 - c;
         std::array::from_fn(|i| {
             std::array::from_fn(|j| {
@@ -323,11 +398,13 @@ impl JointConst {
         })
     }
 
-    /// `G = M(q) · E` and, with `de`, `G' = M'(q) · E + M(q) · E'`.
+    /// `G = M(q) · E` and, with `de`, `G' = M'(q) · E + M(q) · E'`; `sc`:
+    /// the sine and cosine of `q` when the caller has them (revolute joints).
     #[inline]
     fn transform(
         &self,
         q: f64,
+        sc: Option<(f64, f64)>,
         err: Option<(&ErrorMotion, Option<&ErrorMotion>)>,
     ) -> (Affine, Affine) {
         let e_aff = |e: &ErrorMotion, identity: f64| Affine {
@@ -369,7 +446,8 @@ impl JointConst {
                 }
             }
             JointKind::Revolute => {
-                let r = self.rotation(q);
+                let (sn, cs) = sc.unwrap_or_else(|| q.sin_cos());
+                let r = self.rotation_sc(sn, cs);
                 let kr = mul3(&self.k, &r);
                 let lift = |m: [[f64; 3]; 3]| Affine {
                     m: std::array::from_fn(|i| [m[i][0], m[i][1], m[i][2], 0.0]),
@@ -658,7 +736,7 @@ impl Chain {
                 Step::Joint(j) => {
                     let e = if skip { None } else { errors.error(*j, q[*j]) };
                     c.joints[*j]
-                        .transform(q[*j], e.as_ref().map(|e| (e, None)))
+                        .transform(q[*j], None, e.as_ref().map(|e| (e, None)))
                         .0
                 }
             };
@@ -679,7 +757,7 @@ impl Chain {
         c: &Compiled,
         q: &[f64],
         errors: &dyn JointErrors,
-        rots: Option<&[[[f64; 3]; 3]; MAX_JOINTS]>,
+        rots: Rotations<'_>,
     ) -> Pose {
         let skip = errors.is_empty();
         let mut tip = [0.0; 3];
@@ -714,8 +792,12 @@ impl Chain {
                         }
                         JointKind::Revolute => {
                             let r = match rots {
-                                Some(rots) => rots[*j],
-                                None => jc.rotation(v),
+                                Rotations::Given(rots) => rots[*j],
+                                Rotations::Near(near) => {
+                                    let (s, c) = near.sin_cos(*j, v);
+                                    jc.rotation_sc(s, c)
+                                }
+                                Rotations::Compute => jc.rotation(v),
                             };
                             let rot = |x: &[f64; 3]| -> [f64; 3] {
                                 std::array::from_fn(|i| {
@@ -738,7 +820,7 @@ impl Chain {
     /// Forward kinematics: tool tip `T·[0,0,0,1]` and tool axis `T·[0,0,1,0]`.
     pub fn pose(&self, q: &[f64], errors: &dyn JointErrors) -> Pose {
         debug_assert_eq!(q.len(), self.joints.len());
-        match self.with_compiled(|c| Self::pose_backward(c, q, errors, None)) {
+        match self.with_compiled(|c| Self::pose_backward(c, q, errors, Rotations::Compute)) {
             Some(pose) => pose,
             None => {
                 let t = self.transform_general(q, errors);
@@ -760,7 +842,7 @@ impl Chain {
     pub fn pose_and_jacobian(&self, q: &[f64], errors: &dyn JointErrors) -> (Pose, Jacobian) {
         let n = self.joints.len();
         let mut cols = [[0.0; 6]; MAX_JOINTS];
-        match self.with_compiled(|c| Self::pose_jacobian_compiled(c, q, errors, &mut cols)) {
+        match self.with_compiled(|c| Self::pose_jacobian_compiled(c, q, errors, &mut cols, None)) {
             Some(pose) => {
                 let jac = Jacobian::from_fn(n, |r, c| cols[c][r]);
                 (pose, jac)
@@ -778,7 +860,7 @@ impl Chain {
         errors: &dyn JointErrors,
         jac: &mut JacobianColumns,
     ) -> Pose {
-        match self.with_compiled(|c| Self::pose_jacobian_compiled(c, q, errors, jac)) {
+        match self.with_compiled(|c| Self::pose_jacobian_compiled(c, q, errors, jac, None)) {
             Some(pose) => pose,
             None => {
                 let (pose, j) = self.pose_and_jacobian_general(q, errors);
@@ -789,6 +871,45 @@ impl Chain {
                 }
                 pose
             }
+        }
+    }
+
+    /// The sines and cosines of the revolute joints at `q0`, for poses and
+    /// Jacobians near `q0` (see [`NearTrig`]).
+    pub fn trig_at(&self, q0: &[f64]) -> NearTrig {
+        let mut t = NearTrig {
+            q0: [0.0; MAX_JOINTS],
+            sc: [(0.0, 1.0); MAX_JOINTS],
+        };
+        for (j, joint) in self.joints.iter().enumerate().take(MAX_JOINTS) {
+            t.q0[j] = q0[j];
+            if joint.kind == JointKind::Revolute {
+                t.sc[j] = q0[j].sin_cos();
+            }
+        }
+        t
+    }
+
+    /// [`Chain::pose`] with the revolute joints' sines and cosines taken
+    /// from `near` where `q` is near its `q0` (the refinement's trial points).
+    pub fn pose_near(&self, q: &[f64], errors: &dyn JointErrors, near: &NearTrig) -> Pose {
+        let compiled =
+            self.with_compiled(|c| Self::pose_backward(c, q, errors, Rotations::Near(near)));
+        compiled.unwrap_or_else(|| self.pose(q, errors))
+    }
+
+    /// [`Chain::pose_and_jacobian_into`] with the revolute joints' sines
+    /// and cosines taken from `near` where `q` is near its `q0`.
+    pub fn pose_and_jacobian_near(
+        &self,
+        q: &[f64],
+        errors: &dyn JointErrors,
+        jac: &mut JacobianColumns,
+        near: &NearTrig,
+    ) -> Pose {
+        match self.with_compiled(|c| Self::pose_jacobian_compiled(c, q, errors, jac, Some(near))) {
+            Some(pose) => pose,
+            None => self.pose_and_jacobian_into(q, errors, jac),
         }
     }
 
@@ -840,7 +961,7 @@ impl Chain {
                 });
             }
             // The pose: one backward pass of the tip and the axis.
-            Self::pose_backward(c, q, &NoErrors, Some(&rots))
+            Self::pose_backward(c, q, &NoErrors, Rotations::Given(&rots))
         });
         match compiled {
             Some(pose) => pose,
@@ -861,6 +982,7 @@ impl Chain {
         q: &[f64],
         errors: &dyn JointErrors,
         jac: &mut JacobianColumns,
+        near: Option<&NearTrig>,
     ) -> Pose {
         let n = c.joints.len();
         debug_assert_eq!(q.len(), n);
@@ -873,7 +995,10 @@ impl Chain {
             } else {
                 errors.error_and_derivative(j, q[j])
             };
-            (g[j], dg[j]) = c.joints[j].transform(q[j], e.as_ref().map(|(e, d)| (e, Some(d))));
+            let sc = near
+                .filter(|_| c.joints[j].kind == JointKind::Revolute)
+                .map(|t| t.sin_cos(j, q[j]));
+            (g[j], dg[j]) = c.joints[j].transform(q[j], sc, e.as_ref().map(|(e, d)| (e, Some(d))));
         }
         // Backward pass: the suffix after each joint applied to the tip
         // point and the axis direction.
@@ -891,9 +1016,11 @@ impl Chain {
             s_tip = m.point(&s_tip);
             s_ax = m.dir(&s_ax);
         }
-        // Forward pass: prefix products; column k = P_k · (G_k' · S_k).
-        let mut prefix: Option<Affine> = None;
-        for step in &c.steps {
+        // Forward pass: the rotation part of the prefix products (the
+        // columns map directions only); column k = P_k · (G_k' · S_k).
+        let last = c.steps.iter().rposition(|s| matches!(s, Step::Joint(_)));
+        let mut prefix: Option<[[f64; 3]; 3]> = None;
+        for (i, step) in c.steps.iter().enumerate() {
             let m = match step {
                 Step::Fixed(m) => m,
                 Step::Joint(j) => {
@@ -901,22 +1028,26 @@ impl Chain {
                     let d = &dg[*j];
                     let (mut dt, mut da) = (d.point(st), d.dir(sa));
                     if let Some(p) = &prefix {
-                        dt = p.dir(&dt);
-                        da = p.dir(&da);
+                        dt = rot3_apply(p, &dt);
+                        da = rot3_apply(p, &da);
                     }
                     jac[*j] = [dt[0], dt[1], dt[2], da[0], da[1], da[2]];
                     &g[*j]
                 }
             };
+            if Some(i) == last {
+                break;
+            }
+            let r: [[f64; 3]; 3] = std::array::from_fn(|i| [m.m[i][0], m.m[i][1], m.m[i][2]]);
             prefix = Some(match prefix {
-                None => *m,
-                Some(p) => p.mul(m),
+                None => r,
+                Some(p) => mul3(&p, &r),
             });
         }
-        let t = prefix.unwrap_or(Affine::IDENTITY);
+        // The pose: the backward pass carried the tip and axis through.
         Pose {
-            tip: Vector3::new(t.m[0][3], t.m[1][3], t.m[2][3]),
-            axis: Vector3::new(t.m[0][2], t.m[1][2], t.m[2][2]),
+            tip: Vector3::new(s_tip[0], s_tip[1], s_tip[2]),
+            axis: Vector3::new(s_ax[0], s_ax[1], s_ax[2]),
         }
     }
 
@@ -1018,6 +1149,52 @@ mod tests {
                 s * 1e-2 * (0.3 * q).cos(),
             ))
         }
+    }
+
+    /// Sines and cosines by the addition theorem near a known point are
+    /// those of `sin_cos` to an ulp; far from it they are `sin_cos`'s own.
+    #[test]
+    fn near_trig_matches_sin_cos() {
+        let c = zhao();
+        let b = c.joint_index("B").unwrap();
+        for q0 in [0.0, 0.3, -1.2, 3.1, 1e3] {
+            let mut q = vec![0.0; c.dof()];
+            q[b] = q0;
+            let near = c.trig_at(&q);
+            for d in [0.0, 1e-12, -3e-9, 2.5e-6, -7e-5, 1e-4, 2e-4, 0.5] {
+                let (s, co) = near.sin_cos(b, q0 + d);
+                let (s1, c1) = (q0 + d).sin_cos();
+                assert!((s - s1).abs() <= 2.3e-16, "sin at {q0} + {d}: {s} vs {s1}");
+                assert!(
+                    (co - c1).abs() <= 2.3e-16,
+                    "cos at {q0} + {d}: {co} vs {c1}"
+                );
+            }
+            // The pose near q0 is the pose.
+            q[b] = q0 + 3e-6;
+            let (p, p1) = (c.pose_near(&q, &NoErrors, &near), c.pose(&q, &NoErrors));
+            assert!((p.tip - p1.tip).amax() < 1e-12 && (p.axis - p1.axis).amax() < 1e-15);
+        }
+    }
+
+    /// The axis angle's small-angle series agrees with atan2 of the
+    /// normalised axes, across the switch at 1e-3 rad, and scale does not
+    /// matter.
+    #[test]
+    fn axis_angle_small_and_large() {
+        let z = Pose::new(Vector3::zeros(), Vector3::z());
+        for t in [
+            0.0f64, 1e-15, 3e-9, 7.1e-7, 2e-5, 9.99e-4, 1.001e-3, 0.2, 3.0,
+        ] {
+            let p = Pose::new(Vector3::zeros(), Vector3::new(t.sin(), 0.0, t.cos()) * 3.5);
+            let a = p.axis_angle(&z);
+            assert!(
+                (a - t).abs() <= 4.0 * f64::EPSILON * t.max(1e-300),
+                "{t}: {a}"
+            );
+        }
+        let zero = Pose::new(Vector3::zeros(), Vector3::zeros());
+        assert!(zero.axis_angle(&z).is_nan());
     }
 
     #[test]
