@@ -672,6 +672,34 @@ impl IkSolver {
             });
             return Ok(one);
         }
+        // The linear axes and the miss of one branch, its rotaries unwound.
+        let complete = |raw: &Raw| -> Result<IkSolution, IkError> {
+            let mut q: JointValues = raw.q[..n].iter().copied().collect();
+            self.unwind(&mut q, &reference);
+            // The tool axis does not depend on the linear axes.
+            let reached = self.solve_prismatics(&mut q, &target)?;
+            Ok(IkSolution {
+                q,
+                axis_miss_rad: reached.axis_angle(&target),
+                singular: raw.singular,
+                branch: raw.branch,
+            })
+        };
+        // With `nearest_only`, the branch `first` is completed alone and
+        // returned when it is certainly the one chosen: it meets the axis,
+        // is within the limits, and is nearer than `lower`, a lower bound of
+        // the other branch's distance.
+        let nearest = |first: Result<IkSolution, IkError>, lower: f64| match first {
+            Ok(s)
+                if s.axis_miss_rad <= MISS_TIE_RAD
+                    && self.within_all_limits(&s.q)
+                    && self.distance(&s.q, &reference) < lower =>
+            {
+                Ok(s)
+            }
+            other => Err(other),
+        };
+        let mut done: [Option<Result<IkSolution, IkError>>; MAX_BRANCHES] = [None, None];
         let raws = match self.family {
             Family::ThreeAxis => [Raw {
                 q: [0.0; super::chain::MAX_JOINTS],
@@ -682,52 +710,51 @@ impl IkSolver {
             .collect(),
             Family::FourAxis1R3T => self.orient_1r(&target, &reference),
             Family::FiveAxis2R3T => self.orient_2r(&target, &reference),
-            Family::FourAxisRTTR => self.orient_rttr(&target, &reference),
+            Family::FourAxisRTTR => match self.rttr_angles(&target, &reference) {
+                // The second rotary of a branch costs a subproblem: the
+                // branches are ordered by their first rotary alone, whose
+                // term bounds the distance from below.
+                Some(a) if nearest_only && a.count == 2 => {
+                    let j1 = self.revolutes[0];
+                    let lower: [f64; 2] = std::array::from_fn(|b| {
+                        let mut q = reference;
+                        q[j1] = choose_turn(&self.axes[j1], a.t1[b], reference[j1]);
+                        self.rotary_distance(&q[..n], &reference[..n])
+                    });
+                    let (first, other) = if lower[1] < lower[0] { (1, 0) } else { (0, 1) };
+                    let raw_first = self.rttr_branch(&a, first, &reference);
+                    match nearest(complete(&raw_first), lower[other]) {
+                        Ok(s) => return Ok(Branches::from_iter([s])),
+                        Err(sol) => done[first] = Some(sol),
+                    }
+                    let raw_other = self.rttr_branch(&a, other, &reference);
+                    let mut raws = [Some(raw_first), Some(raw_other)];
+                    raws.swap(0, first);
+                    raws.into_iter().flatten().collect()
+                }
+                Some(a) => (0..a.count)
+                    .map(|b| self.rttr_branch(&a, b, &reference))
+                    .collect(),
+                None => RawBranches::new(),
+            },
             Family::Generic => RawBranches::new(),
         };
-        let unwound: arrayvec::ArrayVec<JointValues, MAX_BRANCHES> = raws
-            .iter()
-            .map(|raw| {
-                let mut q: JointValues = raw.q[..n].iter().copied().collect();
+        if nearest_only && raws.len() == 2 && done.iter().all(Option::is_none) {
+            let lower: [f64; 2] = std::array::from_fn(|i| {
+                let mut q: JointValues = raws[i].q[..n].iter().copied().collect();
                 self.unwind(&mut q, &reference);
-                q
-            })
-            .collect();
-        // The linear axes and the miss of one branch.
-        let complete = |i: usize| -> Result<IkSolution, IkError> {
-            let mut q = unwound[i].clone();
-            // The tool axis does not depend on the linear axes.
-            let reached = self.solve_prismatics(&mut q, &target)?;
-            Ok(IkSolution {
-                q,
-                axis_miss_rad: reached.axis_angle(&target),
-                singular: raws[i].singular,
-                branch: raws[i].branch,
-            })
-        };
-        let mut done: [Option<Result<IkSolution, IkError>>; MAX_BRANCHES] = [None, None];
-        if nearest_only && raws.len() == 2 {
-            let lower = [
-                self.rotary_distance(&unwound[0], &reference),
-                self.rotary_distance(&unwound[1], &reference),
-            ];
+                self.rotary_distance(&q, &reference)
+            });
             let (first, other) = if lower[1] < lower[0] { (1, 0) } else { (0, 1) };
-            let sol = complete(first);
-            if let Ok(s) = &sol
-                && s.axis_miss_rad <= MISS_TIE_RAD
-                && self.within_all_limits(&s.q)
-                && self.distance(&s.q, &reference) < lower[other]
-            {
-                let mut one = Branches::new();
-                one.extend(sol);
-                return Ok(one);
+            match nearest(complete(&raws[first]), lower[other]) {
+                Ok(s) => return Ok(Branches::from_iter([s])),
+                Err(sol) => done[first] = Some(sol),
             }
-            done[first] = Some(sol);
         }
         let mut out = Branches::new();
         let mut last_err = None;
-        for (i, slot) in done.iter_mut().enumerate().take(raws.len()) {
-            match slot.take().unwrap_or_else(|| complete(i)) {
+        for (slot, raw) in done.iter_mut().zip(&raws) {
+            match slot.take().unwrap_or_else(|| complete(raw)) {
                 Ok(s) => out.push(s),
                 Err(e) => last_err = Some(e),
             }
@@ -893,13 +920,11 @@ impl IkSolver {
             .collect()
     }
 
-    fn orient_rttr(&self, target: &Pose, reference: &[f64]) -> RawBranches {
-        let Some(f) = &self.rttr else {
-            return RawBranches::new();
-        };
-        let (j1, j2) = (self.revolutes[0], self.revolutes[1]);
-        let u1 = self.u(j1);
-        let u2 = self.u(j2);
+    /// The first rotary's angles of an RTTR machine for `target`: two
+    /// branches half a turn apart, or one when it is free (singular).
+    fn rttr_angles(&self, target: &Pose, reference: &[f64]) -> Option<RttrAngles> {
+        let f = self.rttr.as_ref()?;
+        let j1 = self.revolutes[0];
         // Tip and axis in the frame just before the first revolute.
         let p = (f.pre_inv * target.tip.push(1.0)).xyz();
         let o = self.segs[0].transpose() * target.axis;
@@ -913,36 +938,61 @@ impl IkSolver {
         let zi = 2.0 * pa * pb + w2 * 2.0 * oa * ob;
         let rho = pa.hypot(pb);
         let h = oa.hypot(ob);
-        let (t1s, singular) = if (rho <= self.options.on_axis_tol_mm
-            && h <= self.options.singular_tol_rad)
-            || (zr == 0.0 && zi == 0.0)
-        {
-            ([reference[j1], 0.0], true)
-        } else {
-            let t = 0.5 * zi.atan2(zr);
-            ([t, t + PI], false)
-        };
-        let count = if singular { 1 } else { 2 };
-        let mut out = RawBranches::new();
-        for (b, &t1) in t1s[..count].iter().enumerate() {
-            // Tool axis in the frame before the second revolute.
-            let back = self.segs[1].transpose() * rotate(&u1, -t1, &o);
-            let pz = self.segs[2] * Vector3::z();
-            let (t2, s2) = match subproblem1(&u2, &pz, &back, self.options.singular_tol_rad) {
-                Some(t2) => (t2, false),
-                None => (reference[j2], true),
-            };
-            let mut q = [0.0; super::chain::MAX_JOINTS];
-            q[j1] = t1;
-            q[j2] = t2;
-            out.push(Raw {
-                q,
-                singular: singular || s2,
-                branch: b as u8,
-            });
-        }
-        out
+        Some(
+            if (rho <= self.options.on_axis_tol_mm && h <= self.options.singular_tol_rad)
+                || (zr == 0.0 && zi == 0.0)
+            {
+                RttrAngles {
+                    t1: [reference[j1], 0.0],
+                    count: 1,
+                    singular: true,
+                    o,
+                }
+            } else {
+                let t = 0.5 * zi.atan2(zr);
+                RttrAngles {
+                    t1: [t, t + PI],
+                    count: 2,
+                    singular: false,
+                    o,
+                }
+            },
+        )
     }
+
+    /// Branch `b` of [`IkSolver::rttr_angles`]: the second rotary turns the
+    /// tool axis into place.
+    fn rttr_branch(&self, a: &RttrAngles, b: usize, reference: &[f64]) -> Raw {
+        let (j1, j2) = (self.revolutes[0], self.revolutes[1]);
+        let (u1, u2) = (self.u(j1), self.u(j2));
+        let t1 = a.t1[b];
+        // Tool axis in the frame before the second revolute.
+        let back = self.segs[1].transpose() * rotate(&u1, -t1, &a.o);
+        let pz = self.segs[2] * Vector3::z();
+        let (t2, s2) = match subproblem1(&u2, &pz, &back, self.options.singular_tol_rad) {
+            Some(t2) => (t2, false),
+            None => (reference[j2], true),
+        };
+        let mut q = [0.0; super::chain::MAX_JOINTS];
+        q[j1] = t1;
+        q[j2] = t2;
+        Raw {
+            q,
+            singular: a.singular || s2,
+            branch: b as u8,
+        }
+    }
+}
+
+/// The first rotary's angles of an RTTR machine ([`IkSolver::rttr_angles`]).
+struct RttrAngles {
+    /// The angle of each branch, rad.
+    t1: [f64; 2],
+    /// Branches: 2, or 1 when the first rotary is free.
+    count: usize,
+    singular: bool,
+    /// The tool axis in the frame before the first revolute.
+    o: Vector3<f64>,
 }
 
 /// Least-squares solution of `Σ_c x_c · dirs[cols[c]] = b` for two or three

@@ -52,7 +52,7 @@ pub fn unwind_near(angle: f64, reference: f64) -> f64 {
     if !angle.is_finite() || !reference.is_finite() {
         return angle;
     }
-    let k = ((reference - angle) / TAU).round();
+    let k = round_half_away((reference - angle) / TAU);
     let v = angle + k * TAU;
     // Guard against rounding at exactly ±π.
     if v - reference > PI {
@@ -66,6 +66,9 @@ pub fn unwind_near(angle: f64, reference: f64) -> f64 {
 
 /// `angle` (rad) wrapped into `[0, 2π)`.
 pub fn wrap_positive(angle: f64) -> f64 {
+    if (0.0..TAU).contains(&angle) {
+        return angle;
+    }
     let v = angle.rem_euclid(TAU);
     // rem_euclid can return exactly TAU for tiny negative inputs.
     if v >= TAU { 0.0 } else { v }
@@ -73,6 +76,9 @@ pub fn wrap_positive(angle: f64) -> f64 {
 
 /// `degrees` wrapped into `[0, 360)`.
 pub fn wrap_degrees(degrees: f64) -> f64 {
+    if (0.0..360.0).contains(&degrees) {
+        return degrees;
+    }
     let v = degrees.rem_euclid(360.0);
     if v >= 360.0 { 0.0 } else { v }
 }
@@ -119,6 +125,26 @@ pub fn within_limits(axis: &AxisSpec, q_internal: f64) -> bool {
     lo_ok && hi_ok
 }
 
+/// `x` rounded half away from zero, as [`f64::round`] (but `+0.0` for a
+/// negative `x` that rounds to zero), without its library call: the
+/// conversion to an integer truncates in one instruction, and below 2^52
+/// the fraction `x − trunc(x)` is exact.
+#[inline]
+fn round_half_away(x: f64) -> f64 {
+    if x.is_nan() || x.abs() >= 4_503_599_627_370_496.0 {
+        return x.round();
+    }
+    let t = x as i64;
+    let f = x - t as f64;
+    (if f >= 0.5 {
+        t + 1
+    } else if f <= -0.5 {
+        t - 1
+    } else {
+        t
+    }) as f64
+}
+
 /// Chooses the representative `angle + 2πk` of a rotary axis value.
 ///
 /// - modulo axes: wrapped into `[0, 2π)` (the controller takes the shortest way);
@@ -159,6 +185,40 @@ pub fn angle_diff(a: f64, b: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rounding_and_wrapping_match_the_library() {
+        let mut s: u64 = 3;
+        for _ in 0..100_000 {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let x = ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 10f64.powi((s % 7) as i32);
+            assert_eq!(round_half_away(x), x.round(), "{x}");
+            let d = x * 100.0;
+            assert_eq!(
+                wrap_degrees(d).to_bits(),
+                {
+                    let v = d.rem_euclid(360.0);
+                    if v >= 360.0 { 0.0f64 } else { v }
+                }
+                .to_bits(),
+                "{d}"
+            );
+        }
+        for x in [
+            0.5,
+            -0.5,
+            1.5,
+            -2.5,
+            0.49999999999999994,
+            4503599627370495.5,
+            1e300,
+        ] {
+            assert_eq!(round_half_away(x), x.round(), "{x}");
+        }
+        assert!(round_half_away(f64::NAN).is_nan());
+    }
 
     fn rot(mode: RotaryMode, min: Option<f64>, max: Option<f64>) -> AxisSpec {
         AxisSpec {

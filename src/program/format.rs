@@ -134,11 +134,14 @@ pub fn scaled_integer(x: f64) -> Option<i64> {
 /// the double nearest `n / 10^decimals` when |n| < 2^50 (see
 /// [`scaled_integer`]), without going through floating point.
 pub fn push_scaled(out: &mut Vec<u8>, n: i64, decimals: usize) {
-    // A sign, up to 20 digits, a point and zeros padding small values.
+    // A sign, up to 20 digits, a point and zeros padding small values,
+    // written right to left into the first `len` bytes.
     let mut buf = [b'0'; 48];
     let decimals = decimals.min(24);
-    let mut pos = buf.len();
     let mut v = n.unsigned_abs();
+    let digits = (v.checked_ilog10().unwrap_or(0) as usize + 1).max(decimals + 1);
+    let len = usize::from(n < 0) + digits + usize::from(decimals > 0);
+    let mut pos = len;
     // Exactly `decimals` fractional digits, two at a time.
     let mut left = decimals;
     while left >= 2 {
@@ -176,7 +179,16 @@ pub fn push_scaled(out: &mut Vec<u8>, n: i64, decimals: usize) {
         pos -= 1;
         buf[pos] = b'-';
     }
-    out.extend_from_slice(&buf[pos..]);
+    debug_assert_eq!(pos, 0);
+    // A copy of fixed size is a few moves; the bytes past `len` are cut off.
+    const COPY: usize = 32;
+    if len <= COPY {
+        let start = out.len();
+        out.extend_from_slice(&buf[..COPY]);
+        out.truncate(start + len);
+    } else {
+        out.extend_from_slice(&buf[..len]);
+    }
 }
 
 /// "00" to "99".
