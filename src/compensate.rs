@@ -1161,10 +1161,11 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
     };
     // Parses the lines of `raw`, the first numbered `first`, into `lines`
     // (stage 1), reusing the lines' buffers.
-    let parse = |raw: &[Vec<u8>], first: usize, mut lines: Vec<crate::gcode::Line>| {
+    // (The lines take the raw buffers, which get the lines' old ones back.)
+    let parse = |raw: &mut [Vec<u8>], first: usize, mut lines: Vec<crate::gcode::Line>| {
         lines.resize_with(raw.len(), Default::default);
-        for (i, (b, line)) in raw.iter().zip(lines.iter_mut()).enumerate() {
-            crate::gcode::parse_line_into(b, first + i, line);
+        for (i, (b, line)) in raw.iter_mut().zip(lines.iter_mut()).enumerate() {
+            crate::gcode::parse_line_swap(b, first + i, line);
         }
         lines
     };
@@ -1252,7 +1253,7 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
     // this thread writes chunk k − 1 and runs the first pass of chunk k + 1.
     let mut raw_next: Vec<Vec<u8>> = Vec::with_capacity(CHUNK_LINES);
     let mut count = read(&mut raw)?;
-    let mut parsed = (count > 0).then(|| parse(&raw[..count], 1, Vec::new()));
+    let mut parsed = (count > 0).then(|| parse(&mut raw[..count], 1, Vec::new()));
     number += count;
     count = read(&mut raw)?;
     let mut current: Option<Chunk> = None;
@@ -1273,7 +1274,7 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
                 });
             }
             if count > 0 && !stopped {
-                let (lines, slot) = (&raw[..count], &mut parsed_next);
+                let (lines, slot) = (&mut raw[..count], &mut parsed_next);
                 let reuse = spare.pop().unwrap_or_default();
                 scope.spawn(move |_| *slot = Some(parse(lines, first, reuse)));
             }

@@ -169,10 +169,15 @@ impl<'m> AxisWriter<'m> {
             if modal && previous == Some(values[k]) {
                 continue;
             }
+            // Separators and axis names are a byte or two: pushed, not copied.
             if !out.is_empty() {
-                out.extend_from_slice(sep.as_bytes());
+                for &b in sep.as_bytes() {
+                    out.push(b);
+                }
             }
-            out.extend_from_slice(axis.name.as_bytes());
+            for &b in axis.name.as_bytes() {
+                out.push(b);
+            }
             if absolute {
                 match self.scaled[k] {
                     Some(i) => push_scaled(out, i, self.decimals[k]),
@@ -226,6 +231,9 @@ pub struct GcodeConverter<'a> {
     /// Machine axis positions (output order, mm / deg) followed through
     /// blocks in machine coordinates (pose mode off); unknown axes are 0.
     machine_ext: Vec<f64>,
+    /// `machine_ext` is that of `previous` (a pose block came since it was
+    /// last followed) and is recomputed before use.
+    machine_ext_stale: bool,
     /// The allocation of the vector of a block's words, kept from block to
     /// block (empty between blocks).
     words: Vec<WordRef<'static>>,
@@ -248,6 +256,7 @@ impl<'a> GcodeConverter<'a> {
             writer: AxisWriter::new(machine, opts.decimals),
             previous: None,
             machine_ext: vec![0.0; machine.axes.len()],
+            machine_ext_stale: false,
             words: Vec::with_capacity(16),
             stats: PostStats::default(),
         }
@@ -407,12 +416,8 @@ impl<'a> GcodeConverter<'a> {
             &meaning.tcp_offset_items,
             out,
         );
-        for (e, axis) in self.machine_ext.iter_mut().zip(&self.machine.axes) {
-            *e = crate::machine::output_value(
-                axis,
-                solved.q.get(axis.joint).copied().unwrap_or(0.0),
-            );
-        }
+        // `machine_ext` follows from `previous` when next needed.
+        self.machine_ext_stale = true;
         self.previous = Some(solved.q.clone());
         Ok(())
     }
@@ -424,6 +429,13 @@ impl GcodeConverter<'_> {
     /// block after `G43.4`/`TRAORI` that gives only some coordinates
     /// continues from the machine's position.
     fn follow_machine_words(&mut self, line: &Line, meaning: &crate::program::BlockMeaning) {
+        if std::mem::take(&mut self.machine_ext_stale)
+            && let Some(q) = &self.previous
+        {
+            for (e, axis) in self.machine_ext.iter_mut().zip(&self.machine.axes) {
+                *e = crate::machine::output_value(axis, q.get(axis.joint).copied().unwrap_or(0.0));
+            }
+        }
         let mut moved = false;
         for w in line.words() {
             if let Some(k) = self.machine.axes.iter().position(|a| a.name == w.address) {

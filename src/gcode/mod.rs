@@ -28,6 +28,6 @@ mod summary;
 
 pub use address::Address;
 pub use block::{Item, ItemKind, Line, Word};
-pub use parse::{parse_line, parse_line_into};
+pub use parse::{parse_line, parse_line_into, parse_line_swap};
 pub use reader::{LineReader, echo};
 pub use summary::{Summary, summarize};

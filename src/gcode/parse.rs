@@ -515,6 +515,16 @@ pub fn parse_line_into(bytes: &[u8], number: usize, line: &mut Line) {
     debug_assert!(line.is_tiled(), "items do not tile line {number}");
 }
 
+/// [`parse_line_into`] taking the line's bytes from `bytes` by exchanging
+/// buffers instead of copying: `bytes` receives the line's previous buffer
+/// (its contents unspecified), for the caller to reuse.
+pub fn parse_line_swap(bytes: &mut Vec<u8>, number: usize, line: &mut Line) {
+    line.number = number;
+    std::mem::swap(&mut line.bytes, bytes);
+    parse_items(&line.bytes, number, &mut line.items);
+    debug_assert!(line.is_tiled(), "items do not tile line {number}");
+}
+
 /// The items of one physical line (`bytes`, line `number`), written to
 /// `items` (cleared first).
 pub(crate) fn parse_items(bytes: &[u8], number: usize, items: &mut Vec<Item>) {
@@ -562,6 +572,19 @@ mod tests {
 
     fn kinds(s: &[u8]) -> Vec<ItemKind> {
         parse_line(s, 2).items.into_iter().map(|i| i.kind).collect()
+    }
+
+    #[test]
+    fn swapping_parse_is_the_copying_parse() {
+        let mut line = Line::default();
+        for (n, text) in ["G1 X1\n", "Y2 (two)\r\n", "%", "N10 G0 X-1.5 Y2\n"]
+            .iter()
+            .enumerate()
+        {
+            let mut bytes = text.as_bytes().to_vec();
+            parse_line_swap(&mut bytes, n + 1, &mut line);
+            assert_eq!(line, parse_line(text.as_bytes(), n + 1));
+        }
     }
 
     #[test]

@@ -496,7 +496,11 @@ impl IkSolver {
     /// The solution for `pose` nearest the previous block's joint values
     /// `previous` (chain order, internal units), within the axis limits.
     pub fn solve(&self, pose: &Pose, previous: Option<&[f64]>) -> Result<IkSolution, IkError> {
-        let cands = self.candidates(pose, previous, true)?;
+        let mut cands = self.candidates(pose, previous, true)?;
+        // A single branch within the limits is the choice.
+        if cands.len() == 1 && self.within_all_limits(&cands[0].q) {
+            return Ok(cands.remove(0));
+        }
         let reference = self.reference(previous);
         let valid: [bool; MAX_BRANCHES] =
             std::array::from_fn(|i| cands.get(i).is_some_and(|s| self.within_all_limits(&s.q)));
