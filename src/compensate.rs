@@ -1078,6 +1078,14 @@ struct Job {
     refined: Option<Refined>,
 }
 
+/// The buffers of a [`Chunk`] besides its lines, kept for the next chunk.
+#[derive(Default)]
+struct ChunkParts {
+    text: Vec<u8>,
+    entries: Vec<Entry>,
+    jobs: Vec<Job>,
+}
+
 /// A chunk of the program between the driver's stages.
 struct Chunk {
     /// The parsed lines.
@@ -1171,15 +1179,20 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
     };
     // Line vectors of written chunks, for reuse.
     let mut spare: Vec<Vec<crate::gcode::Line>> = Vec::new();
+    // The other buffers of written chunks (cleared), for reuse: a chunk's
+    // jobs take a few hundred kB, which a fresh vector would fault in page
+    // by page and copy as it grows.
+    let mut spare_parts: Vec<ChunkParts> = Vec::new();
     // Stage 2 of a parsed chunk.
     let mut first_pass = |conv: &mut GcodeConverter<'_>,
                           solver: &CompensatingSolver<'_>,
-                          lines: Vec<crate::gcode::Line>|
+                          lines: Vec<crate::gcode::Line>,
+                          parts: ChunkParts|
      -> Chunk {
         let mut chunk = Chunk {
-            text: Vec::new(),
-            entries: Vec::with_capacity(lines.len()),
-            jobs: Vec::new(),
+            text: parts.text,
+            entries: parts.entries,
+            jobs: parts.jobs,
             stop: None,
             lines,
         };
@@ -1224,7 +1237,7 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
     let mut write = |conv: &mut GcodeConverter<'_>,
                      solver: &mut CompensatingSolver<'_>,
                      chunk: Chunk|
-     -> crate::error::Result<Vec<crate::gcode::Line>> {
+     -> crate::error::Result<(Vec<crate::gcode::Line>, ChunkParts)> {
         buf.clear();
         let mut done = chunk.jobs.iter();
         for entry in &chunk.entries {
@@ -1245,7 +1258,17 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
         records(&mut solver.records)?;
         match chunk.stop {
             Some(e) => Err(e),
-            None => Ok(chunk.lines),
+            None => {
+                let mut parts = ChunkParts {
+                    text: chunk.text,
+                    entries: chunk.entries,
+                    jobs: chunk.jobs,
+                };
+                parts.text.clear();
+                parts.entries.clear();
+                parts.jobs.clear();
+                Ok((chunk.lines, parts))
+            }
         }
     };
 
@@ -1279,10 +1302,15 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
                 scope.spawn(move |_| *slot = Some(parse(lines, first, reuse)));
             }
             if let Some(p) = previous.take() {
-                spare.push(write(&mut conv, solver, p)?);
+                let (lines, parts) = write(&mut conv, solver, p)?;
+                spare.push(lines);
+                spare_parts.push(parts);
             }
             let next = match parsed.take() {
-                Some(lines) if !stopped => Some(first_pass(&mut conv, solver, lines)),
+                Some(lines) if !stopped => {
+                    let parts = spare_parts.pop().unwrap_or_default();
+                    Some(first_pass(&mut conv, solver, lines, parts))
+                }
                 _ => None,
             };
             // Read the chunk after while the pool works (the raw buffers
