@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Peer comparison: kinpost compensate against bench/peer_numpy.py (seed 000's
 # method vectorised in NumPy/SciPy) on the same pose program, file in and
-# file out, wall clock, best of 3. Not part of CI.
+# file out, wall clock, best of RUNS (default 5). The runs of the three
+# commands are interleaved, so that a slower spell of a shared machine
+# falls on all of them alike. Not part of CI.
 #
 #   bash bench/run.sh [POSES]        (default 200000)
 #
@@ -9,7 +11,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 POSES="${1:-200000}"
-RUNS="${RUNS:-3}"
+RUNS="${RUNS:-5}"
 ERRORS=fixtures/errors/zhao2022-xzbc.csv
 WORK="${BENCH_DIR:-${TMPDIR:-/tmp}/kinpost-bench}"
 mkdir -p "$WORK"
@@ -23,28 +25,30 @@ PROGRAM="$WORK/poses-$POSES.nc"
 echo "== $POSES poses ($(du -h "$PROGRAM" | cut -f1)), zhao2022-xzbc, error tables $ERRORS, $(nproc) cores"
 
 now() { date +%s.%N; }
-best() { # best wall time of RUNS runs of "$@", in seconds
-  local best="" t0 t1 dt
-  for _ in $(seq "$RUNS"); do
-    t0=$(now); "$@"; t1=$(now)
-    dt=$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }')
-    if [ -z "$best" ] || awk -v a="$dt" -v b="$best" 'BEGIN { exit !(a < b) }'; then best=$dt; fi
-  done
-  echo "$best"
+# Wall time of "$@" in seconds.
+timed() {
+  local t0 t1
+  t0=$(now); "$@"; t1=$(now)
+  awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }'
 }
+min() { awk -v a="$1" -v b="$2" 'BEGIN { print (b == "" || a < b) ? a : b }'; }
 
 kin() { "$KINPOST" compensate --errors "$ERRORS" "$PROGRAM" -o "$WORK/kinpost.nc" 2> "$WORK/kinpost.log"; }
+kin1() { RAYON_NUM_THREADS=1 kin; }
 peer() { python3 bench/peer_numpy.py --errors "$ERRORS" "$PROGRAM" -o "$WORK/peer.nc" 2> "$WORK/peer.log"; }
 
-t_kin=$(best kin)
-t_kin1=$(RAYON_NUM_THREADS=1 best kin)
-t_peer=$(best peer)
+t_kin=""; t_kin1=""; t_peer=""
+for _ in $(seq "$RUNS"); do
+  t_kin=$(min "$(timed kin)" "$t_kin")
+  t_kin1=$(min "$(timed kin1)" "$t_kin1")
+  t_peer=$(min "$(timed peer)" "$t_peer")
+done
 kin_tip=$(sed -n 's/.*tool-tip error:.*after max \([^ ]*\) mm.*/\1/p' "$WORK/kinpost.log")
 kin_it=$(sed -n 's/.*Newton iterations: \(.*\)/\1/p' "$WORK/kinpost.log")
 peer_line=$(cat "$WORK/peer.log")
 
 printf '%-34s %8s s   tool-tip residual max %s mm (%s)\n' "kinpost compensate (all cores)" "$t_kin" "$kin_tip" "$kin_it"
-printf '%-34s %8s s\n' "kinpost compensate (1 pool thread)" "$t_kin1"
+printf '%-34s %8s s\n' "kinpost compensate (1 thread)" "$t_kin1"
 printf '%-34s %8s s   %s\n' "peer_numpy.py" "$t_peer" "$peer_line"
 awk -v p="$t_peer" -v k="$t_kin" -v k1="$t_kin1" 'BEGIN {
-  printf "ratio peer / kinpost: %.1fx (1 pool thread: %.1fx)\n", p / k, p / k1 }'
+  printf "ratio peer / kinpost: %.1fx (1 thread: %.1fx)\n", p / k, p / k1 }'

@@ -196,7 +196,20 @@ pub struct MachineArgs {
     pub json: bool,
 }
 
-/// Runs the parsed command line.
+/// Makes the calling thread (the binary's main thread) one of the global
+/// thread pool's `RAYON_NUM_THREADS` (default: one per core) workers, so
+/// that the pool does not add a thread to it: `compensate`'s in-order work
+/// runs on this thread and, whenever it waits for the parallel stages,
+/// this thread works on them (instead of sleeping while the pool's own
+/// threads compete with it for the cores). Without effect if the global
+/// pool is already running.
+pub fn use_this_thread_as_worker() {
+    let _ = rayon::ThreadPoolBuilder::new()
+        .use_current_thread()
+        .build_global();
+}
+
+/// Runs a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Post(a) => post(a),
