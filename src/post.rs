@@ -100,17 +100,44 @@ struct AxisWriter<'m> {
     decimals: Vec<usize>,
     /// `10^decimals` of each axis.
     scales: Vec<f64>,
-    /// Last values written (output order, file units), for modal output and G91.
-    last: Option<Vec<f64>>,
-    /// Scratch for the values of the next block (its allocation reused).
-    values: Vec<f64>,
-    /// Scratch for the values of the next block as integers in units of the
-    /// last written decimal, when they fit (see [`scaled_integer`]).
-    scaled: Vec<Option<i64>>,
+    /// The last block's words (output order, file units), for modal output
+    /// and G91; empty before the first.
+    last: Vec<AxisValue>,
+    /// Scratch for the next block's (its allocation reused).
+    next: Vec<AxisValue>,
     /// The words of the last block (ASCII), their buffer reused.
     text: Vec<u8>,
     /// Scratch for a word formatted through floating point.
     scratch: String,
+}
+
+/// One axis word's value as written: rounded to the axis's decimals.
+#[derive(Clone, Copy)]
+struct AxisValue {
+    /// The value in file units, before rounding.
+    raw: f64,
+    /// `raw · 10^decimals` rounded, when it fits (see [`scaled_integer`]).
+    scaled: Option<i64>,
+}
+
+impl AxisValue {
+    /// The value rounded to `1 / scale`: the double nearest the decimal
+    /// written (so that incremental output does not drift).
+    fn rounded(self, scale: f64) -> f64 {
+        match self.scaled {
+            Some(i) => i as f64 / scale,
+            None => (self.raw * scale).round() / scale,
+        }
+    }
+
+    /// Whether both round to the same written decimal: the integers, when
+    /// both have one (distinct integers below 2^50 give distinct doubles).
+    fn same_as(self, other: AxisValue, scale: f64) -> bool {
+        match (self.scaled, other.scaled) {
+            (Some(a), Some(b)) => a == b,
+            _ => self.rounded(scale) == other.rounded(scale),
+        }
+    }
 }
 
 impl<'m> AxisWriter<'m> {
@@ -125,9 +152,8 @@ impl<'m> AxisWriter<'m> {
             machine,
             decimals,
             scales,
-            last: None,
-            values: Vec::with_capacity(machine.axes.len()),
-            scaled: Vec::with_capacity(machine.axes.len()),
+            last: Vec::with_capacity(machine.axes.len()),
+            next: Vec::with_capacity(machine.axes.len()),
             text: Vec::with_capacity(128),
             scratch: String::new(),
         }
@@ -143,30 +169,28 @@ impl<'m> AxisWriter<'m> {
         modal: bool,
         sep: &str,
     ) -> std::result::Result<&[u8], String> {
-        let mut values = std::mem::take(&mut self.values);
-        values.clear();
-        self.scaled.clear();
-        // Round to the written precision so that incremental output does not
-        // drift: the value kept is the double nearest the rounded decimal.
+        let mut next = std::mem::take(&mut self.next);
+        next.clear();
+        let per_unit = units.mm_per_unit();
         for (axis, s) in self.machine.axes.iter().zip(&self.scales) {
             let v = crate::machine::output_value(axis, q[axis.joint]);
-            let v = if axis.kind == crate::machine::JointKind::Prismatic {
-                v / units.mm_per_unit()
+            // (v / 1 is v: millimetre programs skip the division.)
+            let raw = if axis.kind == crate::machine::JointKind::Prismatic && per_unit != 1.0 {
+                v / per_unit
             } else {
                 v
             };
-            let scaled = scaled_integer(v * s);
-            values.push(match scaled {
-                Some(i) => i as f64 / s,
-                None => (v * s).round() / s,
+            next.push(AxisValue {
+                raw,
+                scaled: scaled_integer(raw * s),
             });
-            self.scaled.push(scaled);
         }
         let out = &mut self.text;
         out.clear();
         for (k, axis) in self.machine.axes.iter().enumerate() {
-            let previous = self.last.as_ref().map(|l| l[k]);
-            if modal && previous == Some(values[k]) {
+            let (value, scale) = (next[k], self.scales[k]);
+            let previous = self.last.get(k).copied();
+            if modal && previous.is_some_and(|p| p.same_as(value, scale)) {
                 continue;
             }
             // Separators and axis names are a byte or two: pushed, not copied.
@@ -178,27 +202,26 @@ impl<'m> AxisWriter<'m> {
             for &b in axis.name.as_bytes() {
                 out.push(b);
             }
-            if absolute {
-                match self.scaled[k] {
-                    Some(i) => push_scaled(out, i, self.decimals[k]),
-                    None => push_fixed_bytes(out, &mut self.scratch, values[k], self.decimals[k]),
-                }
-            } else {
-                match previous {
-                    Some(p) => {
-                        push_fixed_bytes(out, &mut self.scratch, values[k] - p, self.decimals[k])
-                    }
-                    None => {
-                        return Err(format!(
-                            "incremental output (G91) needs an earlier absolute position of axis {}",
-                            axis.name
-                        ));
-                    }
+            let d = self.decimals[k];
+            match (absolute, value.scaled, previous) {
+                (true, Some(i), _) => push_scaled(out, i, d),
+                (true, None, _) => push_fixed_bytes(out, &mut self.scratch, value.rounded(scale), d),
+                (false, _, Some(p)) => push_fixed_bytes(
+                    out,
+                    &mut self.scratch,
+                    value.rounded(scale) - p.rounded(scale),
+                    d,
+                ),
+                (false, _, None) => {
+                    return Err(format!(
+                        "incremental output (G91) needs an earlier absolute position of axis {}",
+                        axis.name
+                    ));
                 }
             }
         }
         // The previous values become the next block's scratch.
-        self.values = self.last.replace(values).unwrap_or_default();
+        self.next = std::mem::replace(&mut self.last, next);
         Ok(&self.text)
     }
 }
