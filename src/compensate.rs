@@ -1018,6 +1018,23 @@ impl CompensatingSolver<'_> {
 /// How many lines ahead the in-order pass asks for a line's memory.
 const PREFETCH_LINES: usize = 4;
 
+/// Asks the processor to bring the bytes of `x` into the cache.
+#[inline]
+fn prefetch_bytes<T>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let p = (x as *const T).cast::<i8>();
+        for off in (0..std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: a prefetch is a hint that never faults, whatever the
+            // address; SSE is part of x86_64.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(off)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
+
 /// Asks the processor to bring `line`'s items and bytes into the cache: a
 /// chunk's lines are parsed by a pool thread, so to the in-order pass they
 /// usually sit in another core's cache, and each line's items are a
@@ -1239,12 +1256,16 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
                      chunk: Chunk|
      -> crate::error::Result<(Vec<crate::gcode::Line>, ChunkParts)> {
         buf.clear();
-        let mut done = chunk.jobs.iter();
+        let mut done = chunk.jobs.iter().enumerate();
         for entry in &chunk.entries {
             match *entry {
                 Entry::Text(a, b) => buf.extend_from_slice(&chunk.text[a..b]),
                 Entry::Pose => {
-                    let job = done.next().expect("one job per pose entry");
+                    let (j, job) = done.next().expect("one job per pose entry");
+                    // The refinements were written on other cores.
+                    if let Some(ahead) = chunk.jobs.get(j + PREFETCH_LINES) {
+                        prefetch_bytes(ahead);
+                    }
                     let line = &chunk.lines[job.line];
                     let refined = job.refined.as_ref().expect("refined in stage 3");
                     let solved = solver

@@ -205,7 +205,9 @@ impl<'m> AxisWriter<'m> {
             let d = self.decimals[k];
             match (absolute, value.scaled, previous) {
                 (true, Some(i), _) => push_scaled(out, i, d),
-                (true, None, _) => push_fixed_bytes(out, &mut self.scratch, value.rounded(scale), d),
+                (true, None, _) => {
+                    push_fixed_bytes(out, &mut self.scratch, value.rounded(scale), d)
+                }
                 (false, _, Some(p)) => push_fixed_bytes(
                     out,
                     &mut self.scratch,
