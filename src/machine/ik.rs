@@ -584,17 +584,19 @@ impl IkSolver {
         q.iter()
             .zip(reference)
             .enumerate()
-            .map(|(j, (a, b))| {
-                let d = match self.axes[j].kind {
-                    JointKind::Prismatic => (a - b) * per_mm,
-                    JointKind::Revolute if self.axes[j].rotary == RotaryMode::Modulo => {
-                        angle_diff(*a, *b)
-                    }
-                    JointKind::Revolute => a - b,
-                };
-                d * d
-            })
+            .map(|(j, (&a, &b))| self.distance_term(j, a, b, per_mm))
             .sum()
+    }
+
+    /// Joint `j`'s term of [`IkSolver::weighted_distance`].
+    #[inline]
+    fn distance_term(&self, j: usize, a: f64, b: f64, per_mm: f64) -> f64 {
+        let d = match self.axes[j].kind {
+            JointKind::Prismatic => (a - b) * per_mm,
+            JointKind::Revolute if self.axes[j].rotary == RotaryMode::Modulo => angle_diff(a, b),
+            JointKind::Revolute => a - b,
+        };
+        d * d
     }
 
     /// The reference branches are compared with: the previous block, or the
@@ -720,10 +722,12 @@ impl IkSolver {
                 // term bounds the distance from below.
                 Some(a) if nearest_only && a.count == 2 => {
                     let j1 = self.revolutes[0];
-                    let lower: [f64; 2] = std::array::from_fn(|b| {
-                        let mut q = reference;
-                        q[j1] = choose_turn(&self.axes[j1], a.t1[b], reference[j1]);
-                        self.rotary_distance(&q[..n], &reference[..n])
+                    // (The other terms of the distance are zero: this is
+                    // `rotary_distance` of the branch with only its first
+                    // rotary moved.)
+                    let lower = a.t1.map(|t| {
+                        let t = choose_turn(&self.axes[j1], t, reference[j1]);
+                        self.distance_term(j1, t, reference[j1], 0.0)
                     });
                     let (first, other) = if lower[1] < lower[0] { (1, 0) } else { (0, 1) };
                     let raw_first = self.rttr_branch(&a, first, &reference);
