@@ -398,77 +398,45 @@ impl JointConst {
         })
     }
 
-    /// `G = M(q) · E` and, with `de`, `G' = M'(q) · E + M(q) · E'`; `sc`:
+    /// `G = M(q) · E` (the joint's motion after its error motion `e`) and
+    /// the rotation of `M(q)` (the identity for a prismatic joint); `sc`:
     /// the sine and cosine of `q` when the caller has them (revolute joints).
     #[inline]
-    fn transform(
+    fn motion(
         &self,
         q: f64,
         sc: Option<(f64, f64)>,
-        err: Option<(&ErrorMotion, Option<&ErrorMotion>)>,
-    ) -> (Affine, Affine) {
-        let e_aff = |e: &ErrorMotion, identity: f64| Affine {
+        e: Option<&ErrorMotion>,
+    ) -> (Affine, [[f64; 3]; 3]) {
+        const I3: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let e_aff = |e: &ErrorMotion| Affine {
             m: [
-                [identity, -e[5], e[4], e[0]],
-                [e[5], identity, -e[3], e[1]],
-                [-e[4], e[3], identity, e[2]],
+                [1.0, -e[5], e[4], e[0]],
+                [e[5], 1.0, -e[3], e[1]],
+                [-e[4], e[3], 1.0, e[2]],
             ],
         };
         match self.kind {
             JointKind::Prismatic => {
-                let t = [self.u[0] * q, self.u[1] * q, self.u[2] * q];
-                match err {
-                    None => {
-                        let mut g = Affine::IDENTITY;
-                        let mut dg = Affine { m: [[0.0; 4]; 3] };
-                        for ((g, dg), (t, u)) in
-                            g.m.iter_mut().zip(&mut dg.m).zip(t.iter().zip(self.u))
-                        {
-                            g[3] = *t;
-                            dg[3] = u;
-                        }
-                        (g, dg)
-                    }
-                    Some((e, de)) => {
-                        let mut g = e_aff(e, 1.0);
-                        for (row, ti) in g.m.iter_mut().zip(t) {
-                            row[3] += ti;
-                        }
-                        let mut dg = match de {
-                            Some(de) => e_aff(de, 0.0),
-                            None => Affine { m: [[0.0; 4]; 3] },
-                        };
-                        for (row, ui) in dg.m.iter_mut().zip(self.u) {
-                            row[3] += ui;
-                        }
-                        (g, dg)
-                    }
+                let mut g = match e {
+                    Some(e) => e_aff(e),
+                    None => Affine::IDENTITY,
+                };
+                for (row, u) in g.m.iter_mut().zip(self.u) {
+                    row[3] += u * q;
                 }
+                (g, I3)
             }
             JointKind::Revolute => {
                 let (sn, cs) = sc.unwrap_or_else(|| q.sin_cos());
                 let r = self.rotation_sc(sn, cs);
-                let kr = mul3(&self.k, &r);
-                let lift = |m: [[f64; 3]; 3]| Affine {
-                    m: std::array::from_fn(|i| [m[i][0], m[i][1], m[i][2], 0.0]),
+                let g = match e {
+                    Some(e) => mul3_affine(&r, &e_aff(e)),
+                    None => Affine {
+                        m: std::array::from_fn(|i| [r[i][0], r[i][1], r[i][2], 0.0]),
+                    },
                 };
-                match err {
-                    None => (lift(r), lift(kr)),
-                    Some((e, de)) => {
-                        let ea = e_aff(e, 1.0);
-                        let g = mul3_affine(&r, &ea);
-                        let mut dg = mul3_affine(&kr, &ea);
-                        if let Some(de) = de {
-                            let d2 = mul3_affine(&r, &e_aff(de, 0.0));
-                            for (a, b) in dg.m.iter_mut().zip(d2.m) {
-                                for (x, y) in a.iter_mut().zip(b) {
-                                    *x += y;
-                                }
-                            }
-                        }
-                        (g, dg)
-                    }
-                }
+                (g, r)
             }
         }
     }
@@ -735,9 +703,7 @@ impl Chain {
                 Step::Fixed(m) => *m,
                 Step::Joint(j) => {
                     let e = if skip { None } else { errors.error(*j, q[*j]) };
-                    c.joints[*j]
-                        .transform(q[*j], None, e.as_ref().map(|e| (e, None)))
-                        .0
+                    c.joints[*j].motion(q[*j], None, e.as_ref()).0
                 }
             };
             t = Some(match t {
@@ -987,8 +953,11 @@ impl Chain {
         let n = c.joints.len();
         debug_assert_eq!(q.len(), n);
         let skip = errors.is_empty();
+        // Per joint: G = M E, the rotation of M, and the derivative E' of
+        // the error motion.
         let mut g = [Affine::IDENTITY; MAX_JOINTS];
-        let mut dg = [Affine::IDENTITY; MAX_JOINTS];
+        let mut rot = [[[0.0; 3]; 3]; MAX_JOINTS];
+        let mut de: [Option<ErrorMotion>; MAX_JOINTS] = [None; MAX_JOINTS];
         for j in 0..n {
             let e = if skip {
                 None
@@ -998,23 +967,59 @@ impl Chain {
             let sc = near
                 .filter(|_| c.joints[j].kind == JointKind::Revolute)
                 .map(|t| t.sin_cos(j, q[j]));
-            (g[j], dg[j]) = c.joints[j].transform(q[j], sc, e.as_ref().map(|(e, d)| (e, Some(d))));
+            (g[j], rot[j]) = c.joints[j].motion(q[j], sc, e.as_ref().map(|(e, _)| e));
+            de[j] = e.map(|(_, d)| d);
         }
-        // Backward pass: the suffix after each joint applied to the tip
-        // point and the axis direction.
+        // Backward pass: the tip point `s` and axis direction `a` carried
+        // from the tool through each element; at joint k the column before
+        // its prefix is G'_k applied to them, from vectors alone:
+        //   revolute:  M' = [u]ₓ M, so M' E s = u × (G s);
+        //   prismatic: M' = [0 | u], so M' E s = u (points), 0 (directions);
+        //   both:      M E' s = R (ε' × s + δ') (points), R (ε' × a).
+        let cross = |a: &[f64; 3], b: &[f64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
         let mut s_tip = [0.0, 0.0, 0.0];
         let mut s_ax = [0.0, 0.0, 1.0];
-        let mut suffix = [([0.0; 3], [0.0; 3]); MAX_JOINTS];
+        let mut local = [([0.0; 3], [0.0; 3]); MAX_JOINTS];
         for step in c.steps.iter().rev() {
-            let m = match step {
-                Step::Fixed(m) => m,
-                Step::Joint(j) => {
-                    suffix[*j] = (s_tip, s_ax);
-                    &g[*j]
+            match step {
+                Step::Fixed(m) => {
+                    s_tip = m.point(&s_tip);
+                    s_ax = m.dir(&s_ax);
                 }
-            };
-            s_tip = m.point(&s_tip);
-            s_ax = m.dir(&s_ax);
+                Step::Joint(j) => {
+                    let jc = &c.joints[*j];
+                    let (st, sa) = (s_tip, s_ax);
+                    s_tip = g[*j].point(&st);
+                    s_ax = g[*j].dir(&sa);
+                    let (mut dt, mut da) = match jc.kind {
+                        JointKind::Revolute => (cross(&jc.u, &s_tip), cross(&jc.u, &s_ax)),
+                        JointKind::Prismatic => (jc.u, [0.0; 3]),
+                    };
+                    if let Some(d) = &de[*j] {
+                        let eps = [d[3], d[4], d[5]];
+                        let et = cross(&eps, &st);
+                        let et = [et[0] + d[0], et[1] + d[1], et[2] + d[2]];
+                        let ea = cross(&eps, &sa);
+                        let (et, ea) = match jc.kind {
+                            JointKind::Revolute => {
+                                (rot3_apply(&rot[*j], &et), rot3_apply(&rot[*j], &ea))
+                            }
+                            JointKind::Prismatic => (et, ea),
+                        };
+                        for k in 0..3 {
+                            dt[k] += et[k];
+                            da[k] += ea[k];
+                        }
+                    }
+                    local[*j] = (dt, da);
+                }
+            }
         }
         // Forward pass: the rotation part of the prefix products (the
         // columns map directions only); column k = P_k · (G_k' · S_k).
@@ -1024,9 +1029,7 @@ impl Chain {
             let m = match step {
                 Step::Fixed(m) => m,
                 Step::Joint(j) => {
-                    let (st, sa) = &suffix[*j];
-                    let d = &dg[*j];
-                    let (mut dt, mut da) = (d.point(st), d.dir(sa));
+                    let (mut dt, mut da) = local[*j];
                     if let Some(p) = &prefix {
                         dt = rot3_apply(p, &dt);
                         da = rot3_apply(p, &da);
