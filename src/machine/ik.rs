@@ -944,10 +944,13 @@ impl IkSolver {
         let w2 = self.options.rttr_axis_weight_mm.powi(2);
         let zr = pa * pa - pb * pb + w2 * (oa * oa - ob * ob);
         let zi = 2.0 * pa * pb + w2 * 2.0 * oa * ob;
-        let rho = pa.hypot(pb);
-        let h = oa.hypot(ob);
+        // The tip on the first rotary's axis and the tool axis along it,
+        // compared squared (no `hypot`: the IK has already refused
+        // coordinates anywhere near overflow).
+        let within = |a: f64, b: f64, tol: f64| tol >= 0.0 && a * a + b * b <= tol * tol;
         Some(
-            if (rho <= self.options.on_axis_tol_mm && h <= self.options.singular_tol_rad)
+            if (within(pa, pb, self.options.on_axis_tol_mm)
+                && within(oa, ob, self.options.singular_tol_rad))
                 || (zr == 0.0 && zi == 0.0)
             {
                 RttrAngles {
