@@ -141,10 +141,14 @@ fn report_streams_and_threads_do_not_change_the_result() {
         assert!(st.success());
         (std::fs::read(out).unwrap(), std::fs::read(rep).unwrap())
     };
+    // One thread (the main thread alone), two, and more than the cores.
     let (o1, r1) = run("1", "one");
     let (o2, r2) = run("2", "two");
+    let (o4, r4) = run("4", "four");
     assert_eq!(o1, o2);
     assert_eq!(r1, r2);
+    assert_eq!(o1, o4);
+    assert_eq!(r1, r4);
     let v: serde_json::Value = serde_json::from_slice(&r1).unwrap();
     let keys: Vec<&String> = v.as_object().unwrap().keys().collect();
     assert_eq!(keys, ["blocks", "summary", "warnings"]);
