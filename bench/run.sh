@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Peer comparison: kinpost compensate against bench/peer_numpy.py (seed 000's
 # method vectorised in NumPy/SciPy) on the same pose program, file in and
-# file out, wall clock, best of RUNS (default 5). The runs of the three
+# file out, wall clock, best of RUNS (default 7). The runs of the three
 # commands are interleaved, so that a slower spell of a shared machine
 # falls on all of them alike. Not part of CI.
 #
@@ -11,7 +11,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 POSES="${1:-200000}"
-RUNS="${RUNS:-5}"
+RUNS="${RUNS:-7}"
 ERRORS=fixtures/errors/zhao2022-xzbc.csv
 WORK="${BENCH_DIR:-${TMPDIR:-/tmp}/kinpost-bench}"
 mkdir -p "$WORK"
