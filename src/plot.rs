@@ -7,7 +7,7 @@ use std::path::Path;
 
 /// One panel: a title with its unit and one or more named series of (x, y).
 pub struct Panel<'a> {
-    /// Y-axis label with unit, e.g. "tool-tip error E [µm]".
+    /// Y-axis label with unit, e.g. `"tool-tip error E [µm]"`.
     pub y_label: &'a str,
     /// Named series.
     pub series: Vec<(&'a str, Vec<(f64, f64)>)>,

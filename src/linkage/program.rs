@@ -152,7 +152,7 @@ const ROUNDING_LEVER_MM: f64 = 1000.0;
 const ROUNDING_SHARE: f64 = 0.05;
 
 /// Share of the tolerance the planner aims for, leaving room for rounding
-/// the output (five axes at [`ROUNDING_SHARE`] each, root-sum-square).
+/// the output (five axes at `ROUNDING_SHARE` each, root-sum-square).
 pub const PLANNING_SHARE: f64 = 0.85;
 
 /// Decimals needed so that rounding an axis word moves the tool tip by at
