@@ -32,6 +32,28 @@ pub fn golden_section_max(
     if f1 > f2 { (x1, f1) } else { (x2, f2) }
 }
 
+/// `x` rounded half away from zero (as [`f64::round`]) as an integer, when
+/// |x| < 2^52; `None` beyond (and for NaN).
+///
+/// Without SSE4.1 `f64::round` is a library call; the conversion to an
+/// integer truncates in one instruction, and below 2^52 the fraction
+/// `x − trunc(x)` is exact.
+#[inline]
+pub fn round_half_away(x: f64) -> Option<i64> {
+    if x.is_nan() || x.abs() >= 4_503_599_627_370_496.0 {
+        return None;
+    }
+    let t = x as i64;
+    let f = x - t as f64;
+    Some(if f >= 0.5 {
+        t + 1
+    } else if f <= -0.5 {
+        t - 1
+    } else {
+        t
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -126,23 +126,11 @@ pub fn within_limits(axis: &AxisSpec, q_internal: f64) -> bool {
 }
 
 /// `x` rounded half away from zero, as [`f64::round`] (but `+0.0` for a
-/// negative `x` that rounds to zero), without its library call: the
-/// conversion to an integer truncates in one instruction, and below 2^52
-/// the fraction `x − trunc(x)` is exact.
+/// negative `x` that rounds to zero), without its library call where
+/// [`crate::numeric::round_half_away`] applies.
 #[inline]
 fn round_half_away(x: f64) -> f64 {
-    if x.is_nan() || x.abs() >= 4_503_599_627_370_496.0 {
-        return x.round();
-    }
-    let t = x as i64;
-    let f = x - t as f64;
-    (if f >= 0.5 {
-        t + 1
-    } else if f <= -0.5 {
-        t - 1
-    } else {
-        t
-    }) as f64
+    crate::numeric::round_half_away(x).map_or_else(|| x.round(), |i| i as f64)
 }
 
 /// Chooses the representative `angle + 2πk` of a rotary axis value.

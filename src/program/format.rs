@@ -109,24 +109,15 @@ fn write_fixed_fast(out: &mut String, value: f64, decimals: usize) -> bool {
 const SCALED_LIMIT: f64 = (1u64 << 50) as f64;
 
 /// `x` rounded half away from zero (as [`f64::round`]) as an integer, if
-/// |x| < 2^50; `None` otherwise (and for NaN).
-///
-/// Without SSE4.1 `f64::round` is a library call; the integer conversion
-/// truncates in one instruction and the fraction `x - trunc(x)` is exact.
+/// |x| < 2^50 ([`crate::numeric::round_half_away`] within the range where
+/// [`push_scaled`] prints the nearest double's text); `None` otherwise (and
+/// for NaN).
 #[inline]
 pub fn scaled_integer(x: f64) -> Option<i64> {
-    if x.is_nan() || x.abs() >= SCALED_LIMIT {
+    if x.abs() >= SCALED_LIMIT {
         return None;
     }
-    let t = x as i64;
-    let f = x - t as f64;
-    Some(if f >= 0.5 {
-        t + 1
-    } else if f <= -0.5 {
-        t - 1
-    } else {
-        t
-    })
+    crate::numeric::round_half_away(x)
 }
 
 /// Appends the integer `n` read as `n / 10^decimals`, with exactly `decimals`
