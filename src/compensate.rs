@@ -1018,14 +1018,15 @@ impl CompensatingSolver<'_> {
 /// How many lines ahead the in-order pass asks for a line's memory.
 const PREFETCH_LINES: usize = 4;
 
-/// Asks the processor to bring the bytes of `x` into the cache.
+/// Asks the processor to bring the memory of `x` (a value or a slice)
+/// into the cache, one 64-byte line at a time.
 #[inline]
-fn prefetch_bytes<T>(x: &T) {
+fn prefetch_bytes<T: ?Sized>(x: &T) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
         let p = (x as *const T).cast::<i8>();
-        for off in (0..std::mem::size_of::<T>()).step_by(64) {
+        for off in (0..std::mem::size_of_val(x)).step_by(64) {
             // SAFETY: a prefetch is a hint that never faults, whatever the
             // address; SSE is part of x86_64.
             unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(off)) };
@@ -1041,24 +1042,8 @@ fn prefetch_bytes<T>(x: &T) {
 /// separate allocation the hardware prefetcher cannot guess.
 #[inline]
 fn prefetch_line(line: &crate::gcode::Line) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let items = line.items.as_ptr() as *const i8;
-        let item_bytes = std::mem::size_of_val(line.items.as_slice());
-        for off in (0..item_bytes).step_by(64) {
-            // SAFETY: a prefetch is a hint that never faults, whatever the
-            // address; SSE is part of x86_64.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(items.wrapping_add(off)) };
-        }
-        let bytes = line.bytes.as_ptr() as *const i8;
-        for off in (0..line.bytes.len()).step_by(64) {
-            // SAFETY: as above.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(bytes.wrapping_add(off)) };
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = line;
+    prefetch_bytes(line.items.as_slice());
+    prefetch_bytes(line.bytes.as_slice());
 }
 
 /// Lines per chunk of [`compensate_gcode`].
