@@ -23,7 +23,7 @@ pub fn open(path: Option<&Path>) -> Result<Input> {
         Some(p) => {
             let name = p.display().to_string();
             crate::text::check_not_dir(p)?;
-            let f = std::fs::File::open(p).map_err(|e| Error::io(&name, e))?;
+            let f = crate::output::open_input(p).map_err(|e| Error::io(&name, e))?;
             let size = f.metadata().ok().map(|m| m.len());
             Ok(Input {
                 reader: Box::new(BufReader::with_capacity(1 << 16, f)),
@@ -86,7 +86,7 @@ impl FilterProgress {
 pub fn read_to_string(path: &Path) -> Result<String> {
     let name = path.display().to_string();
     let mut s = String::new();
-    std::fs::File::open(path)
+    crate::output::open_input(path)
         .and_then(|mut f| f.read_to_string(&mut s))
         .map_err(|e| Error::io(&name, e))?;
     Ok(s)

@@ -1,57 +1,437 @@
-//! Output that is never half-written.
+//! Output that is never half-written and never destroys an input.
 //!
-//! With a path, the output goes to a temporary file in the same directory
-//! that is renamed over the path only when everything succeeded; on error the
-//! path is left untouched. Standard output is spooled through an anonymous
-//! temporary file (memory stays flat) and copied out only on success, so a
-//! filter never hands a half-converted program down the chain.
+//! What kinpost does with an output path depends on what is there:
+//!
+//! - **A regular file, or nothing yet.** The output goes to a temporary file
+//!   in the same directory, which is renamed over the path only when
+//!   everything succeeded; on error the path is left untouched. The new file
+//!   keeps the mode (and, where permitted, the owner) of the file it
+//!   replaces; a new file gets the usual `0666` less the umask.
+//! - **A symbolic link.** The link is followed: its target is written, the
+//!   link stays.
+//! - **A file with several hard links.** The output is spooled and copied
+//!   into the existing file on success, so every link sees the new content.
+//! - **A character device or a FIFO** (`/dev/null`, `/dev/stdout`, a named
+//!   pipe). The output is spooled and written to it directly on success;
+//!   the device is never replaced.
+//! - **A block device, a socket or a directory.** Refused.
+//! - **One of the run's inputs** (same device and inode, whatever the path
+//!   says). Refused before anything is written, as is a path given for two
+//!   outputs of one run.
+//!
+//! Standard output is spooled through an anonymous temporary file (memory
+//! stays flat) and copied out only on success, so a filter never hands a
+//! half-converted program down the chain.
+//!
+//! Temporary files are registered while they exist; the binary calls
+//! [`remove_temporaries_on_signal`] so that SIGINT, SIGTERM or SIGHUP remove
+//! them before the process exits.
 
 use crate::error::{Error, Result};
+use std::fs::{File, Metadata};
 use std::io::{BufWriter, Seek, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// Size of the buffer between the writer and the file.
+const BUFFER_BYTES: usize = 1 << 16;
+
+/// A file's identity: device and inode.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct FileId {
+    dev: u64,
+    ino: u64,
+}
+
+impl FileId {
+    #[cfg(unix)]
+    fn of(m: &Metadata) -> Option<FileId> {
+        use std::os::unix::fs::MetadataExt;
+        Some(FileId {
+            dev: m.dev(),
+            ino: m.ino(),
+        })
+    }
+
+    #[cfg(not(unix))]
+    fn of(_: &Metadata) -> Option<FileId> {
+        None
+    }
+}
+
+/// The inputs opened by this process so far (identity and name as given).
+static INPUTS: Mutex<Vec<(FileId, String)>> = Mutex::new(Vec::new());
+
+/// Temporary files that exist right now; removed on a signal.
+static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Records that the file `f`, named `name` on the command line, is an input
+/// of this run: no output may be written over it.
+pub fn note_input(f: &File, name: &str) {
+    if let Some(id) = f.metadata().ok().as_ref().and_then(FileId::of) {
+        let mut inputs = INPUTS.lock().unwrap_or_else(|e| e.into_inner());
+        if !inputs.iter().any(|(i, _)| *i == id) {
+            inputs.push((id, name.to_string()));
+        }
+    }
+}
+
+/// Opens the file at `path` for reading and records it as an input.
+pub fn open_input(path: &Path) -> std::io::Result<File> {
+    let f = File::open(path)?;
+    note_input(&f, &path.display().to_string());
+    Ok(f)
+}
+
+/// The name of the input that `m` is, if it is one.
+fn input_named(m: &Metadata) -> Option<String> {
+    let id = FileId::of(m)?;
+    let inputs = INPUTS.lock().unwrap_or_else(|e| e.into_inner());
+    inputs
+        .iter()
+        .find(|(i, _)| *i == id)
+        .map(|(_, n)| n.clone())
+}
+
+/// The error for writing over input `input` through output `path`.
+fn is_input(path: &Path, input: &str) -> Error {
+    let p = path.display();
+    if Path::new(input) == path {
+        Error::Usage(format!(
+            "{p} is an input of this run; refusing to write an output over it"
+        ))
+    } else {
+        Error::Usage(format!(
+            "{p} is the input {input} (the same file); refusing to write an output over it"
+        ))
+    }
+}
+
+/// Checks, before any work, that each output path can be written and is
+/// none of `inputs` nor another output of the same run.
+///
+/// `outputs` pairs each path with the option that named it (for the
+/// message). A path that does not exist yet is compared by its resolved
+/// directory and name; one that exists by device and inode, so that a
+/// symbolic or hard link to an input is caught as well.
+pub fn check_outputs(outputs: &[(&str, Option<&Path>)], inputs: &[Option<&Path>]) -> Result<()> {
+    let mut seen: Vec<(&str, &Path, Identity)> = Vec::new();
+    for (flag, path) in outputs {
+        let Some(path) = path else { continue };
+        let name = path.display().to_string();
+        let meta = std::fs::metadata(path).ok();
+        if let Some(m) = &meta {
+            kind_of(path, m)?;
+        }
+        match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() && !d.is_dir() => {
+                return Err(Error::io(
+                    &name,
+                    std::io::Error::new(
+                        std::io::ErrorKind::NotFound,
+                        "cannot be written: its directory does not exist",
+                    ),
+                ));
+            }
+            _ => {}
+        }
+        let id = Identity::of(path);
+        for input in inputs.iter().flatten() {
+            if Identity::of(input).same(&id) {
+                return Err(is_input(path, &input.display().to_string()));
+            }
+        }
+        if let Some(m) = &meta
+            && let Some(input) = input_named(m)
+        {
+            return Err(is_input(path, &input));
+        }
+        if let Some((other, other_path, _)) = seen.iter().find(|(_, _, i)| i.same(&id)) {
+            // Two outputs on one device (`-o /dev/null --report /dev/null`) are fine.
+            if !matches!(
+                meta.as_ref().map(|m| kind_of(path, m)),
+                Some(Ok(Kind::Stream))
+            ) {
+                return Err(Error::Usage(format!(
+                    "{flag} {name} and {other} {} name the same file; give each output its own path",
+                    other_path.display()
+                )));
+            }
+        }
+        seen.push((flag, path, id));
+    }
+    Ok(())
+}
+
+/// How a path is identified for comparisons.
+#[derive(Debug)]
+enum Identity {
+    /// An existing file.
+    File(FileId),
+    /// A path that does not exist (yet): its resolved directory and name.
+    Path(PathBuf),
+    /// Nothing to compare by.
+    Unknown,
+}
+
+impl Identity {
+    fn of(path: &Path) -> Identity {
+        if let Some(id) = std::fs::metadata(path).ok().as_ref().and_then(FileId::of) {
+            return Identity::File(id);
+        }
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        match (std::fs::canonicalize(dir), path.file_name()) {
+            (Ok(d), Some(n)) => Identity::Path(d.join(n)),
+            _ => Identity::Unknown,
+        }
+    }
+
+    fn same(&self, other: &Identity) -> bool {
+        match (self, other) {
+            (Identity::File(a), Identity::File(b)) => a == b,
+            (Identity::Path(a), Identity::Path(b)) => a == b,
+            _ => false,
+        }
+    }
+}
+
+/// What kind of thing an existing output path is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    /// A regular file.
+    File,
+    /// A character device or FIFO: written directly, never replaced.
+    Stream,
+}
+
+/// The kind of the existing path `path` (metadata `m`, symlinks followed),
+/// or an error for what may not be written.
+fn kind_of(path: &Path, m: &Metadata) -> Result<Kind> {
+    let refuse = |what: &str| {
+        Err(Error::io(
+            path.display().to_string(),
+            std::io::Error::new(std::io::ErrorKind::InvalidInput, what.to_string()),
+        ))
+    };
+    let t = m.file_type();
+    if t.is_file() {
+        return Ok(Kind::File);
+    }
+    if t.is_dir() {
+        return refuse("is a directory; expected a file to write");
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_char_device() || t.is_fifo() {
+            return Ok(Kind::Stream);
+        }
+        if t.is_block_device() {
+            return refuse("is a block device; kinpost does not write over devices");
+        }
+        if t.is_socket() {
+            return refuse("is a socket; expected a file to write");
+        }
+    }
+    refuse("is not a regular file; expected a file to write")
+}
 
 /// Runs `f` with a writer for `path` (or standard output when `None`), and
-/// commits the output only if `f` succeeds.
+/// commits the output only if `f` succeeds. See the module documentation for
+/// what happens with each kind of path.
 pub fn write_atomically<T>(
     path: Option<&Path>,
     f: impl FnOnce(&mut dyn Write) -> Result<T>,
 ) -> Result<T> {
-    match path {
-        Some(path) => {
-            let display = path.display().to_string();
-            let dir = match path.parent() {
-                Some(d) if !d.as_os_str().is_empty() => d,
-                _ => Path::new("."),
-            };
-            let tmp = tempfile::Builder::new()
-                .prefix(".kinpost-")
-                .suffix(".part")
-                .tempfile_in(dir)
-                .map_err(|e| Error::io(&display, e))?;
-            let mut w = BufWriter::with_capacity(1 << 16, tmp);
-            let value = f(&mut w)?;
-            let tmp = w
-                .into_inner()
-                .map_err(|e| Error::io(&display, e.into_error()))?;
-            tmp.as_file().sync_all().ok();
-            tmp.persist(path)
-                .map_err(|e| Error::io(&display, e.error))?;
-            Ok(value)
-        }
-        None => {
-            let spool = tempfile::tempfile().map_err(|e| Error::io("<spool>", e))?;
-            let mut w = BufWriter::with_capacity(1 << 16, spool);
-            let value = f(&mut w)?;
-            let mut spool = w
-                .into_inner()
-                .map_err(|e| Error::io("<spool>", e.into_error()))?;
-            spool.rewind().map_err(|e| Error::io("<spool>", e))?;
+    let Some(path) = path else {
+        return spool_then(f, "<stdout>", |spool| {
             let stdout = std::io::stdout();
             let mut lock = stdout.lock();
-            std::io::copy(&mut spool, &mut lock).map_err(|e| Error::io("<stdout>", e))?;
-            lock.flush().map_err(|e| Error::io("<stdout>", e))?;
-            Ok(value)
+            std::io::copy(spool, &mut lock)?;
+            lock.flush()
+        });
+    };
+    let display = path.display().to_string();
+    let meta = std::fs::metadata(path).ok();
+    let kind = match &meta {
+        Some(m) => {
+            if let Some(input) = input_named(m) {
+                return Err(is_input(path, &input));
+            }
+            Some(kind_of(path, m)?)
         }
+        None => None,
+    };
+    let shared_inode = nlink(meta.as_ref()) > 1;
+    if kind == Some(Kind::Stream) || shared_inode {
+        // Devices, FIFOs and files with several links are written in place.
+        let target = path.to_path_buf();
+        return spool_then(f, &display, move |spool| {
+            if let Some(input) = std::fs::metadata(&target)
+                .ok()
+                .as_ref()
+                .and_then(input_named)
+            {
+                return Err(std::io::Error::other(format!(
+                    "is the input {input}; refusing to write an output over it"
+                )));
+            }
+            let mut out = std::fs::OpenOptions::new()
+                .write(true)
+                .truncate(kind == Some(Kind::File))
+                .open(&target)?;
+            std::io::copy(spool, &mut out)?;
+            out.flush()?;
+            if kind == Some(Kind::File) {
+                out.sync_all().ok();
+            }
+            Ok(())
+        });
+    }
+    // A regular file or a new one: a temporary beside the real target.
+    let target = match &meta {
+        Some(_) => std::fs::canonicalize(path).map_err(|e| Error::io(&display, e))?,
+        None => path.to_path_buf(),
+    };
+    let dir = match target.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let (tmp, file) = Temporary::new(&dir, meta.as_ref()).map_err(|e| Error::io(&display, e))?;
+    let mut w = BufWriter::with_capacity(BUFFER_BYTES, file);
+    let value = f(&mut w)?;
+    let file = w
+        .into_inner()
+        .map_err(|e| Error::io(&display, e.into_error()))?;
+    file.sync_all().ok();
+    drop(file);
+    // An input opened after the output was started is caught here, before the rename.
+    if let Some(input) = std::fs::metadata(&target)
+        .ok()
+        .as_ref()
+        .and_then(input_named)
+    {
+        return Err(is_input(path, &input));
+    }
+    tmp.persist(&target).map_err(|e| Error::io(&display, e))?;
+    Ok(value)
+}
+
+/// Number of hard links of an existing file (1 when unknown).
+fn nlink(m: Option<&Metadata>) -> u64 {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        m.map_or(1, |m| if m.is_file() { m.nlink() } else { 1 })
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = m;
+        1
+    }
+}
+
+/// Runs `f` into an anonymous spool file and, on success, hands the spool
+/// (rewound) to `deliver`.
+fn spool_then<T>(
+    f: impl FnOnce(&mut dyn Write) -> Result<T>,
+    name: &str,
+    deliver: impl FnOnce(&mut File) -> std::io::Result<()>,
+) -> Result<T> {
+    let spool = tempfile::tempfile().map_err(|e| Error::io("<spool>", e))?;
+    let mut w = BufWriter::with_capacity(BUFFER_BYTES, spool);
+    let value = f(&mut w)?;
+    let mut spool = w
+        .into_inner()
+        .map_err(|e| Error::io("<spool>", e.into_error()))?;
+    spool.rewind().map_err(|e| Error::io("<spool>", e))?;
+    deliver(&mut spool).map_err(|e| Error::io(name, e))?;
+    Ok(value)
+}
+
+/// A named temporary file in the output's directory, registered for removal
+/// on a signal and removed when dropped unless persisted.
+struct Temporary {
+    path: PathBuf,
+}
+
+impl Temporary {
+    /// Creates the temporary in `dir`, with the permissions (and owner, where
+    /// permitted) of the file it will replace, `existing`, or else `0666`
+    /// less the umask. Returns the temporary and its open file.
+    fn new(dir: &Path, existing: Option<&Metadata>) -> std::io::Result<(Temporary, File)> {
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(".kinpost-").suffix(".part");
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            // Opened with this mode, so the umask applies as for any new file.
+            builder.permissions(std::fs::Permissions::from_mode(0o666));
+        }
+        // Register under the lock so that a signal between creation and
+        // registration cannot leave the file behind.
+        let mut temporaries = TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner());
+        let (file, path) = builder.tempfile_in(dir)?.keep().map_err(|e| e.error)?;
+        temporaries.push(path.clone());
+        drop(temporaries);
+        let tmp = Temporary { path };
+        if let Some(m) = existing {
+            file.set_permissions(m.permissions())?;
+            #[cfg(unix)]
+            {
+                use std::os::unix::fs::MetadataExt;
+                // Only root may give a file away; elsewhere this fails harmlessly.
+                let _ = std::os::unix::fs::fchown(&file, Some(m.uid()), Some(m.gid()));
+            }
+        }
+        Ok((tmp, file))
+    }
+
+    /// Renames the temporary over `target`.
+    fn persist(mut self, target: &Path) -> std::io::Result<()> {
+        let mut temporaries = TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner());
+        std::fs::rename(&self.path, target)?;
+        temporaries.retain(|p| *p != self.path);
+        self.path = PathBuf::new();
+        Ok(())
+    }
+}
+
+impl Drop for Temporary {
+    fn drop(&mut self) {
+        if self.path.as_os_str().is_empty() {
+            return;
+        }
+        let mut temporaries = TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner());
+        let _ = std::fs::remove_file(&self.path);
+        temporaries.retain(|p| *p != self.path);
+    }
+}
+
+/// Installs handlers for SIGINT, SIGTERM and SIGHUP that remove every
+/// temporary output file and exit with 128 + the signal number, as a shell
+/// reports a process killed by that signal. Outputs already committed stay;
+/// outputs under way are left as they were before the run.
+pub fn remove_temporaries_on_signal() {
+    #[cfg(unix)]
+    {
+        use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+        let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else {
+            return;
+        };
+        std::thread::spawn(move || {
+            if let Some(sig) = signals.forever().next() {
+                // Held until exit: no temporary can be created or renamed after this.
+                let temporaries = TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner());
+                for p in temporaries.iter() {
+                    let _ = std::fs::remove_file(p);
+                }
+                std::process::exit(128 + sig);
+            }
+        });
     }
 }
 
@@ -81,5 +461,96 @@ mod tests {
         })
         .unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"new");
+        let registered = TEMPORARIES.lock().unwrap();
+        assert!(
+            !registered.iter().any(|t| t.starts_with(dir.path())),
+            "{registered:?}"
+        );
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn keeps_mode_links_and_refuses_inputs() {
+        use std::os::unix::fs::{MetadataExt, PermissionsExt};
+        let dir = tempfile::tempdir().unwrap();
+        let write = |p: &Path, s: &'static [u8]| {
+            write_atomically(Some(p), |w| {
+                w.write_all(s).unwrap();
+                Ok(())
+            })
+        };
+        // The mode of an existing file is kept.
+        let p = dir.path().join("run.sh");
+        std::fs::write(&p, b"old").unwrap();
+        std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o755)).unwrap();
+        write(&p, b"new").unwrap();
+        assert_eq!(std::fs::metadata(&p).unwrap().mode() & 0o777, 0o755);
+        // A symbolic link is followed: the target changes, the link stays.
+        let link = dir.path().join("link.nc");
+        std::os::unix::fs::symlink(&p, &link).unwrap();
+        write(&link, b"through").unwrap();
+        assert!(
+            std::fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
+        assert_eq!(std::fs::read(&p).unwrap(), b"through");
+        // A hard link keeps sharing the content.
+        let hard = dir.path().join("hard.nc");
+        std::fs::hard_link(&p, &hard).unwrap();
+        write(&hard, b"shared").unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"shared");
+        assert_eq!(std::fs::metadata(&p).unwrap().nlink(), 2);
+        // An input is refused, also through another name.
+        let input = dir.path().join("in.nc");
+        std::fs::write(&input, b"program").unwrap();
+        let f = open_input(&input).unwrap();
+        drop(f);
+        let alias = dir.path().join("alias.nc");
+        std::os::unix::fs::symlink(&input, &alias).unwrap();
+        for out in [&input, &alias] {
+            let e = write(out, b"clobber").unwrap_err();
+            assert_eq!(e.exit_code(), crate::error::exit::USAGE, "{e}");
+            assert!(e.to_string().contains("refusing"), "{e}");
+        }
+        assert_eq!(std::fs::read(&input).unwrap(), b"program");
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        assert!(!names.iter().any(|n| n.ends_with(".part")), "{names:?}");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn devices_are_written_not_replaced() {
+        use std::os::unix::fs::FileTypeExt;
+        write_atomically(Some(Path::new("/dev/null")), |w| {
+            w.write_all(b"gone").unwrap();
+            Ok(())
+        })
+        .unwrap();
+        assert!(
+            std::fs::metadata("/dev/null")
+                .unwrap()
+                .file_type()
+                .is_char_device()
+        );
+    }
+
+    #[test]
+    fn two_outputs_on_one_path_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("o.nc");
+        let e = check_outputs(&[("-o", Some(&p)), ("--report", Some(&p))], &[]).unwrap_err();
+        assert!(e.to_string().contains("name the same file"), "{e}");
+        let input = dir.path().join("p.nc");
+        std::fs::write(&input, b"G0 X0\n").unwrap();
+        let e = check_outputs(&[("--report", Some(&input))], &[Some(&input)]).unwrap_err();
+        assert!(e.to_string().contains("input"), "{e}");
+        check_outputs(&[("-o", Some(&p)), ("--report", None)], &[Some(&input)]).unwrap();
+        let null = Path::new("/dev/null");
+        check_outputs(&[("-o", Some(null)), ("--report", Some(null))], &[]).unwrap();
     }
 }

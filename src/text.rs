@@ -32,7 +32,10 @@ pub fn check_not_dir(path: &Path) -> Result<()> {
 pub fn read_text_file(path: &Path) -> Result<String> {
     let name = path.display().to_string();
     check_not_dir(path)?;
-    let bytes = std::fs::read(path).map_err(|e| Error::io(&name, e))?;
+    let mut bytes = Vec::new();
+    crate::output::open_input(path)
+        .and_then(|mut f| std::io::Read::read_to_end(&mut f, &mut bytes))
+        .map_err(|e| Error::io(&name, e))?;
     into_utf8(bytes, &name, 1)
 }
 

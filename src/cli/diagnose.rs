@@ -129,7 +129,10 @@ pub fn program_waypoints(
 
 /// Runs `kinpost simulate`.
 pub fn simulate(a: SimulateArgs) -> Result<()> {
-    super::check_outputs(&[a.output.as_deref()])?;
+    super::check_outputs(
+        &[("-o", a.output.as_deref())],
+        &[a.errors.as_deref(), Some(&a.program), a.machine.file()],
+    )?;
     let machine = a.machine.load()?;
     if !(a.sample_interval.is_finite() && a.sample_interval > 0.0) {
         return Err(Error::Usage("--sample-interval must be > 0 s".into()));
@@ -217,7 +220,13 @@ pub struct DiagnoseArgs {
 
 /// Runs `kinpost diagnose`.
 pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
-    super::check_outputs(&[a.svg.as_deref(), a.write_model.as_deref()])?;
+    super::check_outputs(
+        &[
+            ("--svg", a.svg.as_deref()),
+            ("--write-model", a.write_model.as_deref()),
+        ],
+        &[a.errors.as_deref(), Some(&a.recording), a.machine.file()],
+    )?;
     let machine = a.machine.load()?;
     let model = match &a.errors {
         Some(p) => Some(super::errors::load_errors(p)?),

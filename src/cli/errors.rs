@@ -61,7 +61,7 @@ pub fn load_errors(path: &std::path::Path) -> Result<ErrorModel> {
 
 /// Runs `kinpost fit`.
 pub fn fit(a: FitArgs) -> Result<()> {
-    super::check_outputs(&[a.output.as_deref()])?;
+    super::check_outputs(&[("-o", a.output.as_deref())], &[Some(&a.table)])?;
     let tables = read_tables(&a.table)?;
     let mut opts = match a.knots {
         Some(n) => FitOptions::fixed_knots(n),
@@ -138,7 +138,10 @@ pub struct NonlinearBlock {
 
 /// Runs `kinpost analyze`.
 pub fn analyze(a: AnalyzeArgs) -> Result<()> {
-    super::check_outputs(&[a.svg.as_deref()])?;
+    super::check_outputs(
+        &[("--svg", a.svg.as_deref())],
+        &[a.input.as_deref(), a.errors.as_deref(), a.machine.file()],
+    )?;
     let machine = a.machine.load()?;
     if a.errors.is_none() && !a.nonlinear {
         return Err(Error::Usage(
@@ -444,7 +447,13 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     if a.tip_tolerance_mm.is_nan() || a.tip_tolerance_mm <= 0.0 {
         return Err(Error::Usage("--tip-tolerance-mm must be > 0".into()));
     }
-    super::check_outputs(&[a.output.as_deref(), a.report.as_deref()])?;
+    super::check_outputs(
+        &[
+            ("-o", a.output.as_deref()),
+            ("--report", a.report.as_deref()),
+        ],
+        &[a.input.as_deref(), Some(&a.errors), a.machine.file()],
+    )?;
     let machine: Machine = a.machine.load()?;
     let model = load_errors(&a.errors)?;
     let bound = model.bind(&machine.chain)?;

@@ -69,7 +69,13 @@ fn parse_insert(s: &str) -> std::result::Result<usize, String> {
 
 /// Runs `kinpost linkage`.
 pub fn linkage(a: LinkageArgs) -> Result<()> {
-    super::check_outputs(&[a.output.as_deref(), a.report.as_deref()])?;
+    super::check_outputs(
+        &[
+            ("-o", a.output.as_deref()),
+            ("--report", a.report.as_deref()),
+        ],
+        &[a.input.as_deref(), a.machine.file()],
+    )?;
     let machine = a.machine.load()?;
     let mode = match (a.insert, a.tolerance) {
         (Some(n), _) => Mode::Insert(n),

@@ -81,6 +81,14 @@ pub struct MachineChoice {
 }
 
 impl MachineChoice {
+    /// The machine file, when `--machine` names an existing file.
+    pub fn file(&self) -> Option<&std::path::Path> {
+        self.machine
+            .as_deref()
+            .map(std::path::Path::new)
+            .filter(|p| p.is_file())
+    }
+
     /// Loads the chosen machine.
     pub fn load(&self) -> Result<Machine> {
         match &self.machine {
@@ -242,7 +250,10 @@ fn post(a: PostArgs) -> Result<()> {
             "--axis-tolerance-urad must be a number ≥ 0".into(),
         ));
     }
-    check_outputs(&[a.output.as_deref()])?;
+    check_outputs(
+        &[("-o", a.output.as_deref())],
+        &[a.input.as_deref(), a.machine.file()],
+    )?;
     let machine = a.machine.load()?;
     let mut solver = IkSolver::new(&machine);
     let mut inp = input::open(a.input.as_deref())?;
@@ -288,30 +299,17 @@ fn post(a: PostArgs) -> Result<()> {
     Ok(())
 }
 
-/// Checks before any work that every output path can be written: its
-/// directory exists and the path is not a directory. A command with several
-/// outputs (`-o` and `--report`, `--svg` and `--write-model`) then does not
-/// commit the first and fail on the second for a mistyped directory.
-pub fn check_outputs(paths: &[Option<&std::path::Path>]) -> Result<()> {
-    for p in paths.iter().flatten() {
-        let name = p.display().to_string();
-        let fail = |what: &str| {
-            Err(Error::io(
-                &name,
-                std::io::Error::new(std::io::ErrorKind::NotFound, what.to_string()),
-            ))
-        };
-        if p.is_dir() {
-            return fail("is a directory; expected a file to write");
-        }
-        match p.parent() {
-            Some(d) if !d.as_os_str().is_empty() && !d.is_dir() => {
-                return fail("cannot be written: its directory does not exist");
-            }
-            _ => {}
-        }
-    }
-    Ok(())
+/// Checks every output path before any work: its directory exists, it is
+/// not a directory, a block device or one of the `inputs` (by device and
+/// inode, so links are caught), and no two outputs name the same file. A
+/// command with several outputs (`-o` and `--report`, `--svg` and
+/// `--write-model`) then does not commit the first and fail on the second.
+/// `outputs` pairs each path with the option that named it.
+pub fn check_outputs(
+    outputs: &[(&str, Option<&std::path::Path>)],
+    inputs: &[Option<&std::path::Path>],
+) -> Result<()> {
+    crate::output::check_outputs(outputs, inputs)
 }
 
 /// Fails with an input error if the program `inp` is empty (no byte at all):

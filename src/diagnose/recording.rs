@@ -407,7 +407,7 @@ impl Recording {
     pub fn load(path: &Path, axes: &[String]) -> Result<Recording> {
         let name = path.display().to_string();
         crate::text::check_not_dir(path)?;
-        let f = std::fs::File::open(path).map_err(|e| Error::io(name.clone(), e))?;
+        let f = crate::output::open_input(path).map_err(|e| Error::io(name.clone(), e))?;
         Self::read(std::io::BufReader::new(f), &name, axes)
     }
 
