@@ -70,17 +70,24 @@ impl RotaryPair {
 /// on `tip`, by Newton steps on the prismatic columns of the Jacobian
 /// (exact after one step on an error-free chain, where the tip is affine in
 /// the linear axes).
+///
+/// A machine with fewer than three linear axes (a lens machine's X Z B C)
+/// cannot place the tip with its linear axes alone: there every joint takes
+/// part, and the step is the least-norm change from the values given.
 pub fn solve_linears(
     chain: &Chain,
     errors: &dyn JointErrors,
     q: &mut [f64],
     tip: &Vector3<f64>,
 ) -> Result<(), String> {
-    let lin: Vec<usize> = (0..chain.dof())
+    let mut lin: Vec<usize> = (0..chain.dof())
         .filter(|&j| chain.joints[j].kind == JointKind::Prismatic)
         .collect();
     if lin.is_empty() {
         return Err("the machine has no linear axis to place the tool tip".into());
+    }
+    if lin.len() < 3 {
+        lin = (0..chain.dof()).collect();
     }
     for _ in 0..8 {
         let (pose, jac) = chain.pose_and_jacobian(q, errors);

@@ -201,6 +201,11 @@ impl<'m> Axes<'m> {
             .collect()
     }
 
+    /// Number of axes the machine has.
+    fn count(&self) -> usize {
+        self.machine.axes.len()
+    }
+
     fn moved(&self, a: &[f64], b: &[f64]) -> usize {
         let ra = self.rounded(a, Units::Mm);
         let rb = self.rounded(b, Units::Mm);
@@ -568,8 +573,12 @@ fn plan_block(
                 return Ok(None);
             }
             let tol = tol * PLANNING_SHARE;
+            // Even division moves every axis in every segment once both
+            // rotaries turn (the linear axes follow the swing), so a block
+            // that turns both is staggered whenever that would be too many.
+            let staggered = too_many || (both_rotaries && axes.count() > opts.max_axes);
             let pattern = |n: usize| {
-                if too_many {
+                if staggered {
                     Pattern::Staggered { m: n }
                 } else {
                     Pattern::Even { k: n + 1 }
@@ -580,7 +589,7 @@ fn plan_block(
                 let w = worst_segment(chain, &NoErrors, qa, &pts, qb).max_mm;
                 Ok((pts, w))
             };
-            let max_n = if too_many {
+            let max_n = if staggered {
                 opts.max_points / 2
             } else {
                 opts.max_points
