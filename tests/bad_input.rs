@@ -831,15 +831,15 @@ fn bad_option_values_are_usage_errors() {
         ),
         (
             &["simulate", "-p", "p.nc", "--noise=-1"],
-            "--noise -1: expected a standard deviation ≥ 0 mm",
+            "--noise -1: expected a standard deviation of 0 … 10 mm",
         ),
         (
             &["simulate", "-p", "p.nc", "--sample-interval", "0"],
-            "--sample-interval must be > 0 s",
+            "--sample-interval 0: expected 1e-6 … 3600 s",
         ),
         (
             &["simulate", "-p", "p.nc", "--accel=-5"],
-            "--accel -5: expected an acceleration ≥ 0 mm/s²",
+            "--accel -5: expected an acceleration of 0 … 1e6 mm/s²",
         ),
         (&["simulate", "-p", "p.nc", "--inject", "warp:X=1"], "warp"),
         (
@@ -1066,4 +1066,38 @@ fn output_into_a_missing_directory_is_an_io_error() {
         3,
         &["kinpost: error: sub: is a directory; expected a file to write"],
     );
+}
+
+#[test]
+fn absurd_simulate_numbers_are_a_bad_command_line() {
+    // Before: 1e-320 gave 0 samples and 1e308 noise wrote `inf`, both exit 0.
+    let program = fixture("programs/zhao2022-xzbc-exercise.nc");
+    let d = dir_with(&[]);
+    for (option, value, says) in [
+        ("--sample-interval", "1e-320", "expected 1e-6 … 3600 s"),
+        ("--sample-interval", "0", "expected 1e-6 … 3600 s"),
+        (
+            "--noise",
+            "1e308",
+            "expected a standard deviation of 0 … 10 mm",
+        ),
+        (
+            "--noise",
+            "20",
+            "expected a standard deviation of 0 … 10 mm",
+        ),
+        (
+            "--accel",
+            "1e300",
+            "expected an acceleration of 0 … 1e6 mm/s²",
+        ),
+        ("--rapid-feed", "1e300", "at most 1e6 mm/min"),
+    ] {
+        let r = run_in(
+            d.path(),
+            &["simulate", "-p", &program, option, value, "-o", "rec.csv"],
+        );
+        expect(&r, 2, &[&format!("{option} {value}"), says]);
+        assert!(!d.path().join("rec.csv").exists());
+    }
 }

@@ -127,6 +127,16 @@ pub fn program_waypoints(
     Ok(wps)
 }
 
+/// A number as a person would type it: plain where that is short,
+/// in exponent form for the very large and the very small.
+fn shown(x: f64) -> String {
+    if x != 0.0 && !(1e-4..1e6).contains(&x.abs()) {
+        format!("{x:e}")
+    } else {
+        format!("{x}")
+    }
+}
+
 /// Runs `kinpost simulate`.
 pub fn simulate(a: SimulateArgs) -> Result<()> {
     super::check_outputs(
@@ -134,22 +144,30 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         &[a.errors.as_deref(), Some(&a.program), a.machine.file()],
     )?;
     let machine = a.machine.load()?;
-    if !(a.sample_interval.is_finite() && a.sample_interval > 0.0) {
-        return Err(Error::Usage("--sample-interval must be > 0 s".into()));
-    }
-    if !(a.rapid_feed.is_finite() && a.rapid_feed > 0.0) {
-        return Err(Error::Usage("--rapid-feed must be > 0 mm/min".into()));
-    }
-    if !(a.noise.is_finite() && a.noise >= 0.0) {
+    // Ranges a real machine and a real recorder can have: a value outside
+    // them is a typo, and would give no samples or infinite values.
+    if !(1e-6..=3600.0).contains(&a.sample_interval) {
         return Err(Error::Usage(format!(
-            "--noise {}: expected a standard deviation ≥ 0 mm",
-            a.noise
+            "--sample-interval {}: expected 1e-6 … 3600 s (a recorder samples at most at 1 MHz)",
+            shown(a.sample_interval)
         )));
     }
-    if !(a.accel.is_finite() && a.accel >= 0.0) {
+    if !(a.rapid_feed > 0.0 && a.rapid_feed <= 1e6) {
         return Err(Error::Usage(format!(
-            "--accel {}: expected an acceleration ≥ 0 mm/s² (0: constant feed per block)",
-            a.accel
+            "--rapid-feed {}: expected more than 0 and at most 1e6 mm/min",
+            shown(a.rapid_feed)
+        )));
+    }
+    if !(0.0..=10.0).contains(&a.noise) {
+        return Err(Error::Usage(format!(
+            "--noise {}: expected a standard deviation of 0 … 10 mm",
+            shown(a.noise)
+        )));
+    }
+    if !(0.0..=1e6).contains(&a.accel) {
+        return Err(Error::Usage(format!(
+            "--accel {}: expected an acceleration of 0 … 1e6 mm/s² (0: constant feed per block)",
+            shown(a.accel)
         )));
     }
     let model = match &a.errors {

@@ -297,6 +297,9 @@ pub struct TrajPoint {
     pub v: Vec<f64>,
 }
 
+/// Most samples one simulated recording may hold.
+pub const MAX_SAMPLES: usize = 50_000_000;
+
 /// Samples the commanded trajectory through `waypoints` every
 /// `sample_interval_s` seconds, with the velocity profile described in the
 /// module documentation.
@@ -324,10 +327,17 @@ pub fn sample_waypoints(
     let segs = timeline(chain, waypoints, accel_mm_s2)?;
     let n = chain.dof();
     let total = segs.last().map_or(0.0, |s| s.t_start + s.duration);
-    let count = (total / sample_interval_s).floor() as usize + 1;
-    if count > 50_000_000 {
-        return Err(Error::input(loc(), format!("{count} samples are too many")));
+    // Counted in floating point first: a tiny interval must not wrap the count.
+    let count = (total / sample_interval_s).floor() + 1.0;
+    if count.is_nan() || count > MAX_SAMPLES as f64 {
+        return Err(Error::input(
+            loc(),
+            format!(
+                "{count:.3e} samples ({total:.3} s every {sample_interval_s:e} s) are too many: at most {MAX_SAMPLES}"
+            ),
+        ));
     }
+    let count = count as usize;
     let mut out = Vec::with_capacity(count);
     let mut seg = 0usize;
     for i in 0..count {
