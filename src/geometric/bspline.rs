@@ -545,6 +545,151 @@ fn solve_rows(
     Some((c, hat))
 }
 
+/// Fitted values and leverages at every grouped position, from the SVD of
+/// the weighted design matrix ([`solve_rows`]).
+fn svd_fit(g: &Grouped, knots: &[f64], k: usize, rows: &[usize]) -> Option<(Vec<f64>, Vec<f64>)> {
+    let (c, hat) = solve_rows(g, knots, k, rows)?;
+    let s = BSpline::new(k, knots.to_vec(), c, Extrapolation::Hold).ok()?;
+    Some((g.x.iter().map(|&x| s.value(x)).collect(), hat))
+}
+
+/// Smallest ratio of the Cholesky factor's diagonal (square root of the
+/// normal matrix's conditioning) accepted for the normal equations; below
+/// it the SVD decides the rank.
+const NORMAL_PIVOT_RATIO: f64 = 1e-6;
+
+/// The normal equations of one knot vector over one set of positions:
+/// everything of a least-squares fit that does not depend on the values,
+/// so that the columns of one table (same positions) share it.
+struct Design {
+    /// Per position: the first non-zero basis function and the `k + 1` values.
+    bases: Vec<(usize, [f64; 4])>,
+    /// Cholesky factor of `N = Σ n_p b_p b_pᵀ`.
+    chol: nalgebra::linalg::Cholesky<f64, nalgebra::Dyn>,
+    /// Leverage of each position, `h_p = n_p b_pᵀ N⁻¹ b_p`.
+    hat: Vec<f64>,
+}
+
+impl Design {
+    /// The design of `knots` (degree `k`) over the positions of `g`: each
+    /// position touches only its `k + 1` non-zero basis functions, so
+    /// forming `N` costs `O(positions · k²)` and the leverages another
+    /// `O(k²)` per position, against the SVD's `O(positions · n²)`.
+    ///
+    /// `None` when `N` is not clearly positive definite (a knot interval
+    /// without data): the caller falls back to the SVD, which handles the
+    /// rank-deficient case.
+    fn new(g: &Grouped, knots: &[f64], k: usize) -> Option<Design> {
+        let n = knots.len() - k - 1;
+        let mut normal = DMatrix::<f64>::zeros(n, n);
+        let mut bases = Vec::with_capacity(g.positions());
+        for p in 0..g.positions() {
+            let w = g.count[p] as f64;
+            let (span, vals, _) = basis_at(knots, k, n, g.x[p], false);
+            let first = span - k;
+            for i in 0..=k {
+                for j in 0..=k {
+                    normal[(first + i, first + j)] += w * vals[i] * vals[j];
+                }
+            }
+            bases.push((first, vals));
+        }
+        let chol = normal.cholesky()?;
+        let diag = chol.l_dirty().diagonal();
+        let (lo, hi) = diag.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| {
+            (lo.min(d), hi.max(d))
+        });
+        if lo.is_nan() || lo <= NORMAL_PIVOT_RATIO * hi {
+            return None;
+        }
+        let inv = chol.inverse();
+        let hat: Vec<f64> = bases
+            .iter()
+            .zip(&g.count)
+            .map(|((first, vals), &count)| {
+                let mut h = 0.0;
+                for i in 0..=k {
+                    for j in 0..=k {
+                        h += vals[i] * inv[(first + i, first + j)] * vals[j];
+                    }
+                }
+                count as f64 * h
+            })
+            .collect();
+        hat.iter()
+            .all(|h| h.is_finite())
+            .then_some(Design { bases, chol, hat })
+    }
+
+    /// Fitted values at every position for the position means of `g`.
+    fn fitted(&self, g: &Grouped, k: usize) -> Option<Vec<f64>> {
+        let mut rhs = DVector::<f64>::zeros(self.chol.l_dirty().nrows());
+        for ((first, vals), (&count, &mean)) in self.bases.iter().zip(g.count.iter().zip(&g.mean)) {
+            for i in 0..=k {
+                rhs[first + i] += count as f64 * vals[i] * mean;
+            }
+        }
+        let c = self.chol.solve(&rhs);
+        let fitted: Vec<f64> = self
+            .bases
+            .iter()
+            .map(|(first, vals)| (0..=k).map(|i| vals[i] * c[first + i]).sum())
+            .collect();
+        fitted.iter().all(|f| f.is_finite()).then_some(fitted)
+    }
+}
+
+/// Fitted values and leverages at every grouped position from the normal
+/// equations ([`Design`]).
+#[cfg(test)]
+fn normal_fit(g: &Grouped, knots: &[f64], k: usize) -> Option<(Vec<f64>, Vec<f64>)> {
+    let d = Design::new(g, knots, k)?;
+    Some((d.fitted(g, k)?, d.hat))
+}
+
+/// A design shared between the columns that cross-validate on one thread.
+type SharedDesign = std::rc::Rc<Option<Design>>;
+
+/// The designs of the last positions cross-validated on this thread, by
+/// interior knot count: the error motions of one table share their
+/// positions, so each design is built once per table instead of once per
+/// column.
+#[derive(Default)]
+struct DesignCache {
+    x: Vec<f64>,
+    count: Vec<usize>,
+    k: usize,
+    designs: Vec<Option<SharedDesign>>,
+}
+
+thread_local! {
+    static DESIGNS: std::cell::RefCell<DesignCache> = std::cell::RefCell::default();
+}
+
+/// The design for `m` uniform interior knots over the positions of `g`.
+fn design_for(g: &Grouped, k: usize, m: usize) -> SharedDesign {
+    DESIGNS.with(|cache| {
+        let mut cache = cache.borrow_mut();
+        if cache.k != k || cache.x != g.x || cache.count != g.count {
+            *cache = DesignCache {
+                x: g.x.clone(),
+                count: g.count.clone(),
+                k,
+                designs: Vec::new(),
+            };
+        }
+        if cache.designs.len() <= m {
+            cache.designs.resize(m + 1, None);
+        }
+        cache.designs[m]
+            .get_or_insert_with(|| {
+                let knots = uniform_knots(g.x[0], g.x[g.positions() - 1], k, m);
+                std::rc::Rc::new(Design::new(g, &knots, k))
+            })
+            .clone()
+    })
+}
+
 /// Least-squares coefficients using every grouped position.
 fn solve_lsq(g: &Grouped, knots: &[f64], k: usize) -> Option<Vec<f64>> {
     let rows: Vec<usize> = (0..g.positions()).collect();
@@ -696,11 +841,17 @@ fn cross_validate(g: &Grouped, k: usize, max: usize, tolerance: f64) -> Option<C
     let all: Vec<usize> = (0..u).collect();
     let mut scores = Vec::new();
     for m in 0..=limit {
-        let knots = uniform_knots(a, b, k, m);
-        let Some((c, hat)) = solve_rows(g, &knots, k, &all) else {
-            continue;
-        };
-        let Ok(s) = BSpline::new(k, knots, c, Extrapolation::Hold) else {
+        // Fitted values and leverages: from the banded normal equations
+        // when they are well conditioned, else from the SVD.
+        let design = design_for(g, k, m);
+        let normal = design
+            .as_ref()
+            .as_ref()
+            .and_then(|d| Some((d.fitted(g, k)?, d.hat.clone())));
+        let Some((fitted, hat)) = normal.or_else(|| {
+            let knots = uniform_knots(a, b, k, m);
+            svd_fit(g, &knots, k, &all)
+        }) else {
             continue;
         };
         // Exact leave-one-out identity of linear least squares: the
@@ -713,7 +864,7 @@ fn cross_validate(g: &Grouped, k: usize, max: usize, tolerance: f64) -> Option<C
                 ok = false; // the position cannot be predicted without itself
                 break;
             }
-            let e = (g.mean[p] - s.value(g.x[p])) / (1.0 - h);
+            let e = (g.mean[p] - fitted[p]) / (1.0 - h);
             sse += g.count[p] as f64 * e * e;
         }
         if ok && sse.is_finite() {
@@ -783,6 +934,52 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn normal_equations_agree_with_the_svd() {
+        // A dense scan (2001 positions, two passes) and a sparse one.
+        for (positions, step) in [(2001usize, 0.1), (21, 10.0)] {
+            let mut x = Vec::new();
+            let mut y = Vec::new();
+            for pass in 0..2 {
+                for i in 0..positions {
+                    let xi = -100.0 + step * i as f64;
+                    x.push(xi);
+                    let wiggle = ((i * 7919 + pass * 104729) % 1000) as f64 * 1e-7;
+                    y.push(1e-3 * (xi / 40.0).sin() + 2e-4 * (xi / 13.0).cos() + wiggle);
+                }
+            }
+            let g = Grouped::new(&x, &y).unwrap();
+            let all: Vec<usize> = (0..g.positions()).collect();
+            for m in [0usize, 3, 10, 16]
+                .into_iter()
+                .filter(|&m| m + 5 <= positions)
+            {
+                let knots = uniform_knots(-100.0, x[positions - 1], 3, m);
+                let (f1, h1) = normal_fit(&g, &knots, 3).expect("well conditioned");
+                let (f2, h2) = svd_fit(&g, &knots, 3, &all).unwrap();
+                for p in 0..g.positions() {
+                    assert!(
+                        (f1[p] - f2[p]).abs() < 1e-15,
+                        "m {m} p {p}: {} vs {}",
+                        f1[p],
+                        f2[p]
+                    );
+                    assert!(
+                        (h1[p] - h2[p]).abs() < 1e-12,
+                        "m {m} p {p}: {} vs {}",
+                        h1[p],
+                        h2[p]
+                    );
+                }
+            }
+        }
+        // A knot interval without data: the normal equations decline.
+        let x = [0.0, 1.0, 2.0, 3.0, 4.0, 96.0, 97.0, 98.0, 99.0, 100.0];
+        let y: Vec<f64> = x.iter().map(|v| v * 1e-3).collect();
+        let g = Grouped::new(&x, &y).unwrap();
+        assert!(normal_fit(&g, &uniform_knots(0.0, 100.0, 3, 6), 3).is_none());
     }
 
     #[test]

@@ -136,6 +136,8 @@ struct AxisSpec {
     hi: f64,
     step: f64,
     runs: usize,
+    /// Each run a forward and a backward pass (else forward only).
+    both_directions: bool,
     columns: Vec<Column>,
 }
 
@@ -177,6 +179,8 @@ fn header_name(c: &Column) -> String {
 fn write_axis(out: &mut String, spec: &AxisSpec, rng: &mut SplitMix64) {
     let n = ((spec.hi - spec.lo) / spec.step).round() as usize;
     let targets: Vec<f64> = (0..=n).map(|i| spec.lo + spec.step * i as f64).collect();
+    // One decimal for the usual 10 mm / 10° steps, two for finer scans.
+    let position_decimals = if spec.step < 1.0 { 2 } else { 1 };
     let mid = 0.5 * (spec.lo + spec.hi);
     let half = 0.5 * (spec.hi - spec.lo);
     out.push_str(spec.axis);
@@ -192,7 +196,8 @@ fn write_axis(out: &mut String, spec: &AxisSpec, rng: &mut SplitMix64) {
             .iter()
             .map(|c| 0.5 * c.shape.noise * rng.normal())
             .collect();
-        for dir in [1i8, -1] {
+        let directions: &[i8] = if spec.both_directions { &[1, -1] } else { &[1] };
+        for &dir in directions {
             let order: Vec<f64> = if dir > 0 {
                 targets.clone()
             } else {
@@ -200,7 +205,7 @@ fn write_axis(out: &mut String, spec: &AxisSpec, rng: &mut SplitMix64) {
             };
             for &p in &order {
                 let u = (p - mid) / half;
-                let _ = write!(out, "{}", fixed(p, 1));
+                let _ = write!(out, "{}", fixed(p, position_decimals));
                 for (c, off) in spec.columns.iter().zip(&run_offsets) {
                     let s = &c.shape;
                     let v = s.eval(u)
@@ -257,6 +262,7 @@ pub fn zhao2022_tables(seed: u64) -> String {
         hi: 100.0,
         step: 10.0,
         runs: 3,
+        both_directions: true,
         columns: vec![
             Column {
                 name: "EXX",
@@ -291,6 +297,7 @@ pub fn zhao2022_tables(seed: u64) -> String {
         hi: 100.0,
         step: 10.0,
         runs: 3,
+        both_directions: true,
         columns: vec![
             Column {
                 name: "EZZ",
@@ -325,6 +332,7 @@ pub fn zhao2022_tables(seed: u64) -> String {
         hi: 90.0,
         step: 10.0,
         runs: 3,
+        both_directions: true,
         columns: vec![Column {
             name: "EBB",
             unit: FileUnit::Rad,
@@ -365,6 +373,7 @@ pub fn wang2023_tables(seed: u64) -> String {
             hi: 1000.0,
             step: 50.0,
             runs: 3,
+            both_directions: true,
             columns: vec![
                 col(
                     "EXX",
@@ -392,6 +401,7 @@ pub fn wang2023_tables(seed: u64) -> String {
             hi: 300.0,
             step: 30.0,
             runs: 3,
+            both_directions: true,
             columns: vec![
                 col("EXY", Um, shape([0.0, 0.8, 2.2, 0.0], 0.4, 2.8, 0.5, 0.2)),
                 col(
@@ -423,6 +433,7 @@ pub fn wang2023_tables(seed: u64) -> String {
             hi: 0.0,
             step: 25.0,
             runs: 3,
+            both_directions: true,
             columns: vec![
                 col("EXZ", Um, shape([0.0, 1.5, 1.0, 0.0], 0.5, 2.4, 0.0, 0.2)),
                 col("EYZ", Um, shape([0.0, -0.8, 2.0, 0.0], 0.4, 3.0, 0.4, 0.2)),
@@ -449,6 +460,7 @@ pub fn wang2023_tables(seed: u64) -> String {
             hi: 180.0,
             step: 15.0,
             runs: 3,
+            both_directions: true,
             columns: vec![
                 // A turns fully: its errors are periodic (one harmonic per
                 // revolution), so -180° and 180° agree.
@@ -469,6 +481,7 @@ pub fn wang2023_tables(seed: u64) -> String {
             hi: 90.0,
             step: 10.0,
             runs: 3,
+            both_directions: true,
             columns: vec![
                 col(
                     "EBB",
@@ -491,6 +504,81 @@ pub fn wang2023_tables(seed: u64) -> String {
             out.push('\n');
         }
         write_axis(&mut out, spec, &mut rng);
+    }
+    out
+}
+
+/// A dense scan for `zhao2022-xzbc`, the kind a modern laser or
+/// interferometer campaign gives: X and Z every 0.1 mm over −100…100 mm and
+/// B every 0.09° over −90…90°, one forward pass each, all six error motions
+/// of every axis (6,003 rows). The shapes are those of
+/// [`zhao2022_tables`] where it has them. Used by the benchmarks to show
+/// that fitting stays cheap when the tables grow.
+pub fn zhao2022_dense_tables(seed: u64) -> String {
+    let mut rng = SplitMix64::new(seed);
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "# Dense synthetic error tables for zhao2022-xzbc (kinpost geometric::synth, seed {seed})."
+    );
+    out.push_str("# One forward pass per axis; translations in mm, rotations in rad.\n");
+    let translation = |poly: [f64; 4], amp: f64, omega: f64| shape(poly, amp, omega, 0.3, 0.04);
+    let rotation = |poly: [f64; 4], amp: f64, omega: f64| shape(poly, amp, omega, 0.7, 0.15);
+    let columns = |names: [&'static str; 6]| -> Vec<Column> {
+        let shapes = [
+            (FileUnit::Mm, translation([0.45, 1.2, -0.6, 0.2], 0.3, 3.0)),
+            (
+                FileUnit::Mm,
+                translation([-0.06, 0.0, 0.18, 0.0], 0.05, 2.5),
+            ),
+            (FileUnit::Mm, translation([-0.4, -0.5, 0.9, 0.0], 0.15, 4.0)),
+            (FileUnit::Rad, rotation([0.0, 1.2, -0.6, 0.0], 0.3, 3.0)),
+            (FileUnit::Rad, rotation([0.0, 2.0, -1.0, 0.0], 0.5, 2.0)),
+            (FileUnit::Rad, rotation([0.3, -1.5, 0.0, 0.8], 0.4, 3.0)),
+        ];
+        names
+            .into_iter()
+            .zip(shapes)
+            .map(|(name, (unit, shape))| Column { name, unit, shape })
+            .collect()
+    };
+    let specs = [
+        (
+            "X",
+            -100.0,
+            100.0,
+            0.1,
+            ["EXX", "EYX", "EZX", "EAX", "EBX", "ECX"],
+        ),
+        (
+            "Z",
+            -100.0,
+            100.0,
+            0.1,
+            ["EXZ", "EYZ", "EZZ", "EAZ", "EBZ", "ECZ"],
+        ),
+        (
+            "B",
+            -90.0,
+            90.0,
+            0.09,
+            ["EXB", "EYB", "EZB", "EAB", "EBB", "ECB"],
+        ),
+    ];
+    for (i, (axis, lo, hi, step, names)) in specs.into_iter().enumerate() {
+        if i > 0 {
+            out.push('\n');
+        }
+        let spec = AxisSpec {
+            axis,
+            lo,
+            hi,
+            step,
+            runs: 1,
+            both_directions: false,
+            columns: columns(names),
+        };
+        write_axis(&mut out, &spec, &mut rng);
     }
     out
 }
