@@ -1,28 +1,35 @@
 #!/usr/bin/env bash
 # Peer comparison: kinpost compensate against bench/peer_numpy.py (seed 000's
-# method vectorised in NumPy/SciPy) on the same pose program, file in and
-# file out, wall clock, best of RUNS (default 7). The runs of the three
-# commands are interleaved, so that a slower spell of a shared machine
-# falls on all of them alike. Not part of CI.
+# method vectorised in NumPy/SciPy) on the same poses, file in and file out,
+# wall clock, best of RUNS (default 7). The runs of the commands are
+# interleaved, so that a slower spell of a shared machine falls on all of
+# them alike. Not part of CI.
 #
-#   bash bench/run.sh [POSES]        (default 200000)
+#   bash bench/run.sh [POSES] [WORKLOAD]     (defaults: 200000, both)
 #
-# Prints both times, the ratio, and each side's remaining tool-tip error.
+# Workloads:
+#   spiral  — the lens spiral as G-code, the 376-row error table of the
+#             fixtures (fixtures/errors/zhao2022-xzbc.csv);
+#   lens-cl — seed 000's lens ring run back and forth, as APT CL for
+#             kinpost (the peer reads the same poses as G-code), with a
+#             dense 6,003-row table (X, Z every 0.1 mm, B every 0.09°, six
+#             error motions each: examples/dense_table.rs).
+#
+# Prints per workload the times of compensate (both cores, one thread),
+# post and the peer, the ratios peer / compensate and compensate / post,
+# post's throughput in MB/s, and each side's remaining tool-tip error.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 POSES="${1:-200000}"
+WORKLOADS="${2:-spiral lens-cl}"
 RUNS="${RUNS:-7}"
-ERRORS=fixtures/errors/zhao2022-xzbc.csv
 WORK="${BENCH_DIR:-${TMPDIR:-/tmp}/kinpost-bench}"
 mkdir -p "$WORK"
 
 python3 -c 'import numpy, scipy' 2>/dev/null || python3 -m pip install --quiet numpy scipy
 
-cargo build --release --quiet --bin kinpost --example bench_program
+cargo build --release --quiet --bin kinpost --example bench_program --example bench_lens_cl --example dense_table
 KINPOST=target/release/kinpost
-PROGRAM="$WORK/poses-$POSES.nc"
-[ -s "$PROGRAM" ] || target/release/examples/bench_program "$POSES" > "$PROGRAM"
-echo "== $POSES poses ($(du -h "$PROGRAM" | cut -f1)), zhao2022-xzbc, error tables $ERRORS, $(nproc) cores"
 
 now() { date +%s.%N; }
 # Wall time of "$@" in seconds.
@@ -33,22 +40,48 @@ timed() {
 }
 min() { awk -v a="$1" -v b="$2" 'BEGIN { print (b == "" || a < b) ? a : b }'; }
 
-kin() { "$KINPOST" compensate --errors "$ERRORS" "$PROGRAM" -o "$WORK/kinpost.nc" 2> "$WORK/kinpost.log"; }
-kin1() { RAYON_NUM_THREADS=1 kin; }
-peer() { python3 bench/peer_numpy.py --errors "$ERRORS" "$PROGRAM" -o "$WORK/peer.nc" 2> "$WORK/peer.log"; }
+# run_workload NAME KINPOST_PROGRAM PEER_PROGRAM ERRORS
+run_workload() {
+  local name="$1" program="$2" peer_program="$3" errors="$4"
+  local bytes; bytes=$(stat -c %s "$program")
+  echo "== $name: $POSES poses ($(du -h "$program" | cut -f1)), zhao2022-xzbc, errors $(basename "$errors") ($(grep -c '^[-0-9]' "$errors") rows), $(nproc) cores"
+  kin() { "$KINPOST" compensate --machine zhao2022-xzbc --errors "$errors" "$program" -o "$WORK/kinpost.nc" 2> "$WORK/kinpost.log"; }
+  kin1() { RAYON_NUM_THREADS=1 kin; }
+  post() { "$KINPOST" post --machine zhao2022-xzbc "$program" -o "$WORK/post.nc" 2> "$WORK/post.log"; }
+  peer() { python3 bench/peer_numpy.py --errors "$errors" "$peer_program" -o "$WORK/peer.nc" 2> "$WORK/peer.log"; }
+  local t_kin="" t_kin1="" t_post="" t_peer=""
+  for _ in $(seq "$RUNS"); do
+    t_kin=$(min "$(timed kin)" "$t_kin")
+    t_kin1=$(min "$(timed kin1)" "$t_kin1")
+    t_post=$(min "$(timed post)" "$t_post")
+    t_peer=$(min "$(timed peer)" "$t_peer")
+  done
+  local kin_tip kin_it
+  kin_tip=$(sed -n 's/.*tool-tip error:.*after max \([^ ]*\) mm.*/\1/p' "$WORK/kinpost.log")
+  kin_it=$(sed -n 's/.*Newton iterations: \(.*\)/\1/p' "$WORK/kinpost.log")
+  printf '%-34s %8s s   tool-tip residual max %s mm (%s)\n' "kinpost compensate (all cores)" "$t_kin" "$kin_tip" "$kin_it"
+  printf '%-34s %8s s\n' "kinpost compensate (1 thread)" "$t_kin1"
+  printf '%-34s %8s s\n' "kinpost post" "$t_post"
+  printf '%-34s %8s s   %s\n' "peer_numpy.py" "$t_peer" "$(cat "$WORK/peer.log")"
+  awk -v p="$t_peer" -v k="$t_kin" -v k1="$t_kin1" -v po="$t_post" -v b="$bytes" 'BEGIN {
+    printf "ratio peer / compensate: %.1fx (1 thread: %.1fx); compensate / post: %.2f; post: %.0f MB/s\n",
+      p / k, p / k1, k / po, b / po / 1e6 }'
+}
 
-t_kin=""; t_kin1=""; t_peer=""
-for _ in $(seq "$RUNS"); do
-  t_kin=$(min "$(timed kin)" "$t_kin")
-  t_kin1=$(min "$(timed kin1)" "$t_kin1")
-  t_peer=$(min "$(timed peer)" "$t_peer")
+for w in $WORKLOADS; do
+  case "$w" in
+    spiral)
+      program="$WORK/poses-$POSES.nc"
+      [ -s "$program" ] || target/release/examples/bench_program "$POSES" > "$program"
+      run_workload spiral "$program" "$program" fixtures/errors/zhao2022-xzbc.csv
+      ;;
+    lens-cl)
+      cl="$WORK/lens-$POSES.cls"; nc="$WORK/lens-$POSES.nc"; dense="$WORK/dense.csv"
+      [ -s "$cl" ] || target/release/examples/bench_lens_cl "$POSES" cl > "$cl"
+      [ -s "$nc" ] || target/release/examples/bench_lens_cl "$POSES" gcode > "$nc"
+      [ -s "$dense" ] || target/release/examples/dense_table > "$dense"
+      run_workload lens-cl "$cl" "$nc" "$dense"
+      ;;
+    *) echo "unknown workload $w (spiral, lens-cl)" >&2; exit 2 ;;
+  esac
 done
-kin_tip=$(sed -n 's/.*tool-tip error:.*after max \([^ ]*\) mm.*/\1/p' "$WORK/kinpost.log")
-kin_it=$(sed -n 's/.*Newton iterations: \(.*\)/\1/p' "$WORK/kinpost.log")
-peer_line=$(cat "$WORK/peer.log")
-
-printf '%-34s %8s s   tool-tip residual max %s mm (%s)\n' "kinpost compensate (all cores)" "$t_kin" "$kin_tip" "$kin_it"
-printf '%-34s %8s s\n' "kinpost compensate (1 thread)" "$t_kin1"
-printf '%-34s %8s s   %s\n' "peer_numpy.py" "$t_peer" "$peer_line"
-awk -v p="$t_peer" -v k="$t_kin" -v k1="$t_kin1" 'BEGIN {
-  printf "ratio peer / kinpost: %.1fx (1 thread: %.1fx)\n", p / k, p / k1 }'
