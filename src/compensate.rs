@@ -622,32 +622,48 @@ fn refine_with(
             MAX_COMPENSATION_MM
         };
     }
-    // The exact method's steps are micro-radians: the sines and cosines of
-    // its rotaries follow from those at `q0` by the addition theorem.
+    // The iteration moves the offsets `d` from `q0`, not the joint values
+    // themselves: a rotary at thousands of degrees resolves its value to
+    // 1e-14 rad or so, its offset to far below that. The exact method
+    // takes its rotaries' sines and cosines at `q0 + d` from those at `q0`
+    // by the addition theorem with the exact offsets (`NearTrig::shifted`),
+    // so large angles cost no precision; the other methods evaluate at the
+    // rounded values, as printed.
     let near = (opts.method == Method::Exact).then(|| chain.trig_at(q0));
-    let eval = |q: &[f64], jac: &mut JacobianColumns| -> Pose {
+    let at = |d: &[f64]| -> [f64; MAX_JOINTS] {
+        let mut q = [0.0; MAX_JOINTS];
+        for k in 0..n {
+            q[k] = q0[k] + d[k];
+        }
+        q
+    };
+    let eval = |d: &[f64], jac: &mut JacobianColumns| -> Pose {
+        let q = at(d);
         match (opts.method, &near) {
-            (Method::Exact, Some(near)) => chain.pose_and_jacobian_near(q, errors, jac, near),
-            (Method::Exact, None) => chain.pose_and_jacobian_into(q, errors, jac),
+            (Method::Exact, Some(near)) => {
+                chain.pose_and_jacobian_near(&q[..n], errors, jac, &near.shifted(d))
+            }
+            (Method::Exact, None) => chain.pose_and_jacobian_into(&q[..n], errors, jac),
             (Method::Theoretical | Method::Paper, _) => {
-                chain.pose_and_jacobian_into(q, &NoErrors, jac);
-                chain.pose(q, errors)
+                chain.pose_and_jacobian_into(&q[..n], &NoErrors, jac);
+                chain.pose(&q[..n], errors)
             }
         }
     };
     // The pose alone, where the Jacobian is not needed.
-    let eval_pose = |q: &[f64]| -> Pose {
+    let eval_pose = |d: &[f64]| -> Pose {
+        let q = at(d);
         match &near {
-            Some(near) => chain.pose_near(q, errors, near),
-            None => chain.pose(q, errors),
+            Some(near) => chain.pose_near(&q[..n], errors, &near.shifted(d)),
+            None => chain.pose(&q[..n], errors),
         }
     };
-    let mut q = [0.0; MAX_JOINTS];
-    q[..n].copy_from_slice(q0);
+    // Offsets from q0 (mm / rad).
+    let mut d = [0.0; MAX_JOINTS];
     let mut iterations = 0;
     let mut converged = false;
     let mut jac = [[0.0; 6]; MAX_JOINTS];
-    let mut pose = eval(&q[..n], &mut jac);
+    let mut pose = eval(&d[..n], &mut jac);
     // The residuals of `pose`, carried from step to step.
     let mut tip = pose.tip_distance(target);
     let mut ax = pose.axis_angle(target);
@@ -673,14 +689,14 @@ fn refine_with(
         // Trust region: scale the whole step so no axis moves too far.
         let mut scale = 1.0f64;
         for k in 0..n {
-            let d = (d1[k] + d2[k]).abs();
-            if d > step_cap[k] {
-                scale = scale.min(step_cap[k] / d);
+            let s = (d1[k] + d2[k]).abs();
+            if s > step_cap[k] {
+                scale = scale.min(step_cap[k] / s);
             }
         }
         // Already there: the tip is met and the step is at floating-point level.
         let negligible =
-            (0..n).all(|k| (scale * (d1[k] + d2[k])).abs() <= 1e-14 * (1.0 + q[k].abs()));
+            (0..n).all(|k| (scale * (d1[k] + d2[k])).abs() <= 1e-14 * (1.0 + d[k].abs()));
         if negligible && (tip <= opts.tip_tolerance_mm || opts.method == Method::Paper) {
             converged = true;
             break;
@@ -690,16 +706,16 @@ fn refine_with(
         let mut s2 = 1.0;
         for _ in 0..12 {
             for k in 0..n {
-                trial[k] = q[k] + scale * (d1[k] + s2 * d2[k]);
+                trial[k] = d[k] + scale * (d1[k] + s2 * d2[k]);
             }
-            let within = (0..n).all(|k| (trial[k] - q0[k]).abs() <= total_cap[k]);
+            let within = (0..n).all(|k| trial[k].abs() <= total_cap[k]);
             if within {
                 // After a step this small the next one is at floating-point
                 // level (Newton: the residual goes with the step squared), so
                 // the trial is most likely the result: its Jacobian is only
                 // computed if another step turns out to be needed.
-                let final_guess =
-                    (0..n).all(|k| (trial[k] - q[k]).abs() <= FINAL_STEP * (1.0 + q[k].abs()));
+                let final_guess = (0..n)
+                    .all(|k| (trial[k] - d[k]).abs() <= FINAL_STEP * (1.0 + (q0[k] + d[k]).abs()));
                 let p2 = if chord || final_guess {
                     eval_pose(&trial[..n])
                 } else {
@@ -722,7 +738,7 @@ fn refine_with(
             if chord && !fresh {
                 // The kept Jacobian may be what fails: evaluate it here
                 // and try again before giving up.
-                pose = eval(&q[..n], &mut jac);
+                pose = eval(&d[..n], &mut jac);
                 (tip, ax) = (pose.tip_distance(target), pose.axis_angle(target));
                 factors.factor(&jac, n, opts, &step_cap);
                 fresh = true;
@@ -733,7 +749,7 @@ fn refine_with(
             break;
         };
         iterations += 1;
-        q[..n].copy_from_slice(&trial[..n]);
+        d[..n].copy_from_slice(&trial[..n]);
         pose = p2;
         if with_jacobian {
             std::mem::swap(&mut jac, &mut jac2);
@@ -766,17 +782,18 @@ fn refine_with(
             // where the iteration stands.
             fresh = false;
             if tip2 > floor && tip2 * CHORD_GAIN > last_tip {
-                pose = eval(&q[..n], &mut jac);
+                pose = eval(&d[..n], &mut jac);
                 (tip, ax) = (pose.tip_distance(target), pose.axis_angle(target));
                 factors.factor(&jac, n, opts, &step_cap);
                 fresh = true;
             }
         } else if !with_jacobian {
-            pose = eval(&q[..n], &mut jac);
+            pose = eval(&d[..n], &mut jac);
             (tip, ax) = (pose.tip_distance(target), pose.axis_angle(target));
             factors.factor(&jac, n, opts, &step_cap);
         }
     }
+    let q = at(&d[..n]);
     Refined {
         tip_residual_mm: tip,
         axis_residual_rad: ax,

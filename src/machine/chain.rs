@@ -231,6 +231,36 @@ impl NearTrig {
     /// Largest |q − q0| handled by the addition theorem, rad.
     const NEAR_RAD: f64 = 1e-4;
 
+    /// The sines and cosines at `q0 + d`, with the offsets `d` (rad for the
+    /// revolute joints) taken exactly: they need not be representable as a
+    /// change of `q0 + d` in floating point. For a rotary at thousands of
+    /// degrees, `q0 + d` resolves only 1e-14 rad or so (1e-12 mm at a
+    /// 100 mm radius); the refinement steps by its offsets through this
+    /// and loses nothing. Evaluate the chain at `q0 + d` (rounded) with the
+    /// result: the rotations come from here, the error motions from the
+    /// rounded values, where their resolution does not matter.
+    pub fn shifted(&self, d: &[f64]) -> NearTrig {
+        let mut t = *self;
+        for (j, &dj) in d.iter().enumerate().take(MAX_JOINTS) {
+            t.q0[j] = self.q0[j] + dj;
+            if dj == 0.0 {
+                continue;
+            }
+            let (sd, cd) = if dj.abs() <= Self::NEAR_RAD {
+                let d2 = dj * dj;
+                (
+                    dj - dj * d2 * (1.0 / 6.0),
+                    1.0 - d2 * (0.5 - d2 * (1.0 / 24.0)),
+                )
+            } else {
+                dj.sin_cos()
+            };
+            let (s0, c0) = self.sc[j];
+            t.sc[j] = (s0 * cd + c0 * sd, c0 * cd - s0 * sd);
+        }
+        t
+    }
+
     /// `(sin q, cos q)` of joint `j`.
     #[inline]
     pub fn sin_cos(&self, j: usize, q: f64) -> (f64, f64) {
