@@ -9,11 +9,13 @@
 pub mod chain;
 pub mod file;
 pub mod ik;
-mod jsonpos;
+pub(crate) mod jsonpos;
 pub mod newton_ik;
 pub mod rotary;
 
-pub use chain::{Chain, ErrorMotion, JointErrors, JointKind, JointValues, NoErrors, Pose};
+pub use chain::{
+    Chain, ChainPart, ErrorMotion, JointErrors, JointKind, JointValues, NoErrors, Pose,
+};
 pub use file::{AxisSpec, Machine};
 pub use ik::{Family, IkError, IkOptions, IkSolution, IkSolver};
 pub use rotary::{RotaryMode, output_value};
