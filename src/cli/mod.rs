@@ -191,9 +191,17 @@ pub struct ParseArgs {
 pub struct MachineArgs {
     #[command(flatten)]
     pub machine: MachineChoice,
-    /// Print as JSON.
+    /// Print as JSON: a machine file that loads back (the IK family in the
+    /// comment key `_ik_family`).
     #[arg(long)]
     pub json: bool,
+    /// List the embedded machines: name, IK family, axes.
+    #[arg(long, conflicts_with_all = ["json", "template"])]
+    pub list: bool,
+    /// Print a commented starting machine file for FAMILY: 2R3T, 1R3T,
+    /// RTTR or 3T.
+    #[arg(long, value_name = "FAMILY", conflicts_with = "json")]
+    pub template: Option<String>,
 }
 
 /// Makes the calling thread (the binary's main thread) one of the global
@@ -365,11 +373,35 @@ fn parse(a: ParseArgs) -> Result<()> {
 }
 
 fn machine(a: MachineArgs) -> Result<()> {
+    use crate::machine::template;
+    let mut out = std::io::stdout().lock();
+    let put = |text: &str, out: &mut std::io::StdoutLock| {
+        writeln!(out, "{}", text.trim_end()).map_err(|e| Error::io("<stdout>", e))
+    };
+    if a.list {
+        return put(&template::embedded_list(), &mut out);
+    }
+    if let Some(f) = &a.template {
+        let text = template::template(f).ok_or_else(|| {
+            let known: Vec<&str> = template::TEMPLATE_FAMILIES.iter().map(|t| t.0).collect();
+            Error::Usage(format!(
+                "--template {f}: no such family; expected one of {}",
+                known.join(", ")
+            ))
+        })?;
+        return put(text, &mut out);
+    }
     let machine = a.machine.load()?;
     let solver = IkSolver::new(&machine);
-    let mut out = std::io::stdout().lock();
     let text = if a.json {
-        serde_json::to_string_pretty(&machine.summary_json(&solver)).unwrap_or_default()
+        let mut file = machine.to_file_json();
+        if let Some(o) = file.as_object_mut() {
+            o.insert(
+                "_ik_family".into(),
+                solver.family().short_name().to_string().into(),
+            );
+        }
+        serde_json::to_string_pretty(&file).unwrap_or_default()
     } else {
         machine.summary_text(&solver)
     };

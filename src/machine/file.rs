@@ -267,6 +267,71 @@ impl Machine {
         })
     }
 
+    /// The machine as a machine file (the layout of `docs/machines.md`,
+    /// full precision): loading it gives the same machine back. Element
+    /// transforms that rotate are written as a `translate` followed by a
+    /// `rotate` (axis and angle in degrees).
+    pub fn to_file_json(&self) -> Value {
+        let v3 = |v: &Vector3<f64>| serde_json::json!([v.x, v.y, v.z]);
+        let mut chain = Vec::new();
+        for el in &self.chain.elements {
+            match el {
+                Element::Joint(j) => {
+                    let joint = &self.chain.joints[*j];
+                    let kind = match joint.kind {
+                        JointKind::Prismatic => "prismatic",
+                        JointKind::Revolute => "revolute",
+                    };
+                    chain.push(serde_json::json!({
+                        kind: {"name": joint.name, "axis": v3(&joint.axis)}
+                    }));
+                }
+                Element::Fixed(m) => {
+                    let r: Matrix3<f64> = m.fixed_view::<3, 3>(0, 0).into_owned();
+                    let t = Vector3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]);
+                    let rot = (r != Matrix3::identity())
+                        .then(|| Rotation3::from_matrix_unchecked(r).axis_angle())
+                        .flatten();
+                    if t != Vector3::zeros() || rot.is_none() {
+                        chain.push(serde_json::json!({ "translate": v3(&t) }));
+                    }
+                    if let Some((axis, angle)) = rot {
+                        chain.push(serde_json::json!({
+                            "rotate": {"axis": v3(&axis), "angle": angle.to_degrees()}
+                        }));
+                    }
+                }
+            }
+        }
+        let mut axes = Map::new();
+        for a in &self.axes {
+            let mut o = Map::new();
+            if let Some(lo) = a.min {
+                o.insert("min".into(), lo.into());
+            }
+            if let Some(hi) = a.max {
+                o.insert("max".into(), hi.into());
+            }
+            if a.kind == JointKind::Revolute && a.rotary != RotaryMode::Limited {
+                let mode = match a.rotary {
+                    RotaryMode::Continuous => "continuous",
+                    _ => "modulo",
+                };
+                o.insert("rotary".into(), mode.into());
+            }
+            o.insert("decimals".into(), a.decimals.into());
+            axes.insert(a.name.clone(), Value::Object(o));
+        }
+        serde_json::json!({
+            "name": self.name,
+            "description": self.description,
+            "source": self.source,
+            "chain": chain,
+            "axes": axes,
+            "output_order": self.axes.iter().map(|a| a.name.clone()).collect::<Vec<_>>(),
+        })
+    }
+
     /// One line per chain element, in file units.
     fn element_descriptions(&self) -> Vec<String> {
         let fmt_v = |v: &Vector3<f64>| format!("[{}, {}, {}]", round(v.x), round(v.y), round(v.z));

@@ -5,6 +5,7 @@
 //! - [`ik`]: analytic inverse kinematics per family, branch choice, limits.
 //! - [`newton_ik`]: the damped-Newton fallback for other chains.
 //! - [`rotary`]: limited, continuous and modulo rotary axes; unwinding.
+//! - [`template`]: starting machine files per family; the list of embedded machines.
 
 pub mod chain;
 pub mod file;
@@ -12,6 +13,7 @@ pub mod ik;
 pub(crate) mod jsonpos;
 pub mod newton_ik;
 pub mod rotary;
+pub mod template;
 
 pub use chain::{
     Chain, ChainPart, ErrorMotion, JointErrors, JointKind, JointValues, NoErrors, Pose,
