@@ -146,7 +146,7 @@ pub fn template(family: &str) -> Option<&'static str> {
 pub fn embedded_list() -> String {
     let rows: Vec<(String, &str, String)> = Machine::embedded_names()
         .into_iter()
-        .filter_map(|n| Machine::embedded(n))
+        .filter_map(Machine::embedded)
         .map(|m| {
             let family = IkSolver::new(&m).family().short_name();
             let axes: Vec<&str> = m.axes.iter().map(|a| a.name.as_str()).collect();
