@@ -202,6 +202,19 @@ pub struct MachineArgs {
     /// RTTR or 3T.
     #[arg(long, value_name = "FAMILY", conflicts_with = "json")]
     pub template: Option<String>,
+    /// Write a machine file for a LinuxCNC configuration: its [KINS]
+    /// KINEMATICS (xyzac-trt-kins, xyzbc-trt-kins, 5axiskins) and the HAL
+    /// setp values of its HAL files.
+    #[arg(long, value_name = "INI", conflicts_with_all = ["json", "list", "template"])]
+    pub from_linuxcnc: Option<PathBuf>,
+    /// With --from-linuxcnc: the tool length, mm (the last element of the
+    /// chain; default: the kinematics' tool-offset setp, else 0).
+    #[arg(long, value_name = "MM", requires = "from_linuxcnc")]
+    pub tool_length: Option<f64>,
+    /// With --from-linuxcnc: write the machine file here (atomically).
+    /// Default: standard output.
+    #[arg(long, short = 'o', value_name = "FILE", requires = "from_linuxcnc")]
+    pub output: Option<PathBuf>,
 }
 
 /// Makes the calling thread (the binary's main thread) one of the global
@@ -390,6 +403,22 @@ fn machine(a: MachineArgs) -> Result<()> {
             ))
         })?;
         return put(text, &mut out);
+    }
+    if let Some(ini) = &a.from_linuxcnc {
+        if let Some(t) = a.tool_length
+            && !t.is_finite()
+        {
+            return Err(Error::Usage(format!(
+                "--tool-length {t}: expected a finite length in mm"
+            )));
+        }
+        check_outputs(&[a.output.as_deref()])?;
+        let file = crate::machine::linuxcnc::machine_from_linuxcnc(ini, a.tool_length)?;
+        let text = serde_json::to_string_pretty(&file).unwrap_or_default();
+        drop(out);
+        return write_atomically(a.output.as_deref(), |w| {
+            writeln!(w, "{text}").map_err(|e| Error::io("<output>", e))
+        });
     }
     let machine = a.machine.load()?;
     let solver = IkSolver::new(&machine);

@@ -3,6 +3,7 @@
 //! - [`chain`]: the one chain evaluator (forward kinematics, Jacobian).
 //! - [`mod@file`]: machine files (JSON) and the [`Machine`] type.
 //! - [`ik`]: analytic inverse kinematics per family, branch choice, limits.
+//! - [`linuxcnc`]: machine files from LinuxCNC configurations.
 //! - [`newton_ik`]: the damped-Newton fallback for other chains.
 //! - [`rotary`]: limited, continuous and modulo rotary axes; unwinding.
 //! - [`template`]: starting machine files per family; the list of embedded machines.
@@ -11,6 +12,7 @@ pub mod chain;
 pub mod file;
 pub mod ik;
 pub(crate) mod jsonpos;
+pub mod linuxcnc;
 pub mod newton_ik;
 pub mod rotary;
 pub mod template;
