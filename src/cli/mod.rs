@@ -207,7 +207,7 @@ pub struct MachineArgs {
     /// setp values of its HAL files.
     #[arg(long, value_name = "INI", conflicts_with_all = ["json", "list", "template"])]
     pub from_linuxcnc: Option<PathBuf>,
-    /// With --from-linuxcnc: the tool length, mm (the last element of the
+    /// With --from-linuxcnc: the tool length in mm (the last element of the
     /// chain; default: the kinematics' tool-offset setp, else 0).
     #[arg(long, value_name = "MM", requires = "from_linuxcnc")]
     pub tool_length: Option<f64>,
