@@ -67,8 +67,21 @@ impl Scan<'_> {
                         b'u' => {
                             let hex = self.b.get(self.i..self.i + 4)?;
                             self.i += 4;
-                            let code =
+                            let mut code =
                                 u32::from_str_radix(std::str::from_utf8(hex).ok()?, 16).ok()?;
+                            // A surrogate pair (`\ud83d\ude00`) is one character.
+                            if (0xD800..0xDC00).contains(&code)
+                                && self.b.get(self.i..self.i + 2) == Some(b"\\u")
+                                && let Some(low) = self
+                                    .b
+                                    .get(self.i + 2..self.i + 6)
+                                    .and_then(|h| std::str::from_utf8(h).ok())
+                                    .and_then(|h| u32::from_str_radix(h, 16).ok())
+                                    .filter(|l| (0xDC00..0xE000).contains(l))
+                            {
+                                self.i += 6;
+                                code = 0x10000 + ((code - 0xD800) << 10) + (low - 0xDC00);
+                            }
                             let ch = char::from_u32(code).unwrap_or('\u{fffd}');
                             let mut buf = [0u8; 4];
                             out.extend_from_slice(ch.encode_utf8(&mut buf).as_bytes());
@@ -349,5 +362,11 @@ mod tests {
         assert_eq!(first_duplicate_key("{\"a\": 1, \"b\": {\"a\": 2}}"), None);
         // Escaped spellings of the same key are the same key.
         assert!(first_duplicate_key("{\"a\": 1, \"\\u0061\": 2}").is_some());
+        // Different characters outside the BMP are different keys.
+        assert_eq!(
+            first_duplicate_key("{\"\\ud83d\\ude00\": 1, \"\\ud83d\\ude01\": 2}"),
+            None
+        );
+        assert!(first_duplicate_key("{\"\\ud83d\\ude00\": 1, \"\u{1F600}\": 2}").is_some());
     }
 }
