@@ -258,6 +258,14 @@ fn limits_modes_and_refusals() {
     .unwrap();
     let e = machine_from_linuxcnc(&dir.path().join("c.ini"), None).unwrap_err();
     assert!(matches!(e, kinpost::Error::Io { .. }), "{e}");
+    // An INI saved with a byte-order mark reads the same.
+    std::fs::write(
+        dir.path().join("bom.ini"),
+        "\u{feff}[KINS]\nKINEMATICS = 5axiskins\n[HAL]\nHALFILE = 5axis.hal\n",
+    )
+    .unwrap();
+    let v = machine_from_linuxcnc(&dir.path().join("bom.ini"), None).unwrap();
+    assert_eq!(v["chain"][3]["translate"][2], 180.5);
 }
 
 #[test]

@@ -51,6 +51,12 @@ impl Ini {
         let mut entries = Vec::new();
         let mut section = String::new();
         for (n, raw) in text.lines().enumerate() {
+            // A byte-order mark is not part of the first line's text.
+            let raw = if n == 0 {
+                raw.trim_start_matches('\u{feff}')
+            } else {
+                raw
+            };
             let line = raw.trim();
             if line.is_empty() || line.starts_with('#') || line.starts_with(';') {
                 continue;
