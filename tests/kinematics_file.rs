@@ -407,3 +407,115 @@ fn embedded_machines_are_listed_and_found() {
         "wang2023-xyzab"
     );
 }
+
+#[test]
+fn duplicate_keys_are_refused_at_the_second() {
+    // The last of duplicate keys used to win silently: ±30…110 became ±300.
+    let text = broken(
+        "\"B\": {\"min\": -90, \"max\": 90}",
+        "\"B\": {\"min\": -30, \"max\": 110, \"min\": -300, \"max\": 300}",
+    );
+    expect_error(&text, "\"min\"", 3, 0, "duplicate key \"min\"");
+    let text = broken("\"description\"", "\"name\": \"again\", \"description\"");
+    expect_error(&text, "\"name\"", 1, 0, "duplicate key \"name\"");
+    // Two "axes" objects.
+    let text = broken("\"output_order\"", "\"axes\": {}, \"output_order\"");
+    expect_error(&text, "\"axes\"", 1, 0, "duplicate key \"axes\"");
+}
+
+#[test]
+fn misspelt_keys_are_refused_with_the_known_keys() {
+    let text = broken(
+        "\"X\": {\"min\": -100, \"max\": 100,",
+        "\"X\": {\"limts\": [-100, 100],",
+    );
+    expect_error(&text, "\"limts\"", 0, 0, "unknown key \"limts\"");
+    let err = Machine::from_json_str(&text, "m.json")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("\"min\", \"max\" or \"decimals\""), "{err}");
+    let text = broken("\"axes\"", "\"axis\"");
+    expect_error(&text, "\"axis\": {\n", 0, 0, "unknown key \"axis\"");
+}
+
+#[test]
+fn joints_named_like_other_words_are_refused() {
+    for word in [
+        "M", "G", "S", "T", "N", "F", "I", "J", "K", "R", "P", "Q", "H", "D", "L", "O", "E", "C2",
+        "XX",
+    ] {
+        let text = broken("\"name\": \"B\"", &format!("\"name\": \"{word}\""));
+        expect_error(
+            &text,
+            &format!("\"{word}\""),
+            0,
+            0,
+            &format!("joint name \"{word}\" is not an NC address"),
+        );
+    }
+    let text = broken("\"name\": \"B\"", "\"name\": \"M\"");
+    let err = Machine::from_json_str(&text, "m.json")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("\"M-90.0000\""), "{err}");
+    // Every axis address is accepted, in either case.
+    for word in ["U", "V", "W", "A", "b"] {
+        let text = GOOD.replace("\"B\"", &format!("\"{word}\""));
+        Machine::from_json_str(&text, "m.json").unwrap_or_else(|e| panic!("{word}: {e}"));
+    }
+}
+
+#[test]
+fn a_byte_order_mark_is_accepted_and_columns_stay_those_of_the_file() {
+    let with_bom = format!("\u{feff}{GOOD}");
+    let m = Machine::from_json_str(&with_bom, "m.json").unwrap();
+    assert_eq!(m.name, "test-xzbc");
+    let dir = std::env::temp_dir().join(format!("kinpost-bom-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("bom.json");
+    std::fs::write(&path, with_bom.as_bytes()).unwrap();
+    assert_eq!(Machine::load(&path).unwrap().name, "test-xzbc");
+    std::fs::remove_dir_all(&dir).unwrap();
+    // An error on line 1 after the mark: the byte column of the file.
+    let err = Machine::from_json_str("\u{feff}{\"chain\": 5}", "m.json").unwrap_err();
+    assert!(err.to_string().starts_with("m.json:1:14: "), "{err}");
+}
+
+/// A chain of `n` elements: one joint and `n − 1` translations.
+fn long_chain(n: usize) -> String {
+    let mut s =
+        String::from("{\"chain\": [{\"prismatic\": {\"name\": \"X\", \"axis\": [1, 0, 0]}}");
+    for _ in 1..n {
+        s.push_str(",\n{\"translate\": [0, 0, 1]}");
+    }
+    s.push_str("]}");
+    s
+}
+
+#[test]
+fn long_chains_are_capped_and_load_in_linear_time() {
+    use kinpost::machine::file::MAX_CHAIN_ELEMENTS;
+    let m = Machine::from_json_str(&long_chain(MAX_CHAIN_ELEMENTS), "m.json").unwrap();
+    assert_eq!(m.chain.elements.len(), MAX_CHAIN_ELEMENTS);
+    let q = m.to_internal(&[2.0]);
+    let tip = m.chain.pose(&q, &kinpost::machine::NoErrors).tip;
+    assert!(
+        (tip - nalgebra::Vector3::new(2.0, 0.0, (MAX_CHAIN_ELEMENTS - 1) as f64)).norm() < 1e-9
+    );
+    let text = long_chain(MAX_CHAIN_ELEMENTS + 1);
+    expect_error(
+        &text,
+        "{\"translate\"",
+        MAX_CHAIN_ELEMENTS - 1,
+        0,
+        "at most 256",
+    );
+    // 100 000 elements used to take a minute; now they are refused at once.
+    let text = long_chain(100_000);
+    let start = std::time::Instant::now();
+    let err = Machine::from_json_str(&text, "m.json")
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("the chain has 100000 elements"), "{err}");
+    assert!(start.elapsed().as_secs_f64() < 5.0, "{:?}", start.elapsed());
+}

@@ -199,9 +199,30 @@ pub struct ParseArgs {
 pub struct MachineArgs {
     #[command(flatten)]
     pub machine: MachineChoice,
-    /// Print as JSON.
+    /// Print as JSON: a machine file that loads back (the IK family in the
+    /// comment key `_ik_family`).
     #[arg(long)]
     pub json: bool,
+    /// List the embedded machines: name, IK family, axes.
+    #[arg(long, conflicts_with_all = ["json", "template"])]
+    pub list: bool,
+    /// Print a commented starting machine file for FAMILY: 2R3T, 1R3T,
+    /// RTTR or 3T.
+    #[arg(long, value_name = "FAMILY", conflicts_with = "json")]
+    pub template: Option<String>,
+    /// Write a machine file for a LinuxCNC configuration: its [KINS]
+    /// KINEMATICS (xyzac-trt-kins, xyzbc-trt-kins, 5axiskins) and the HAL
+    /// setp values of its HAL files.
+    #[arg(long, value_name = "INI", conflicts_with_all = ["json", "list", "template"])]
+    pub from_linuxcnc: Option<PathBuf>,
+    /// With --from-linuxcnc: the tool length in mm (the last element of the
+    /// chain; default: the kinematics' tool-offset setp, else 0).
+    #[arg(long, value_name = "MM", requires = "from_linuxcnc")]
+    pub tool_length: Option<f64>,
+    /// With --from-linuxcnc: write the machine file here (atomically).
+    /// Default: standard output.
+    #[arg(long, short = 'o', value_name = "FILE", requires = "from_linuxcnc")]
+    pub output: Option<PathBuf>,
 }
 
 /// Makes the calling thread (the binary's main thread) one of the global
@@ -363,11 +384,51 @@ fn parse(a: ParseArgs) -> Result<()> {
 }
 
 fn machine(a: MachineArgs) -> Result<()> {
+    use crate::machine::template;
+    let mut out = std::io::stdout().lock();
+    let put = |text: &str, out: &mut std::io::StdoutLock| {
+        writeln!(out, "{}", text.trim_end()).map_err(|e| Error::io("<stdout>", e))
+    };
+    if a.list {
+        return put(&template::embedded_list(), &mut out);
+    }
+    if let Some(f) = &a.template {
+        let text = template::template(f).ok_or_else(|| {
+            let known: Vec<&str> = template::TEMPLATE_FAMILIES.iter().map(|t| t.0).collect();
+            Error::Usage(format!(
+                "--template {f}: no such family; expected one of {}",
+                known.join(", ")
+            ))
+        })?;
+        return put(text, &mut out);
+    }
+    if let Some(ini) = &a.from_linuxcnc {
+        if let Some(t) = a.tool_length
+            && !t.is_finite()
+        {
+            return Err(Error::Usage(format!(
+                "--tool-length {t}: expected a finite length in mm"
+            )));
+        }
+        check_outputs(&[a.output.as_deref()])?;
+        let file = crate::machine::linuxcnc::machine_from_linuxcnc(ini, a.tool_length)?;
+        let text = serde_json::to_string_pretty(&file).unwrap_or_default();
+        drop(out);
+        return write_atomically(a.output.as_deref(), |w| {
+            writeln!(w, "{text}").map_err(|e| Error::io("<output>", e))
+        });
+    }
     let machine = a.machine.load()?;
     let solver = IkSolver::new(&machine);
-    let mut out = std::io::stdout().lock();
     let text = if a.json {
-        serde_json::to_string_pretty(&machine.summary_json(&solver)).unwrap_or_default()
+        let mut file = machine.to_file_json();
+        if let Some(o) = file.as_object_mut() {
+            o.insert(
+                "_ik_family".into(),
+                solver.family().short_name().to_string().into(),
+            );
+        }
+        serde_json::to_string_pretty(&file).unwrap_or_default()
     } else {
         machine.summary_text(&solver)
     };

@@ -487,6 +487,7 @@ impl ErrorModel {
     /// Reads a model from JSON text; `file` is used in messages.
     pub fn from_json_str(text: &str, file: &str) -> Result<ErrorModel> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let no_axes = strict_keys(text, file)?;
         let doc: ModelJson = serde_json::from_str(text).map_err(|e| {
             Error::input(
                 Location::new(file, e.line(), e.column()),
@@ -505,6 +506,9 @@ impl ErrorModel {
                 "model version {} is not supported (this program reads version {MODEL_VERSION})",
                 doc.version
             )));
+        }
+        if let Some(e) = no_axes {
+            return Err(e);
         }
         let mut axes: Vec<AxisErrors> = Vec::new();
         for (ai, a) in doc.axes.into_iter().enumerate() {
@@ -704,6 +708,112 @@ impl ErrorModel {
         }
         Ok(c)
     }
+}
+
+/// The keys a model file may hold, per object (`None`: the object's
+/// content is checked elsewhere). Keys starting with `_` or `//` and keys
+/// named `comment` are comments, as in machine files.
+const TOP_KEYS: &[&str] = &["format", "version", "meta", "axes", "fixed", "effects"];
+const META_KEYS: &[&str] = &["source", "generator", "description", "fit"];
+const FIT_KEYS: &[&str] = &["knots", "extrapolation"];
+const AXIS_KEYS: &[&str] = &["axis", "rotary", "position_unit", "columns"];
+const COLUMN_KEYS: &[&str] = &[
+    "name",
+    "component",
+    "unit",
+    "degree",
+    "knots",
+    "coefficients",
+    "extrapolation",
+];
+const FIXED_KEYS: &[&str] = &["name", "after_joint", "motion"];
+
+/// Checks a model's JSON before it is read: no key twice in one object, no
+/// unknown key (a misspelt key would otherwise be dropped silently), and an
+/// `axes` list present (a model without it compensates nothing; that
+/// error is returned, not raised, so that a wrong `format` or `version` is
+/// reported first). Errors name file:line:col of the key.
+fn strict_keys(text: &str, file: &str) -> Result<Option<Error>> {
+    use crate::machine::jsonpos::{Seg, Target, first_duplicate_key, line_col, line_text};
+    let Ok(value) = serde_json::from_str::<serde_json::Value>(text) else {
+        // Syntax errors are reported, with their position, by the typed read.
+        return Ok(None);
+    };
+    let at_offset = |offset: usize, msg: String| {
+        let (line, col) = line_col(text, offset);
+        Error::input_with(Location::new(file, line, col), msg, line_text(text, line))
+    };
+    if let Some((offset, k)) = first_duplicate_key(text) {
+        return Err(at_offset(
+            offset,
+            format!(
+                "duplicate key `{k}`: it is already given in this object; every key may appear once (a JSON reader would keep only the last)"
+            ),
+        ));
+    }
+    let at_path = |path: &[Seg], target: Target, msg: String| {
+        at_offset(crate::machine::jsonpos::locate(text, path, target), msg)
+    };
+    let check = |v: &serde_json::Value, path: &[Seg], allowed: &[&str], what: &str| -> Result<()> {
+        let Some(obj) = v.as_object() else {
+            return Ok(());
+        };
+        for k in obj.keys() {
+            let comment = k.starts_with('_') || k.starts_with("//") || k == "comment";
+            if !comment && !allowed.contains(&k.as_str()) {
+                let mut p = path.to_vec();
+                p.push(Seg::Key(k.clone()));
+                let known: Vec<String> = allowed.iter().map(|a| format!("`{a}`")).collect();
+                return Err(at_path(
+                    &p,
+                    Target::Key,
+                    format!(
+                        "unknown key `{k}` in {what}; expected one of {}",
+                        known.join(", ")
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    };
+    let key = |k: &str| Seg::Key(k.to_string());
+    check(&value, &[], TOP_KEYS, "the error model")?;
+    let no_axes = (value.is_object() && value.get("axes").is_none()).then(|| {
+        at_path(
+            &[],
+            Target::Value,
+            "the error model has no `axes`: it would compensate nothing; expected `axes` (the list written by `kinpost fit`; `[]` when the model has only fixed errors or effects)".to_string(),
+        )
+    });
+    if let Some(meta) = value.get("meta") {
+        check(meta, &[key("meta")], META_KEYS, "`meta`")?;
+        if let Some(fit) = meta.get("fit") {
+            check(fit, &[key("meta"), key("fit")], FIT_KEYS, "`meta.fit`")?;
+        }
+    }
+    if let Some(axes) = value.get("axes").and_then(|a| a.as_array()) {
+        for (i, a) in axes.iter().enumerate() {
+            let ap = [key("axes"), Seg::Index(i)];
+            check(a, &ap, AXIS_KEYS, &format!("axes[{i}]"))?;
+            if let Some(cols) = a.get("columns").and_then(|c| c.as_array()) {
+                for (j, c) in cols.iter().enumerate() {
+                    let cp = [key("axes"), Seg::Index(i), key("columns"), Seg::Index(j)];
+                    check(c, &cp, COLUMN_KEYS, &format!("axes[{i}].columns[{j}]"))?;
+                }
+            }
+        }
+    }
+    if let Some(fixed) = value.get("fixed").and_then(|f| f.as_array()) {
+        for (i, f) in fixed.iter().enumerate() {
+            check(
+                f,
+                &[key("fixed"), Seg::Index(i)],
+                FIXED_KEYS,
+                &format!("fixed[{i}]"),
+            )?;
+        }
+    }
+    Ok(no_axes)
 }
 
 /// Location of the first occurrence of `needle` in `text` (line 0 if absent).

@@ -214,6 +214,29 @@ pub struct Chain {
     compiled: Compiled,
 }
 
+/// One part of a chain for [`Chain::from_parts`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum ChainPart {
+    /// A joint ([`Chain::joint`]).
+    Joint {
+        /// NC address.
+        name: String,
+        /// Linear or rotary.
+        kind: JointKind,
+        /// Direction (normalised when built).
+        axis: Vector3<f64>,
+    },
+    /// A fixed translation, mm ([`Chain::translate`]).
+    Translate(Vector3<f64>),
+    /// A fixed rotation by `angle` rad about `axis` ([`Chain::rotate`]).
+    Rotate {
+        /// Direction (normalised when built).
+        axis: Vector3<f64>,
+        /// Angle, rad.
+        angle: f64,
+    },
+}
+
 /// The sines and cosines of a chain's revolute joints at joint values `q0`
 /// ([`Chain::trig_at`]): near `q0` those of `q = q0 + d` follow by the
 /// addition theorem, `sin q = sin q0 · cos d + cos q0 · sin d`, with
@@ -590,6 +613,33 @@ impl Chain {
         }
         let c = Compiled::new(&self.elements, &self.joints);
         c.fits(self).then(|| f(&c))
+    }
+
+    /// A chain built from `parts`, in order from the workpiece to the tool
+    /// tip. Appending part by part rebuilds the precomputed form after
+    /// every element (quadratic in the chain length); this builds it once.
+    pub fn from_parts(parts: impl IntoIterator<Item = ChainPart>) -> Chain {
+        let mut c = Chain::new();
+        for part in parts {
+            match part {
+                ChainPart::Joint { name, kind, axis } => {
+                    let index = c.joints.len();
+                    c.joints.push(Joint {
+                        name,
+                        kind,
+                        axis: Unit::new_normalize(axis),
+                        element: c.elements.len(),
+                    });
+                    c.elements.push(Element::Joint(index));
+                }
+                ChainPart::Translate(v) => c.elements.push(Element::Fixed(translation(&v))),
+                ChainPart::Rotate { axis, angle } => c
+                    .elements
+                    .push(Element::Fixed(rotation(&Unit::new_normalize(axis), angle))),
+            }
+        }
+        c.recompile();
+        c
     }
 
     /// Appends a fixed translation (mm).

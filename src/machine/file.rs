@@ -11,8 +11,8 @@
 //! errors (an unknown element kind, a zero axis vector, a duplicate joint,
 //! ...) at the key or value concerned.
 
-use super::chain::{Chain, Element, JointKind, JointValues, MAX_JOINTS};
-use super::jsonpos::{Seg, Target, line_col, line_text, locate};
+use super::chain::{Chain, ChainPart, Element, JointKind, JointValues, MAX_JOINTS};
+use super::jsonpos::{Seg, Target, first_duplicate_key, line_col, line_text, locate};
 use super::rotary::{RotaryMode, input_value, output_value};
 use crate::error::{Error, Location, Result};
 use nalgebra::{Matrix3, Rotation3, Vector3};
@@ -105,12 +105,34 @@ const EMBEDDED: &[(&str, &str)] = &[
     ),
 ];
 
+/// Largest number of chain elements a machine file may have. Real machines
+/// have about ten (five joints and a few offsets); the cap keeps a runaway
+/// generated file from costing time before it is refused.
+pub const MAX_CHAIN_ELEMENTS: usize = 256;
+
+/// The NC addresses a joint may be named by: the axis words of ISO 6983 /
+/// RS-274. Any other letter (`M`, `G`, `S`, `T`, `F`, `N`, `I`, `J`, `K`,
+/// `R`, `P`, `Q`, `H`, `D`, `L`, `O`, …) would be written into the program
+/// as a different word, and more than one letter or a digit would not be
+/// read back as one axis word.
+pub const AXIS_ADDRESSES: [&str; 9] = ["X", "Y", "Z", "U", "V", "W", "A", "B", "C"];
+
 /// Order in which axes are written when a file gives no `output_order`.
 const NC_ORDER: &str = "XYZUVWABC";
 
 impl Machine {
     /// Parses a machine file's text. `file` names it in error messages.
     pub fn from_json_str(text: &str, file: &str) -> Result<Machine> {
+        // A UTF-8 byte-order mark is accepted (docs/cli.md). It is replaced
+        // by three spaces, so byte columns stay those of the file.
+        let unmarked;
+        let text = match text.strip_prefix('\u{feff}') {
+            Some(rest) => {
+                unmarked = format!("   {rest}");
+                unmarked.as_str()
+            }
+            None => text,
+        };
         let value: Value = serde_json::from_str(text).map_err(|e| {
             let line = e.line();
             // serde_json appends " at line L column C"; the location says it already.
@@ -124,7 +146,16 @@ impl Machine {
                 line_text(text, line),
             )
         })?;
-        Parser { text, file }.machine(&value)
+        let parser = Parser { text, file };
+        if let Some((at, k)) = first_duplicate_key(text) {
+            return Err(parser.err_at(
+                at,
+                format!(
+                    "duplicate key \"{k}\": it is already given in this object; every key may appear once (a JSON reader would keep only the last)"
+                ),
+            ));
+        }
+        parser.machine(&value)
     }
 
     /// Reads and parses a machine file.
@@ -236,6 +267,71 @@ impl Machine {
         })
     }
 
+    /// The machine as a machine file (the layout of `docs/machines.md`,
+    /// full precision): loading it gives the same machine back. Element
+    /// transforms that rotate are written as a `translate` followed by a
+    /// `rotate` (axis and angle in degrees).
+    pub fn to_file_json(&self) -> Value {
+        let v3 = |v: &Vector3<f64>| serde_json::json!([v.x, v.y, v.z]);
+        let mut chain = Vec::new();
+        for el in &self.chain.elements {
+            match el {
+                Element::Joint(j) => {
+                    let joint = &self.chain.joints[*j];
+                    let kind = match joint.kind {
+                        JointKind::Prismatic => "prismatic",
+                        JointKind::Revolute => "revolute",
+                    };
+                    chain.push(serde_json::json!({
+                        kind: {"name": joint.name, "axis": v3(&joint.axis)}
+                    }));
+                }
+                Element::Fixed(m) => {
+                    let r: Matrix3<f64> = m.fixed_view::<3, 3>(0, 0).into_owned();
+                    let t = Vector3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]);
+                    let rot = (r != Matrix3::identity())
+                        .then(|| Rotation3::from_matrix_unchecked(r).axis_angle())
+                        .flatten();
+                    if t != Vector3::zeros() || rot.is_none() {
+                        chain.push(serde_json::json!({ "translate": v3(&t) }));
+                    }
+                    if let Some((axis, angle)) = rot {
+                        chain.push(serde_json::json!({
+                            "rotate": {"axis": v3(&axis), "angle": angle.to_degrees()}
+                        }));
+                    }
+                }
+            }
+        }
+        let mut axes = Map::new();
+        for a in &self.axes {
+            let mut o = Map::new();
+            if let Some(lo) = a.min {
+                o.insert("min".into(), lo.into());
+            }
+            if let Some(hi) = a.max {
+                o.insert("max".into(), hi.into());
+            }
+            if a.kind == JointKind::Revolute && a.rotary != RotaryMode::Limited {
+                let mode = match a.rotary {
+                    RotaryMode::Continuous => "continuous",
+                    _ => "modulo",
+                };
+                o.insert("rotary".into(), mode.into());
+            }
+            o.insert("decimals".into(), a.decimals.into());
+            axes.insert(a.name.clone(), Value::Object(o));
+        }
+        serde_json::json!({
+            "name": self.name,
+            "description": self.description,
+            "source": self.source,
+            "chain": chain,
+            "axes": axes,
+            "output_order": self.axes.iter().map(|a| a.name.clone()).collect::<Vec<_>>(),
+        })
+    }
+
     /// One line per chain element, in file units.
     fn element_descriptions(&self) -> Vec<String> {
         let fmt_v = |v: &Vector3<f64>| format!("[{}, {}, {}]", round(v.x), round(v.y), round(v.z));
@@ -305,7 +401,10 @@ struct Parser<'a> {
 
 impl Parser<'_> {
     fn err(&self, at: &[Seg], target: Target, msg: impl Into<String>) -> Error {
-        let offset = locate(self.text, at, target);
+        self.err_at(locate(self.text, at, target), msg)
+    }
+
+    fn err_at(&self, offset: usize, msg: impl Into<String>) -> Error {
         let (line, col) = line_col(self.text, offset);
         Error::input_with(
             Location::new(self.file, line, col),
@@ -445,12 +544,23 @@ impl Parser<'_> {
                 "the chain is empty; expected at least one joint",
             ));
         }
-        let mut chain = Chain::new();
+        if elements.len() > MAX_CHAIN_ELEMENTS {
+            return Err(self.err(
+                &path(&chain_at, Seg::Index(MAX_CHAIN_ELEMENTS)),
+                Target::Value,
+                format!(
+                    "the chain has {} elements; a machine file may have at most {MAX_CHAIN_ELEMENTS}",
+                    elements.len()
+                ),
+            ));
+        }
+        let mut parts: Vec<ChainPart> = Vec::with_capacity(elements.len());
         // Where each joint's name is written, for messages about the joint.
         let mut joints: Vec<Vec<Seg>> = Vec::new();
         for (i, el) in elements.iter().enumerate() {
-            self.element(el, &path(&chain_at, Seg::Index(i)), &mut chain, &mut joints)?;
+            self.element(el, &path(&chain_at, Seg::Index(i)), &mut parts, &mut joints)?;
         }
+        let chain = Chain::from_parts(parts);
         if chain.dof() == 0 {
             return Err(self.err(
                 &chain_at,
@@ -472,7 +582,7 @@ impl Parser<'_> {
         &self,
         v: &Value,
         at: &[Seg],
-        chain: &mut Chain,
+        parts: &mut Vec<ChainPart>,
         joints: &mut Vec<Vec<Seg>>,
     ) -> Result<()> {
         const KINDS: [&str; 4] = ["revolute", "prismatic", "translate", "rotate"];
@@ -539,27 +649,35 @@ impl Parser<'_> {
                     &name_at,
                     "the joint name",
                 )?;
-                if name.is_empty()
-                    || !name.chars().next().is_some_and(|c| c.is_ascii_alphabetic())
-                    || !name.chars().all(|c| c.is_ascii_alphanumeric())
-                {
-                    return Err(self.err(
-                        &name_at,
-                        Target::Value,
-                        format!("joint name \"{name}\" is not an NC address; expected a letter, optionally followed by letters or digits"),
-                    ));
-                }
-                if let Some(first) = chain.joint_index(name) {
+                if !AXIS_ADDRESSES.iter().any(|a| a.eq_ignore_ascii_case(name)) {
+                    let word = if name.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" (the program would get words such as \"{name}-90.0000\")")
+                    };
                     return Err(self.err(
                         &name_at,
                         Target::Value,
                         format!(
-                            "duplicate joint name \"{name}\" (the chain already has joint \"{}\"); every joint needs its own name",
-                            chain.joints[first].name
+                            "joint name \"{name}\" is not an NC address for an axis{word}; expected one of {}",
+                            list(&AXIS_ADDRESSES)
                         ),
                     ));
                 }
-                if chain.dof() >= MAX_JOINTS {
+                let existing = parts.iter().find_map(|p| match p {
+                    ChainPart::Joint { name: n, .. } if n.eq_ignore_ascii_case(name) => Some(n),
+                    _ => None,
+                });
+                if let Some(first) = existing {
+                    return Err(self.err(
+                        &name_at,
+                        Target::Value,
+                        format!(
+                            "duplicate joint name \"{name}\" (the chain already has joint \"{first}\"); every joint needs its own name"
+                        ),
+                    ));
+                }
+                if joints.len() >= MAX_JOINTS {
                     return Err(self.err(
                         at,
                         Target::Value,
@@ -577,7 +695,11 @@ impl Parser<'_> {
                 } else {
                     JointKind::Prismatic
                 };
-                chain.joint(name, jk, axis);
+                parts.push(ChainPart::Joint {
+                    name: name.to_string(),
+                    kind: jk,
+                    axis,
+                });
                 joints.push(name_at);
             }
             "translate" => {
@@ -592,7 +714,7 @@ impl Parser<'_> {
                     (body, body_at.clone())
                 };
                 let t = self.vec3(vv, &vat, "the translation (mm)")?;
-                chain.translate(t);
+                parts.push(ChainPart::Translate(t));
             }
             _ => {
                 let b = self.object(
@@ -616,7 +738,10 @@ impl Parser<'_> {
                     &path(&body_at, key("angle")),
                     "the rotation angle (degrees)",
                 )?;
-                chain.rotate(axis, angle.to_radians());
+                parts.push(ChainPart::Rotate {
+                    axis,
+                    angle: angle.to_radians(),
+                });
             }
         }
         Ok(())

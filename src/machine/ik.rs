@@ -275,9 +275,8 @@ fn subproblem2(
     let alpha = (c12 * k2.dot(p) - k1.dot(q)) / denom;
     let beta = (c12 * k1.dot(q) - k2.dot(p)) / denom;
     let cross = k1.cross(k2);
-    let g2 = (p.norm_squared() - alpha * alpha - beta * beta - 2.0 * alpha * beta * c12)
-        / cross.norm_squared();
-    let gammas: arrayvec::ArrayVec<f64, 2> = if g2 > 1e-24 {
+    let g2 = gamma_squared(k1, k2, p, q, c12, &cross);
+    let gammas: arrayvec::ArrayVec<f64, 2> = if g2 > 0.0 {
         let g = g2.sqrt();
         [g, -g].into_iter().collect()
     } else {
@@ -292,6 +291,37 @@ fn subproblem2(
             (t1, t2)
         })
         .collect()
+}
+
+/// γ² of subproblem 2: the squared component, along `k1 × k2`, of the
+/// point `c` where the two circles meet, computed without cancellation.
+///
+/// `c` lies on the circle of `q` about `k1`: its distance from `k1`'s line
+/// is `r1 = |k1 × q|`, which a cross product gives to full relative
+/// precision even when `q` is within 1e-8 rad of `k1` (where the textbook
+/// `|p|² − α² − β² − 2αβ·c12` loses everything: 1 − cos²θ with cos θ
+/// rounded to 1). In the plane ⟂ `k1`, `c`'s component towards `k2` is
+/// `a = (k2·p − c12·k1·q)/s` (s = |k1 × k2|) and the rest, `γ·s`, is
+/// along `k1 × k2`: γ²s² = r1² − a² = (r1 − a)(r1 + a). The same holds
+/// from `k2`'s side with `r2 = |k2 × p|`; the side with the smaller radius
+/// is the better conditioned one and is used.
+fn gamma_squared(
+    k1: &Vector3<f64>,
+    k2: &Vector3<f64>,
+    p: &Vector3<f64>,
+    q: &Vector3<f64>,
+    c12: f64,
+    cross: &Vector3<f64>,
+) -> f64 {
+    let s = cross.norm();
+    let r1 = k1.cross(q).norm();
+    let r2 = k2.cross(p).norm();
+    let (r, a) = if r1 <= r2 {
+        (r1, ((k2.dot(p) - c12 * k1.dot(q)) / s).abs())
+    } else {
+        (r2, ((k1.dot(q) - c12 * k2.dot(p)) / s).abs())
+    };
+    (r - a) * (r + a) / (s * s)
 }
 
 fn rot3(m: &Matrix4<f64>) -> Matrix3<f64> {

@@ -67,8 +67,21 @@ impl Scan<'_> {
                         b'u' => {
                             let hex = self.b.get(self.i..self.i + 4)?;
                             self.i += 4;
-                            let code =
+                            let mut code =
                                 u32::from_str_radix(std::str::from_utf8(hex).ok()?, 16).ok()?;
+                            // A surrogate pair (`\ud83d\ude00`) is one character.
+                            if (0xD800..0xDC00).contains(&code)
+                                && self.b.get(self.i..self.i + 2) == Some(b"\\u")
+                                && let Some(low) = self
+                                    .b
+                                    .get(self.i + 2..self.i + 6)
+                                    .and_then(|h| std::str::from_utf8(h).ok())
+                                    .and_then(|h| u32::from_str_radix(h, 16).ok())
+                                    .filter(|l| (0xDC00..0xE000).contains(l))
+                            {
+                                self.i += 6;
+                                code = 0x10000 + ((code - 0xD800) << 10) + (low - 0xDC00);
+                            }
                             let ch = char::from_u32(code).unwrap_or('\u{fffd}');
                             let mut buf = [0u8; 4];
                             out.extend_from_slice(ch.encode_utf8(&mut buf).as_bytes());
@@ -173,6 +186,98 @@ impl Scan<'_> {
     }
 }
 
+/// The first key that appears twice in one object of `text` (valid JSON):
+/// the byte offset of its second occurrence and the key. `serde_json`
+/// keeps the last of duplicate keys silently; machine and model files
+/// refuse them instead. One pass over the text (linear in its length).
+pub(crate) fn first_duplicate_key(text: &str) -> Option<(usize, String)> {
+    let mut s = Scan {
+        b: text.as_bytes(),
+        i: 0,
+    };
+    match s.dup_in_value() {
+        Dup::Found(at, k) => Some((at, k)),
+        Dup::None | Dup::Malformed => None,
+    }
+}
+
+/// Outcome of the duplicate-key scan of one value.
+enum Dup {
+    None,
+    Found(usize, String),
+    Malformed,
+}
+
+impl Scan<'_> {
+    fn dup_in_value(&mut self) -> Dup {
+        self.ws();
+        match self.peek() {
+            None => Dup::Malformed,
+            Some(b'{') => {
+                self.i += 1;
+                let mut seen = std::collections::HashSet::new();
+                loop {
+                    self.ws();
+                    match self.peek() {
+                        None => return Dup::Malformed,
+                        Some(b'}') => {
+                            self.i += 1;
+                            return Dup::None;
+                        }
+                        Some(b',') => {
+                            self.i += 1;
+                            continue;
+                        }
+                        _ => {}
+                    }
+                    let key_at = self.i;
+                    let Some(name) = self.string() else {
+                        return Dup::Malformed;
+                    };
+                    if !seen.insert(name.clone()) {
+                        return Dup::Found(key_at, name);
+                    }
+                    self.ws();
+                    if self.peek() != Some(b':') {
+                        return Dup::Malformed;
+                    }
+                    self.i += 1;
+                    match self.dup_in_value() {
+                        Dup::None => {}
+                        other => return other,
+                    }
+                }
+            }
+            Some(b'[') => {
+                self.i += 1;
+                loop {
+                    self.ws();
+                    match self.peek() {
+                        None => return Dup::Malformed,
+                        Some(b']') => {
+                            self.i += 1;
+                            return Dup::None;
+                        }
+                        Some(b',') => {
+                            self.i += 1;
+                            continue;
+                        }
+                        _ => {}
+                    }
+                    match self.dup_in_value() {
+                        Dup::None => {}
+                        other => return other,
+                    }
+                }
+            }
+            Some(_) => match self.skip_value() {
+                Some(()) => Dup::None,
+                None => Dup::Malformed,
+            },
+        }
+    }
+}
+
 /// Byte offset of the value (or key) at `path` in `text`. When the path
 /// cannot be followed to its end, the offset of the deepest value reached
 /// (for example the object that lacks a required key) is returned.
@@ -246,5 +351,22 @@ mod tests {
         assert_eq!(&text[at..at + 1], "{");
         assert_eq!(line_col(text, at), (3, 8));
         assert_eq!(line_text(text, 3), "  \"d\": {\"e\": 5}");
+    }
+
+    #[test]
+    fn finds_the_second_of_duplicate_keys() {
+        let text = "{\"a\": {\"min\": 1, \"max\": 2},\n \"b\": [{\"x\": 1}, {\"x\": 2, \"y\": {\"max\": 3, \"max\": 300}}]}";
+        let (at, k) = first_duplicate_key(text).unwrap();
+        assert_eq!(k, "max");
+        assert_eq!(line_col(text, at), (2, 43));
+        assert_eq!(first_duplicate_key("{\"a\": 1, \"b\": {\"a\": 2}}"), None);
+        // Escaped spellings of the same key are the same key.
+        assert!(first_duplicate_key("{\"a\": 1, \"\\u0061\": 2}").is_some());
+        // Different characters outside the BMP are different keys.
+        assert_eq!(
+            first_duplicate_key("{\"\\ud83d\\ude00\": 1, \"\\ud83d\\ude01\": 2}"),
+            None
+        );
+        assert!(first_duplicate_key("{\"\\ud83d\\ude00\": 1, \"\u{1F600}\": 2}").is_some());
     }
 }

@@ -3,17 +3,23 @@
 //! - [`chain`]: the one chain evaluator (forward kinematics, Jacobian).
 //! - [`mod@file`]: machine files (JSON) and the [`Machine`] type.
 //! - [`ik`]: analytic inverse kinematics per family, branch choice, limits.
+//! - [`linuxcnc`]: machine files from LinuxCNC configurations.
 //! - [`newton_ik`]: the damped-Newton fallback for other chains.
 //! - [`rotary`]: limited, continuous and modulo rotary axes; unwinding.
+//! - [`template`]: starting machine files per family; the list of embedded machines.
 
 pub mod chain;
 pub mod file;
 pub mod ik;
-mod jsonpos;
+pub(crate) mod jsonpos;
+pub mod linuxcnc;
 pub mod newton_ik;
 pub mod rotary;
+pub mod template;
 
-pub use chain::{Chain, ErrorMotion, JointErrors, JointKind, JointValues, NoErrors, Pose};
+pub use chain::{
+    Chain, ChainPart, ErrorMotion, JointErrors, JointKind, JointValues, NoErrors, Pose,
+};
 pub use file::{AxisSpec, Machine};
 pub use ik::{Family, IkError, IkOptions, IkSolution, IkSolver};
 pub use rotary::{RotaryMode, output_value};

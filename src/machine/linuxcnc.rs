@@ -1,0 +1,490 @@
+//! A machine file from a LinuxCNC configuration (`kinpost machine
+//! --from-linuxcnc config.ini`).
+//!
+//! The INI's `[KINS] KINEMATICS` names the kinematics module; its HAL
+//! parameters come from the HAL files of `[HAL] HALFILE` (relative to the
+//! INI), the INI's own `[HAL] HALCMD` lines and `[HAL] POSTGUI_HALFILE`, in
+//! that order: `setp PIN VALUE`, and `sets SIGNAL VALUE` for pins joined to
+//! the signal by `net`. A value may be an INI reference `[SECTION]KEY`. The
+//! last value given wins, as when HAL runs the files.
+//!
+//! The chains (`docs/integration.md`), with `con` = +1 when
+//! `conventional-directions` is 1 and −1 otherwise, `R` the rotation point,
+//! `D` the offsets and `T` the tool length:
+//!
+//! - `xyzac-trt-kins`: translate R, revolute C `[0,0,con]`, translate
+//!   D = (0, y-offset, z-offset), revolute A `[con,0,0]`, prismatic X, Y, Z,
+//!   translate −(R + D), translate `[0,0,−T]`.
+//! - `xyzbc-trt-kins`: the same with D = (x-offset, 0, z-offset) and
+//!   revolute B `[0,con,0]`.
+//! - `5axiskins`: prismatic X, Y, Z, translate `[0,0,L]`, revolute C
+//!   `[0,0,1]`, revolute B `[0,−1,0]`, translate `[0,0,−(L+T)]`
+//!   (L = `pivot-length`, default 250).
+//!
+//! `maxkins` is refused: it turns the X/Y slides with C but adds the B
+//! head's offset unturned, which no rigid chain reproduces.
+
+use crate::error::{Error, Location, Result};
+use serde_json::{Map, Value, json};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// One `KEY = VALUE` line of an INI file.
+struct IniEntry {
+    section: String,
+    key: String,
+    value: String,
+    line: usize,
+    /// Byte column of the value (1-based).
+    col: usize,
+}
+
+/// An INI file: its entries in order.
+struct Ini {
+    file: String,
+    text: String,
+    entries: Vec<IniEntry>,
+}
+
+impl Ini {
+    fn parse(text: String, file: String) -> Ini {
+        let mut entries = Vec::new();
+        let mut section = String::new();
+        for (n, raw) in text.lines().enumerate() {
+            // A byte-order mark is not part of the first line's text.
+            let raw = if n == 0 {
+                raw.trim_start_matches('\u{feff}')
+            } else {
+                raw
+            };
+            let line = raw.trim();
+            if line.is_empty() || line.starts_with('#') || line.starts_with(';') {
+                continue;
+            }
+            if line.starts_with('[') {
+                if let Some(end) = line.find(']') {
+                    section = line[1..end].trim().to_ascii_uppercase();
+                }
+                continue;
+            }
+            if let Some((k, v)) = raw.split_once('=') {
+                let value = v.trim();
+                let col = raw.len() - v.trim_start().len() + 1;
+                entries.push(IniEntry {
+                    section: section.clone(),
+                    key: k.trim().to_ascii_uppercase(),
+                    value: value.to_string(),
+                    line: n + 1,
+                    col,
+                });
+            }
+        }
+        Ini {
+            file,
+            text,
+            entries,
+        }
+    }
+
+    fn all<'a>(&'a self, section: &'a str, key: &'a str) -> impl Iterator<Item = &'a IniEntry> {
+        self.entries
+            .iter()
+            .filter(move |e| e.section == section && e.key == key)
+    }
+
+    fn get(&self, section: &str, key: &str) -> Option<&IniEntry> {
+        self.entries
+            .iter()
+            .find(|e| e.section == section && e.key == key)
+    }
+
+    fn err(&self, e: &IniEntry, msg: impl Into<String>) -> Error {
+        Error::input_with(
+            Location::new(&self.file, e.line, e.col),
+            msg,
+            self.text.lines().nth(e.line - 1).unwrap_or(""),
+        )
+    }
+}
+
+/// A value given to a pin or signal, and where.
+#[derive(Clone)]
+struct Given {
+    value: String,
+    loc: Location,
+    snippet: String,
+    /// Order of the command over all HAL sources.
+    seq: usize,
+}
+
+/// What the HAL sources set.
+#[derive(Default)]
+struct Hal {
+    /// `setp PIN VALUE`.
+    pins: HashMap<String, Given>,
+    /// `sets SIGNAL VALUE`.
+    signals: HashMap<String, Given>,
+    /// `net SIGNAL pins…`: the signal of each pin.
+    net_of: HashMap<String, String>,
+    seq: usize,
+}
+
+impl Hal {
+    /// Reads the HAL commands of `text` (`file` names it; `first_line` is
+    /// the number of its first line; `col0` is added to columns).
+    fn read(
+        &mut self,
+        ini: &Ini,
+        text: &str,
+        file: &str,
+        first_line: usize,
+        col0: usize,
+    ) -> Result<()> {
+        for (n, raw) in text.lines().enumerate() {
+            let code = raw.split('#').next().unwrap_or("");
+            let tokens: Vec<(usize, &str)> = code
+                .split_whitespace()
+                .map(|t| (t.as_ptr() as usize - code.as_ptr() as usize, t))
+                .collect();
+            let Some(&(_, cmd)) = tokens.first() else {
+                continue;
+            };
+            let line = first_line + n;
+            let given = |i: usize, seq: usize| -> Result<Given> {
+                let (at, tok) = tokens[i];
+                let loc = Location::new(file, line, col0 + at + 1);
+                let value = resolve_ini_ref(ini, tok).ok_or_else(|| {
+                    Error::input_with(
+                        loc.clone(),
+                        format!("`{tok}` refers to no INI entry; expected a value or [SECTION]KEY of the INI"),
+                        raw,
+                    )
+                })?;
+                Ok(Given {
+                    value,
+                    loc,
+                    snippet: raw.to_string(),
+                    seq,
+                })
+            };
+            match cmd {
+                "setp" | "sets" if tokens.len() >= 3 => {
+                    self.seq += 1;
+                    let g = given(2, self.seq)?;
+                    let target = tokens[1].1.to_string();
+                    if cmd == "setp" {
+                        self.pins.insert(target, g);
+                    } else {
+                        self.signals.insert(target, g);
+                    }
+                }
+                "net" if tokens.len() >= 2 => {
+                    let signal = tokens[1].1.to_string();
+                    for &(_, t) in &tokens[2..] {
+                        if !matches!(t, "<=" | "=>" | "<=>") {
+                            self.net_of.insert(t.to_string(), signal.clone());
+                        }
+                    }
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+
+    /// The last value given to `pin`, directly or through its signal.
+    fn value(&self, pin: &str) -> Option<&Given> {
+        let direct = self.pins.get(pin);
+        let via = self.net_of.get(pin).and_then(|s| self.signals.get(s));
+        match (direct, via) {
+            (Some(a), Some(b)) => Some(if a.seq > b.seq { a } else { b }),
+            (a, b) => a.or(b),
+        }
+    }
+
+    fn number(&self, pin: &str, default: f64) -> Result<f64> {
+        match self.value(pin) {
+            None => Ok(default),
+            Some(g) => match g.value.parse::<f64>() {
+                Ok(v) if v.is_finite() => Ok(v),
+                _ => Err(Error::input_with(
+                    g.loc.clone(),
+                    format!(
+                        "`{}` for {pin} is not a number; expected a length in mm",
+                        g.value
+                    ),
+                    g.snippet.clone(),
+                )),
+            },
+        }
+    }
+
+    fn flag(&self, pin: &str) -> Result<bool> {
+        match self.value(pin) {
+            None => Ok(false),
+            Some(g) => match g.value.to_ascii_lowercase().as_str() {
+                "1" | "true" => Ok(true),
+                "0" | "false" => Ok(false),
+                _ => Err(Error::input_with(
+                    g.loc.clone(),
+                    format!("`{}` for {pin} is not a bit; expected 0 or 1", g.value),
+                    g.snippet.clone(),
+                )),
+            },
+        }
+    }
+}
+
+/// `[SECTION]KEY` → the INI's value; any other token as it is.
+fn resolve_ini_ref(ini: &Ini, tok: &str) -> Option<String> {
+    let Some(rest) = tok.strip_prefix('[') else {
+        return Some(tok.to_string());
+    };
+    let (section, key) = rest.split_once(']')?;
+    ini.get(&section.to_ascii_uppercase(), &key.to_ascii_uppercase())
+        .map(|e| e.value.clone())
+}
+
+/// The kinematics modules understood.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kins {
+    TrtAc,
+    TrtBc,
+    FiveAxis,
+}
+
+/// Reads the LinuxCNC configuration `ini` and returns the machine file
+/// (JSON) for its kinematics. `tool_length_mm` (T) overrides the
+/// kinematics' `tool-offset` pin (trt; default 0).
+pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Result<Value> {
+    let file = ini_path.display().to_string();
+    let text = crate::text::read_text_file(ini_path)?;
+    let ini = Ini::parse(text, file.clone());
+    let whole = |msg: String| Error::input(Location::new(&file, 0, 0), msg);
+
+    let kins_e = ini
+        .get("KINS", "KINEMATICS")
+        .ok_or_else(|| whole("no [KINS] KINEMATICS entry; expected the kinematics module (xyzac-trt-kins, xyzbc-trt-kins or 5axiskins)".into()))?;
+    let module = kins_e.value.split_whitespace().next().unwrap_or("");
+    let kins = match module {
+        "xyzac-trt-kins" | "xyzac-trt" => Kins::TrtAc,
+        "xyzbc-trt-kins" | "xyzbc-trt" => Kins::TrtBc,
+        "5axiskins" => Kins::FiveAxis,
+        "maxkins" => {
+            return Err(ini.err(
+                kins_e,
+                "maxkins cannot be converted: it turns the X and Y slides with C but adds the B head's offset without turning it, which no rigid kinematic chain reproduces; describe the machine by hand (kinpost machine --template 2R3T)",
+            ));
+        }
+        other => {
+            return Err(ini.err(
+                kins_e,
+                format!("kinematics `{other}` is not supported; expected xyzac-trt-kins, xyzbc-trt-kins or 5axiskins"),
+            ));
+        }
+    };
+    if let Some(u) = ini.get("TRAJ", "LINEAR_UNITS")
+        && !matches!(
+            u.value.to_ascii_lowercase().as_str(),
+            "mm" | "metric" | "millimeter" | "millimetre"
+        )
+    {
+        return Err(ini.err(
+            u,
+            format!(
+                "LINEAR_UNITS `{}`: machine files are in mm; expected a configuration in mm",
+                u.value
+            ),
+        ));
+    }
+
+    // HAL sources, in the order HAL runs them.
+    let dir: PathBuf = ini_path
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("."));
+    let mut hal = Hal::default();
+    let mut skipped: Vec<String> = Vec::new();
+    let mut read_file = |hal: &mut Hal, e: &IniEntry| -> Result<()> {
+        let name = e.value.split_whitespace().next().unwrap_or("");
+        if name.starts_with("LIB:") || name.ends_with(".tcl") {
+            skipped.push(name.to_string());
+            return Ok(());
+        }
+        let path = dir.join(name);
+        let text = crate::text::read_text_file(&path)?;
+        hal.read(&ini, &text, &path.display().to_string(), 1, 0)
+    };
+    for e in ini.all("HAL", "HALFILE") {
+        read_file(&mut hal, e)?;
+    }
+    for e in ini.all("HAL", "HALCMD") {
+        hal.read(&ini, &e.value, &file, e.line, e.col - 1)?;
+    }
+    for e in ini.all("HAL", "POSTGUI_HALFILE") {
+        read_file(&mut hal, e)?;
+    }
+
+    let prefix = match kins {
+        Kins::TrtAc => "xyzac-trt-kins",
+        Kins::TrtBc => "xyzbc-trt-kins",
+        Kins::FiveAxis => "5axiskins",
+    };
+    let pin = |p: &str| format!("{prefix}.{p}");
+    let tool = |hal: &Hal| -> Result<f64> {
+        match tool_length_mm {
+            Some(t) => Ok(t),
+            None if kins == Kins::FiveAxis => Ok(0.0),
+            None => hal.number(&pin("tool-offset"), 0.0),
+        }
+    };
+    let t = tool(&hal)?;
+    let v3 = |x: f64, y: f64, z: f64| json!([x, y, z]);
+    let joint = |kind: &str, name: &str, axis: Value| json!({ kind: {"name": name, "axis": axis} });
+    let translate = |v: Value| json!({ "translate": v });
+    let (chain, order, summary): (Vec<Value>, Vec<&str>, String) = match kins {
+        Kins::TrtAc | Kins::TrtBc => {
+            let con = if hal.flag(&pin("conventional-directions"))? {
+                1.0
+            } else {
+                -1.0
+            };
+            let r = [
+                hal.number(&pin("x-rot-point"), 0.0)?,
+                hal.number(&pin("y-rot-point"), 0.0)?,
+                hal.number(&pin("z-rot-point"), 0.0)?,
+            ];
+            let d = if kins == Kins::TrtAc {
+                [
+                    0.0,
+                    hal.number(&pin("y-offset"), 0.0)?,
+                    hal.number(&pin("z-offset"), 0.0)?,
+                ]
+            } else {
+                [
+                    hal.number(&pin("x-offset"), 0.0)?,
+                    0.0,
+                    hal.number(&pin("z-offset"), 0.0)?,
+                ]
+            };
+            let (tilt, tilt_axis) = if kins == Kins::TrtAc {
+                ("A", v3(con, 0.0, 0.0))
+            } else {
+                ("B", v3(0.0, con, 0.0))
+            };
+            let chain = vec![
+                translate(v3(r[0], r[1], r[2])),
+                joint("revolute", "C", v3(0.0, 0.0, con)),
+                translate(v3(d[0], d[1], d[2])),
+                joint("revolute", tilt, tilt_axis),
+                joint("prismatic", "X", v3(1.0, 0.0, 0.0)),
+                joint("prismatic", "Y", v3(0.0, 1.0, 0.0)),
+                joint("prismatic", "Z", v3(0.0, 0.0, 1.0)),
+                translate(v3(-(r[0] + d[0]), -(r[1] + d[1]), -(r[2] + d[2]))),
+                translate(v3(0.0, 0.0, -t)),
+            ];
+            let summary = format!(
+                "conventional-directions {} (con = {con}), rot-point ({}, {}, {}) mm, offsets ({}, {}, {}) mm",
+                if con > 0.0 { 1 } else { 0 },
+                r[0],
+                r[1],
+                r[2],
+                d[0],
+                d[1],
+                d[2]
+            );
+            (chain, vec!["X", "Y", "Z", tilt, "C"], summary)
+        }
+        Kins::FiveAxis => {
+            let l = hal.number(&pin("pivot-length"), 250.0)?;
+            let chain = vec![
+                joint("prismatic", "X", v3(1.0, 0.0, 0.0)),
+                joint("prismatic", "Y", v3(0.0, 1.0, 0.0)),
+                joint("prismatic", "Z", v3(0.0, 0.0, 1.0)),
+                translate(v3(0.0, 0.0, l)),
+                joint("revolute", "C", v3(0.0, 0.0, 1.0)),
+                joint("revolute", "B", v3(0.0, -1.0, 0.0)),
+                translate(v3(0.0, 0.0, -(l + t))),
+            ];
+            (
+                chain,
+                vec!["X", "Y", "Z", "B", "C"],
+                format!("pivot-length {l} mm"),
+            )
+        }
+    };
+
+    // Axis limits from [AXIS_L].
+    let mut axes = Map::new();
+    for name in &order {
+        let section = format!("AXIS_{name}");
+        let num = |key: &str| -> Result<Option<f64>> {
+            match ini.get(&section, key) {
+                None => Ok(None),
+                Some(e) => match e.value.parse::<f64>() {
+                    Ok(v) if v.is_finite() => Ok(Some(v)),
+                    _ => Err(ini.err(
+                        e,
+                        format!("[{section}] {key} `{}` is not a number", e.value),
+                    )),
+                },
+            }
+        };
+        let (lo, hi) = (num("MIN_LIMIT")?, num("MAX_LIMIT")?);
+        let mut o = Map::new();
+        let rotary = matches!(*name, "A" | "B" | "C");
+        let wrapped = ini
+            .get(&section, "WRAPPED_ROTARY")
+            .is_some_and(|e| matches!(e.value.as_str(), "1" | "true" | "TRUE"));
+        match (rotary, lo, hi) {
+            (true, _, _) if wrapped => {
+                o.insert("rotary".into(), "modulo".into());
+            }
+            // Limits a turn-counting controller uses for "no limit".
+            (true, Some(lo), Some(hi)) if hi - lo < 36_000.0 && lo <= hi => {
+                o.insert("min".into(), lo.into());
+                o.insert("max".into(), hi.into());
+            }
+            (true, _, _) => {
+                o.insert("rotary".into(), "continuous".into());
+            }
+            (false, lo, hi) => {
+                if let (Some(lo), Some(hi)) = (lo, hi)
+                    && lo <= hi
+                {
+                    o.insert("min".into(), lo.into());
+                    o.insert("max".into(), hi.into());
+                }
+            }
+        }
+        o.insert("decimals".into(), 4.into());
+        axes.insert((*name).to_string(), Value::Object(o));
+    }
+
+    let name = ini
+        .get("EMC", "MACHINE")
+        .map(|e| e.value.clone())
+        .unwrap_or_else(|| {
+            ini_path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "linuxcnc".into())
+        });
+    let mut description = format!(
+        "From the LinuxCNC configuration {file} ({module}): {summary}, tool length {t} mm at the end of the chain. Run kinpost's output under identity kinematics with zero work offsets and no tool length compensation (docs/integration.md)."
+    );
+    if !skipped.is_empty() {
+        description.push_str(&format!(
+            " HAL files not read (library or Tcl files): {}.",
+            skipped.join(", ")
+        ));
+    }
+    Ok(json!({
+        "name": name,
+        "description": description,
+        "source": format!("kinpost machine --from-linuxcnc {file}"),
+        "chain": chain,
+        "axes": axes,
+        "output_order": order,
+    }))
+}
