@@ -410,7 +410,7 @@ fn machine(a: MachineArgs) -> Result<()> {
                 "--tool-length {t}: expected a finite length in mm"
             )));
         }
-        check_outputs(&[a.output.as_deref()])?;
+        check_outputs(&[("-o", a.output.as_deref())], &[Some(ini.as_path())])?;
         let file = crate::machine::linuxcnc::machine_from_linuxcnc(ini, a.tool_length)?;
         let text = serde_json::to_string_pretty(&file).unwrap_or_default();
         drop(out);
