@@ -108,6 +108,7 @@ fn bench(c: &mut Criterion) {
                 options: Options::default(),
                 on_fail: OnFail::Error,
                 accept_tip_mm: 1e-9,
+                axis_tolerance_rad: 1e-4,
                 records: Vec::new(),
                 warnings: Vec::new(),
                 backlash: Vec::new(),

@@ -852,6 +852,9 @@ pub struct CompensatingSolver<'a> {
     pub on_fail: OnFail,
     /// Tip tolerance that counts as converged for the policy, mm.
     pub accept_tip_mm: f64,
+    /// Largest tool-axis miss of the theoretical solution accepted (a
+    /// four-axis machine off its cone), rad; as `post`'s.
+    pub axis_tolerance_rad: f64,
     /// Records, one per block.
     pub records: Vec<BlockRecord>,
     /// Warnings.
@@ -918,10 +921,15 @@ impl CompensatingSolver<'_> {
         pose: &Pose,
         previous: Option<&[f64]>,
     ) -> std::result::Result<JointValues, String> {
-        self.ik
-            .solve(pose, previous)
-            .map(|s| s.q)
-            .map_err(|e| e.to_string())
+        let s = self.ik.solve(pose, previous).map_err(|e| e.to_string())?;
+        if s.axis_miss_rad > self.axis_tolerance_rad {
+            return Err(crate::post::unreachable_axis(
+                &self.machine.name,
+                s.axis_miss_rad,
+                self.axis_tolerance_rad,
+            ));
+        }
+        Ok(s.q)
     }
 
     /// Stage 2 (independent per block, any thread): the Newton refinement

@@ -28,6 +28,18 @@ pub trait PoseSolver {
     ) -> std::result::Result<SolvedPose, String>;
 }
 
+/// The message for a pose whose closest reachable tool axis misses the
+/// programmed one by `miss_rad`, more than `tolerance_rad`: the same words
+/// from every command that turns poses into axes.
+pub fn unreachable_axis(machine: &str, miss_rad: f64, tolerance_rad: f64) -> String {
+    format!(
+        "machine {machine} cannot reach this tool axis: the closest reachable axis misses it by {:.3} µrad ({:.6}°), more than the tolerance {:.3} µrad (--axis-tolerance-urad)",
+        miss_rad * 1e6,
+        miss_rad.to_degrees(),
+        tolerance_rad * 1e6
+    )
+}
+
 /// The joint values found for one pose.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SolvedPose {
@@ -410,12 +422,10 @@ impl<'a> GcodeConverter<'a> {
         if solved.axis_miss_rad > opts.axis_tolerance_rad {
             return Err(Error::input_with(
                 loc(meaning.pose_items.first().copied()),
-                format!(
-                    "machine {} cannot reach this tool axis: the closest reachable axis misses it by {:.3} µrad ({:.6}°), more than the tolerance {:.3} µrad (--axis-tolerance-urad)",
-                    self.machine.name,
-                    solved.axis_miss_rad * 1e6,
-                    solved.axis_miss_rad.to_degrees(),
-                    opts.axis_tolerance_rad * 1e6
+                unreachable_axis(
+                    &self.machine.name,
+                    solved.axis_miss_rad,
+                    opts.axis_tolerance_rad,
                 ),
                 String::from_utf8_lossy(&line.bytes),
             ));
@@ -757,11 +767,10 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                 if solved.axis_miss_rad > opts.axis_tolerance_rad {
                     return Err(Error::input_with(
                         loc,
-                        format!(
-                            "machine {} cannot reach this tool axis: it misses by {:.3} µrad, more than the tolerance {:.3} µrad",
-                            machine.name,
-                            solved.axis_miss_rad * 1e6,
-                            opts.axis_tolerance_rad * 1e6
+                        unreachable_axis(
+                            &machine.name,
+                            solved.axis_miss_rad,
+                            opts.axis_tolerance_rad,
                         ),
                         text,
                     ));

@@ -1101,3 +1101,46 @@ fn absurd_simulate_numbers_are_a_bad_command_line() {
         assert!(!d.path().join("rec.csv").exists());
     }
 }
+
+#[test]
+fn unreachable_tool_axis_is_refused_by_every_command_that_posts() {
+    // Before: post refused this pose, but compensate, simulate and analyze
+    // wrote or used axes 90° off the programmed tool axis, with exit 0.
+    let program = b"G43.5 H1\nG1 X40 Y0 Z5 I0 J0 K1 F100\nG1 X40 Y0 Z5 I0 J1 K0\nM30\n";
+    let d = dir_with(&[("p.nc", program)]);
+    let errors = fixture("errors/zhao2022-xzbc.csv");
+    for args in [
+        vec!["post", "p.nc"],
+        vec!["compensate", "-e", &errors, "p.nc"],
+        vec!["simulate", "-p", "p.nc", "-o", "rec.csv"],
+        vec!["analyze", "-e", &errors, "p.nc"],
+    ] {
+        let r = run_in(d.path(), &args);
+        expect(
+            &r,
+            1,
+            &[
+                "p.nc:3:",
+                "machine zhao2022-xzbc cannot reach this tool axis",
+                "more than the tolerance 100.000 µrad (--axis-tolerance-urad)",
+            ],
+        );
+        assert!(r.stdout.is_empty(), "{args:?} wrote {}", r.stdout);
+    }
+    assert!(!d.path().join("rec.csv").exists());
+    // The same tolerance option widens it everywhere.
+    for args in [
+        vec![
+            "compensate",
+            "-e",
+            &errors,
+            "p.nc",
+            "--axis-tolerance-urad",
+            "2e6",
+        ],
+        vec!["post", "p.nc", "--axis-tolerance-urad", "2e6"],
+    ] {
+        let r = run_in(d.path(), &args);
+        assert_eq!(r.code, 0, "{args:?}: {}", r.stderr);
+    }
+}

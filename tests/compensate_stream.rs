@@ -26,6 +26,7 @@ fn solver<'a>(
         options: Options::default(),
         on_fail: OnFail::Error,
         accept_tip_mm: 1e-9,
+        axis_tolerance_rad: 1e-4,
         records: Vec::new(),
         warnings: Vec::new(),
         backlash: Vec::new(),

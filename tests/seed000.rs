@@ -43,6 +43,7 @@ fn run_method(
         },
         on_fail: OnFail::Theoretical,
         accept_tip_mm: 1.0,
+        axis_tolerance_rad: 1e-4,
         records: Vec::new(),
         warnings: Vec::new(),
         backlash: Vec::new(),

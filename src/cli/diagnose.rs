@@ -50,6 +50,8 @@ pub struct SimulateArgs {
     /// Feed of rapid moves and of moves without a programmed feed, in mm/min.
     #[arg(long, value_name = "MM/MIN", default_value_t = 3000.0)]
     pub rapid_feed: f64,
+    #[command(flatten)]
+    pub axis_tolerance: super::AxisTolerance,
     /// When pose mode starts (pose programs).
     #[arg(long, value_enum, default_value = "on")]
     pub pose_start: PoseStartArg,
@@ -64,6 +66,7 @@ pub fn program_waypoints(
     path: &std::path::Path,
     start: PoseStart,
     rapid_feed: f64,
+    axis_tolerance_rad: f64,
 ) -> Result<Vec<Waypoint>> {
     let mut inp = input::open(Some(path))?;
     let head = input::peek(&mut *inp.reader)?;
@@ -85,10 +88,8 @@ pub fn program_waypoints(
         let ik = IkSolver::new(machine);
         let mut prev: Option<Vec<f64>> = None;
         let mut on_pose = |ev: crate::program::source::PoseEvent| -> Result<()> {
-            let q = ik
-                .solve(&ev.pose, prev.as_deref())
-                .map_err(|e| Error::input(Location::new(&name, ev.line, 0), e.to_string()))?
-                .q;
+            let q = super::reachable(&ik, machine, &ev.pose, prev.as_deref(), axis_tolerance_rad)
+                .map_err(|m| Error::input(Location::new(&name, ev.line, 0), m))?;
             let feed = if ev.rapid {
                 rapid_feed
             } else {
@@ -185,7 +186,13 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         PoseStartArg::On => PoseStart::On,
         PoseStartArg::Tcp => PoseStart::Off,
     };
-    let wps = program_waypoints(&machine, &a.program, start, a.rapid_feed)?;
+    let wps = program_waypoints(
+        &machine,
+        &a.program,
+        start,
+        a.rapid_feed,
+        a.axis_tolerance.rad()?,
+    )?;
     let opts = SimOptions {
         noise_mm: a.noise,
         seed: a.seed,

@@ -121,6 +121,8 @@ pub struct AnalyzeArgs {
     /// When pose mode starts (pose programs).
     #[arg(long, value_enum, default_value = "on")]
     pub pose_start: PoseStartArg,
+    #[command(flatten)]
+    pub axis_tolerance: super::AxisTolerance,
 }
 
 /// Nonlinear error of one block.
@@ -174,6 +176,7 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
     let mut nonlinear: Vec<NonlinearBlock> = Vec::new();
     let mut prev_q: Option<Vec<f64>> = None;
     let ik = IkSolver::new(&machine);
+    let axis_tolerance = a.axis_tolerance.rad()?;
     let nl_errors: &dyn crate::machine::JointErrors = &NoErrors;
     let mut step = |line: usize, q: Vec<f64>| {
         if let (true, Some(p)) = (a.nonlinear, &prev_q) {
@@ -195,10 +198,8 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
                 an.add(ev.line, &ev.pose)
                     .map_err(|m| Error::input(loc.clone(), m))?;
             }
-            let q = ik
-                .solve(&ev.pose, ik_prev.as_deref())
-                .map_err(|e| Error::input(loc, e.to_string()))?
-                .q;
+            let q = super::reachable(&ik, &machine, &ev.pose, ik_prev.as_deref(), axis_tolerance)
+                .map_err(|m| Error::input(loc, m))?;
             ik_prev = Some(q.to_vec());
             step(ev.line, q.to_vec());
             Ok(())
@@ -377,6 +378,8 @@ pub struct CompensateArgs {
     /// Largest number of Newton iterations per pose (a count, no unit).
     #[arg(long, value_name = "N", default_value_t = 30)]
     pub max_iterations: usize,
+    #[command(flatten)]
+    pub axis_tolerance: super::AxisTolerance,
     /// Largest accepted tool-tip residual, in mm (1e-9 mm = 1 pm); beyond it a
     /// block has not converged.
     #[arg(long, value_name = "MM", default_value_t = 1e-9)]
@@ -480,6 +483,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             OnFailArg::Best => OnFail::Best,
         },
         accept_tip_mm: a.tip_tolerance_mm,
+        axis_tolerance_rad: a.axis_tolerance.rad()?,
         records: Vec::new(),
         warnings: dynamic_warnings,
         backlash,

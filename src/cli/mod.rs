@@ -124,6 +124,51 @@ impl MachineChoice {
     }
 }
 
+/// The tool-axis tolerance of a four-axis machine, for the commands that
+/// turn poses into axes besides `post` (which has the same option).
+#[derive(Debug, Args, Clone, Copy)]
+pub struct AxisTolerance {
+    /// Largest tool-axis miss accepted on a machine that cannot reach every
+    /// tool axis (four-axis machines), in µrad (1 µrad ≈ 0.2 arcsec). Poses
+    /// beyond it are an error.
+    #[arg(long, value_name = "URAD", default_value_t = 100.0)]
+    pub axis_tolerance_urad: f64,
+}
+
+/// The theoretical joint values of `pose` (continuing from `previous`), or
+/// the reason it cannot be reached: an IK failure, or a tool axis the
+/// machine misses by more than `tolerance_rad` (the same refusal as `post`).
+pub fn reachable(
+    ik: &crate::machine::IkSolver,
+    machine: &Machine,
+    pose: &crate::machine::Pose,
+    previous: Option<&[f64]>,
+    tolerance_rad: f64,
+) -> std::result::Result<crate::machine::chain::JointValues, String> {
+    let s = ik.solve(pose, previous).map_err(|e| e.to_string())?;
+    if s.axis_miss_rad > tolerance_rad {
+        return Err(crate::post::unreachable_axis(
+            &machine.name,
+            s.axis_miss_rad,
+            tolerance_rad,
+        ));
+    }
+    Ok(s.q)
+}
+
+impl AxisTolerance {
+    /// The tolerance in rad, or a usage error for a negative or NaN value.
+    pub fn rad(&self) -> Result<f64> {
+        if self.axis_tolerance_urad.is_nan() || self.axis_tolerance_urad < 0.0 {
+            return Err(Error::Usage(format!(
+                "--axis-tolerance-urad {}: expected a tolerance ≥ 0 µrad",
+                self.axis_tolerance_urad
+            )));
+        }
+        Ok(self.axis_tolerance_urad * 1e-6)
+    }
+}
+
 /// When pose mode starts.
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum PoseStartArg {
