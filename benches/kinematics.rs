@@ -111,6 +111,7 @@ fn bench(c: &mut Criterion) {
                 axis_tolerance_rad: 1e-4,
                 records: Vec::new(),
                 warnings: Vec::new(),
+                singular_blocks: 0,
                 backlash: Vec::new(),
                 last_direction: Vec::new(),
                 last_target: None,

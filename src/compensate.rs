@@ -81,6 +81,11 @@ pub struct Refined {
     pub axis_residual_rad: f64,
     /// Whether the tip tolerance was reached (or the step became negligible).
     pub converged: bool,
+    /// Not converged, but no move within the bounds reduces the tool-tip
+    /// residual to first order: the pose is at (or next to) a singularity
+    /// of the machine, where part of the error lies across every direction
+    /// the machine can move the tip, and `q` is the best there is.
+    pub best_within_bounds: bool,
     /// Tool-tip error at `q0` (where the refinement started), mm.
     pub start_tip_mm: f64,
     /// Tool-axis error at `q0`, rad.
@@ -161,6 +166,10 @@ fn damp_into_caps(jp: &[Col], rp: &Vector3<f64>, caps: &Joints, n: usize, dq1: &
 /// The exact method keeps its Jacobian while every step shrinks the tool-tip
 /// residual at least this many times: see [`refine`].
 const CHORD_GAIN: f64 = 1e3;
+
+/// Steps on the joints not held back by their bounds after a refinement
+/// that did not converge (see the end of [`refine`]).
+const POLISH_STEPS: usize = 8;
 
 /// A step no larger than this (relative to `1 + |q|`, mm or rad) is taken to
 /// be the last: see [`refine`].
@@ -793,6 +802,73 @@ fn refine_with(
             factors.factor(&jac, n, opts, &step_cap);
         }
     }
+    // Where it did not converge, the step was held back by the bounds of a
+    // joint that would need an unbounded move (a four-axis machine's C with
+    // the tip on or next to its axis). One last step on the other joints
+    // removes what they can still remove of the tip residual. Where no
+    // admissible move can then reduce it by more than the tip tolerance (to
+    // first order), or removing it would take moves beyond the
+    // compensation bounds (millimetres and radians for micrometres), this
+    // is the best the machine can do here (`best_within_bounds`).
+    let mut best_within_bounds = false;
+    if !converged {
+        let mut j = [[0.0; 6]; MAX_JOINTS];
+        for pass in 0..POLISH_STEPS + 1 {
+            let p = eval(&d[..n], &mut j);
+            let r = target.tip - p.tip;
+            let rn = r.norm();
+            let column = |k: usize| Vector3::new(j[k][0], j[k][1], j[k][2]);
+            // Joints that can still help: they move the tip, and removing
+            // the residual's component along them fits within their bound.
+            let free: Vec<usize> = (0..n)
+                .filter(|&k| {
+                    let c = column(k);
+                    let cn2 = c.norm_squared();
+                    cn2 > 0.0 && c.dot(&r).abs() / cn2 <= total_cap[k] - d[k].abs()
+                })
+                .collect();
+            // What the free joints can still remove, to first order: the
+            // residual's projection on the directions they move the tip.
+            let jf = DMatrix::from_fn(3, free.len(), |row, c| j[free[c]][row]);
+            let rv = DVector::from_column_slice(r.as_slice());
+            let step = if free.is_empty() {
+                None
+            } else {
+                jf.clone().svd(true, true).solve(&rv, 1e-12).ok()
+            };
+            let removable = step.as_ref().map_or(0.0, |s| (&jf * s).norm());
+            let gain = rn - (rn * rn - removable * removable).max(0.0).sqrt();
+            // Stuck when no admissible move gains the tip tolerance.
+            let stuck = gain <= opts.tip_tolerance_mm.max(1e-14 * (1.0 + target.tip.amax()));
+            let Some(step) = step.filter(|_| !stuck && pass < POLISH_STEPS) else {
+                best_within_bounds = stuck;
+                break;
+            };
+            let mut trial = d;
+            for (c, &k) in free.iter().enumerate() {
+                trial[k] += step[c];
+            }
+            // A step beyond the bounds (millimetres and radians for a few
+            // micrometres: the machine is singular there), or one that
+            // gains nothing, leaves this the best there is.
+            if (0..n).any(|k| trial[k].abs() > total_cap[k]) {
+                best_within_bounds = true;
+                break;
+            }
+            let p2 = eval_pose(&trial[..n]);
+            let tip2 = p2.tip_distance(target);
+            if tip2 >= tip {
+                best_within_bounds = true;
+                break;
+            }
+            d = trial;
+            (tip, ax) = (tip2, p2.axis_angle(target));
+            converged = tip <= opts.tip_tolerance_mm;
+            if converged {
+                break;
+            }
+        }
+    }
     let q = at(&d[..n]);
     Refined {
         tip_residual_mm: tip,
@@ -802,6 +878,7 @@ fn refine_with(
         q: q[..n].iter().copied().collect(),
         iterations,
         converged,
+        best_within_bounds,
     }
 }
 
@@ -859,6 +936,9 @@ pub struct CompensatingSolver<'a> {
     pub records: Vec<BlockRecord>,
     /// Warnings.
     pub warnings: Vec<String>,
+    /// Blocks at a singularity where the best compensation within bounds
+    /// was kept with a tool-tip residual above `accept_tip_mm`.
+    pub singular_blocks: usize,
     /// Backlash to pre-compensate: (joint, reversal value in mm / rad).
     pub backlash: Vec<(usize, f64)>,
     /// Direction of the last motion of each joint (+1, −1, 0 before any).
@@ -947,12 +1027,28 @@ impl CompensatingSolver<'_> {
         r: &Refined,
         line: usize,
     ) -> std::result::Result<crate::post::SolvedPose, String> {
-        let failure = if !r.converged || r.tip_residual_mm > self.accept_tip_mm {
+        // A tip within the accepted residual is met, whether or not the
+        // tool axis had settled. Where the machine is singular, the best
+        // compensation within bounds is kept, and said.
+        let singular = r.best_within_bounds && r.tip_residual_mm <= r.start_tip_mm;
+        // The paper's step stops where its least squares balances tip and
+        // axis (picometres of tip on a four-axis machine): that point is
+        // its answer, whatever the tip tolerance.
+        let paper_fixed_point = r.converged && self.options.method == Method::Paper;
+        let failure = if r.tip_residual_mm > self.accept_tip_mm && !singular && !paper_fixed_point {
             Some(format!(
-                "compensation did not converge: tool-tip residual {:.3e} mm after {} iterations (accepted: {:.1e} mm)",
+                "compensation did not converge: tool-tip residual {:.3e} mm after {} iterations, more than the accepted {:.1e} mm",
                 r.tip_residual_mm, r.iterations, self.accept_tip_mm
             ))
         } else if self.ik.within_all_limits(&r.q) {
+            if r.tip_residual_mm > self.accept_tip_mm && !paper_fixed_point {
+                self.singular_blocks += 1;
+                self.warnings.push(format!(
+                    "line {line}: the machine is singular here (for a four-axis lens machine: the tool tip on or next to the C axis); {:.4} µm of the {:.4} µm tool-tip error lie where no move within the compensation bounds reaches; the best compensation is kept",
+                    r.tip_residual_mm * 1e3,
+                    r.start_tip_mm * 1e3
+                ));
+            }
             None
         } else {
             self.ik

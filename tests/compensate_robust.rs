@@ -63,6 +63,12 @@ fn check_machine(name: &str, errors: &str, sample: impl Fn(&mut SplitMix64) -> V
                     r.tip_residual_mm <= before,
                     "{name} sample {i}: worse than uncompensated"
                 );
+                // And the refinement knows it stopped at the best there is.
+                assert!(
+                    r.best_within_bounds,
+                    "{name} sample {i} {ext:?} {method:?}: not converged (tip {:e}, lever {lever} mm) but not at its best",
+                    r.tip_residual_mm
+                );
                 near_singular += 1;
             }
             for (k, (a, b)) in r.q.iter().zip(&q_th).enumerate() {

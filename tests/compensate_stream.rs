@@ -29,6 +29,7 @@ fn solver<'a>(
         axis_tolerance_rad: 1e-4,
         records: Vec::new(),
         warnings: Vec::new(),
+        singular_blocks: 0,
         backlash: Vec::new(),
         last_direction: Vec::new(),
         last_target: None,

@@ -486,6 +486,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         axis_tolerance_rad: a.axis_tolerance.rad()?,
         records: Vec::new(),
         warnings: dynamic_warnings,
+        singular_blocks: 0,
         backlash,
         last_direction: Vec::new(),
         last_target: None,

@@ -1,0 +1,127 @@
+//! Valid jobs that used to fail, through the binary: a rotary that keeps
+//! turning one way, the tool tip passing through the C axis of the lens
+//! machine, and the paper's own Newton step. Each failed before its fix
+//! (exit 1); `docs/robustness.md` lists them.
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+
+const BIN: &str = env!("CARGO_BIN_EXE_kinpost");
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Runs kinpost with `args` in the repository root; (exit code, stdout, stderr).
+fn run(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(BIN)
+        .args(args)
+        .current_dir(root())
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// The value of axis word `axis` on the last line of `text` that has one.
+fn last_word(text: &str, axis: char) -> f64 {
+    text.lines()
+        .rev()
+        .find_map(|l| {
+            l.split_whitespace()
+                .find(|w| w.starts_with(axis) && w[1..].parse::<f64>().is_ok())
+                .map(|w| w[1..].parse().unwrap())
+        })
+        .unwrap()
+}
+
+#[test]
+fn thirty_turns_of_c_at_80_mm() {
+    // A circle of radius 80 mm around the C axis, 30 times, the tool tilted
+    // 10° inwards: C reaches −10,800°. Failed at line 7347 (C ≈ −7,340°).
+    let mut p = String::from("%\nG21 G90 G94 G17\nG43.5 H1\n");
+    let tilt = 10f64.to_radians();
+    for i in 0..=360 * 30 {
+        let th = (i as f64).to_radians();
+        let (s, c) = th.sin_cos();
+        p.push_str(&format!(
+            "{}X{:.6} Y{:.6} Z5 I{:.9} J{:.9} K{:.9}{}\n",
+            if i == 0 { "G1 " } else { "" },
+            80.0 * c,
+            80.0 * s,
+            -tilt.sin() * c,
+            -tilt.sin() * s,
+            tilt.cos(),
+            if i == 0 { " F500" } else { "" }
+        ));
+    }
+    p.push_str("G49\nM30\n%\n");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("turns.nc");
+    std::fs::write(&path, p).unwrap();
+    let path = path.to_str().unwrap();
+    let errors = "fixtures/errors/zhao2022-xzbc.csv";
+    let (code, out, err) = run(&["compensate", "-e", errors, path]);
+    assert_eq!(code, 0, "{err}");
+    let (_, posted, _) = run(&["post", path]);
+    // The compensated C differs from the posted one by the compensation
+    // (micro-radians), also after 30 turns.
+    let (c_comp, c_post) = (last_word(&out, 'C'), last_word(&posted, 'C'));
+    assert!((c_post.abs() - 10_800.0).abs() < 1e-9, "{c_post}");
+    assert!((c_comp - c_post).abs() < 1e-3, "{c_comp} vs {c_post}");
+    let after: f64 = err
+        .lines()
+        .find(|l| l.contains("tool-tip error"))
+        .and_then(|l| l.split("after max ").nth(1))
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .unwrap();
+    assert!(after < 1e-12, "tool-tip residual {after} mm");
+}
+
+#[test]
+fn the_tool_tip_through_the_c_axis() {
+    // zhao2022-xzbc.ngc passes through the C axis at line 157, where a
+    // tangential tip error cannot be removed by any move within bounds.
+    let (code, out, err) = run(&[
+        "compensate",
+        "-e",
+        "fixtures/errors/zhao2022-xzbc.csv",
+        "fixtures/programs/zhao2022-xzbc.ngc",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        err.contains("warning: line 157: the machine is singular here"),
+        "{err}"
+    );
+    assert!(
+        err.contains("0.0576 µm of the 4.0553 µm tool-tip error"),
+        "{err}"
+    );
+    let with_c = out
+        .lines()
+        .filter(|l| {
+            l.split_whitespace()
+                .any(|w| w.starts_with('C') && w[1..].parse::<f64>().is_ok())
+        })
+        .count();
+    assert_eq!(with_c, 180, "every pose block is written");
+}
+
+#[test]
+fn the_papers_method_on_the_lens_program() {
+    let (code, _, err) = run(&[
+        "compensate",
+        "-e",
+        "fixtures/errors/zhao2022-xzbc.csv",
+        "--method",
+        "paper",
+        "fixtures/programs/zhao2022-lens.nc",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("241 poses, method Paper"), "{err}");
+}
