@@ -113,8 +113,7 @@ fn bench(c: &mut Criterion) {
                 warnings: Vec::new(),
                 singular_blocks: 0,
                 backlash: Vec::new(),
-                last_direction: Vec::new(),
-                last_target: None,
+                directions: Vec::new(),
             };
             let mut out = Vec::with_capacity(program.len());
             compensate_gcode(

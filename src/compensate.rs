@@ -941,10 +941,10 @@ pub struct CompensatingSolver<'a> {
     pub singular_blocks: usize,
     /// Backlash to pre-compensate: (joint, reversal value in mm / rad).
     pub backlash: Vec<(usize, f64)>,
-    /// Direction of the last motion of each joint (+1, −1, 0 before any).
-    pub last_direction: Vec<f64>,
-    /// The last joint values before backlash pre-compensation.
-    pub last_target: Option<JointValues>,
+    /// Direction of the last motion of each joint in `backlash`, by the
+    /// rule `diagnose` and `simulate` use (a reversal counts once the axis
+    /// is back by more than the dead band); filled on the first block.
+    pub directions: Vec<crate::diagnose::effects::DirectionTracker>,
 }
 
 impl CompensatingSolver<'_> {
@@ -1088,23 +1088,18 @@ impl CompensatingSolver<'_> {
             let after = self.actual_chain.pose(&q, self.errors);
             (after.tip_distance(pose), after.axis_angle(pose))
         };
+        // The direction is that of the commanded targets, in the units of the
+        // program (mm, degrees), with the dead band of the effect catalogue.
         let mut q = q;
-        if !self.backlash.is_empty() {
-            if self.last_direction.len() != q.len() {
-                self.last_direction.clear();
-                self.last_direction.resize(q.len(), 0.0);
-            }
-            let target = q.clone();
-            for &(j, value) in &self.backlash {
-                if let Some(prev) = &self.last_target {
-                    let d = target[j] - prev[j];
-                    if d.abs() > 1e-12 {
-                        self.last_direction[j] = d.signum();
-                    }
-                }
-                q[j] += 0.5 * value * self.last_direction[j];
-            }
-            self.last_target = Some(target);
+        if self.directions.len() != self.backlash.len() {
+            use crate::diagnose::effects::{DIRECTION_DEAD_BAND, DirectionTracker};
+            self.directions = vec![DirectionTracker::new(DIRECTION_DEAD_BAND); self.backlash.len()];
+        }
+        for (k, &(j, value)) in self.backlash.iter().enumerate() {
+            let revolute =
+                self.machine.chain.joints[j].kind == crate::machine::chain::JointKind::Revolute;
+            let file_units = if revolute { q[j].to_degrees() } else { q[j] };
+            q[j] += 0.5 * value * self.directions[k].update(file_units);
         }
         let ext_c = self.machine.to_external(&q);
         let ext_t = self.machine.to_external(th);

@@ -31,8 +31,7 @@ fn solver<'a>(
         warnings: Vec::new(),
         singular_blocks: 0,
         backlash: Vec::new(),
-        last_direction: Vec::new(),
-        last_target: None,
+        directions: Vec::new(),
     }
 }
 

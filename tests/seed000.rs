@@ -48,8 +48,7 @@ fn run_method(
         warnings: Vec::new(),
         singular_blocks: 0,
         backlash: Vec::new(),
-        last_direction: Vec::new(),
-        last_target: None,
+        directions: Vec::new(),
     };
     let mut prev: Option<Vec<f64>> = None;
     let mut qs = Vec::new();

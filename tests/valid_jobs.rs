@@ -125,3 +125,63 @@ fn the_papers_method_on_the_lens_program() {
     assert_eq!(code, 0, "{err}");
     assert!(err.contains("241 poses, method Paper"), "{err}");
 }
+
+#[test]
+fn compensate_reverses_backlash_where_diagnose_does() {
+    // One backlash model: a reversal counts once the axis is back by more
+    // than the dead band (1e-4 mm), in compensate as in diagnose and
+    // simulate. Before, compensate flipped on any move over 1e-12 mm, so a
+    // 0.05 µm jitter back flipped the 2.4 µm pre-compensation.
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json");
+    let (code, _, err) = run(&[
+        "fit",
+        "fixtures/errors/zhao2022-xzbc.csv",
+        "-o",
+        model.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let plain = std::fs::read_to_string(&model).unwrap();
+    let with_backlash = dir.path().join("b.json");
+    let text = plain
+        .trim_end()
+        .trim_end_matches('}')
+        .trim_end()
+        .to_string()
+        + r#", "effects": [{"effect": "backlash", "axis": "X", "parameters": {"value_mm": 0.0024}}]}"#;
+    std::fs::write(&with_backlash, text).unwrap();
+    // X (the tip radius with a vertical tool): 30 → 31 → back 0.00005 → 31.5 → 29.
+    let program = dir.path().join("p.nc");
+    std::fs::write(
+        &program,
+        "G43.5 H1\nG1 X30 Y0 Z5 I0 J0 K1 F100\nX31\nX30.99995\nX31.5\nX29\nM30\n",
+    )
+    .unwrap();
+    let x_words = |m: &Path| -> Vec<f64> {
+        let (code, out, err) = run(&[
+            "compensate",
+            "-e",
+            m.to_str().unwrap(),
+            program.to_str().unwrap(),
+            "--decimals",
+            "6",
+        ]);
+        assert_eq!(code, 0, "{err}");
+        out.lines()
+            .filter_map(|l| l.split_whitespace().find(|w| w.starts_with('X')))
+            .map(|w| w[1..].parse().unwrap())
+            .collect()
+    };
+    let (with, without) = (x_words(&with_backlash), x_words(&model));
+    let pre: Vec<f64> = with
+        .iter()
+        .zip(&without)
+        .map(|(a, b)| ((a - b) * 1e4).round() / 1e4)
+        .collect();
+    // No motion yet, then +1.2 µm while X rises (the jitter included), −1.2 µm after the reversal.
+    assert_eq!(
+        pre,
+        vec![0.0, 0.0012, 0.0012, 0.0012, -0.0012],
+        "{with:?} vs {without:?}"
+    );
+}

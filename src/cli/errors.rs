@@ -488,8 +488,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         warnings: dynamic_warnings,
         singular_blocks: 0,
         backlash,
-        last_direction: Vec::new(),
-        last_target: None,
+        directions: Vec::new(),
     };
     let report_name = a
         .report
