@@ -57,7 +57,7 @@ run_workload() {
     t_peer=$(min "$(timed peer)" "$t_peer")
   done
   local kin_tip kin_it
-  kin_tip=$(sed -n 's/.*tool-tip error:.*after max \([^ ]*\) mm.*/\1/p' "$WORK/kinpost.log")
+  kin_tip=$(sed -n 's/.*tool-tip error:.*(solution \([^ ]*\) mm).*/\1/p' "$WORK/kinpost.log")
   kin_it=$(sed -n 's/.*Newton iterations: \(.*\)/\1/p' "$WORK/kinpost.log")
   printf '%-34s %8s s   tool-tip residual max %s mm (%s)\n' "kinpost compensate (all cores)" "$t_kin" "$kin_tip" "$kin_it"
   printf '%-34s %8s s\n' "kinpost compensate (1 thread)" "$t_kin1"

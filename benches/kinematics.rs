@@ -112,6 +112,7 @@ fn bench(c: &mut Criterion) {
                 records: Vec::new(),
                 warnings: Vec::new(),
                 singular_blocks: 0,
+                decimals: Vec::new(),
                 backlash: Vec::new(),
                 directions: Vec::new(),
             };

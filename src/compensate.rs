@@ -897,6 +897,11 @@ pub struct BlockRecord {
     pub orientation_error_before_urad: f64,
     /// Remaining orientation error after compensation, µrad.
     pub orientation_residual_urad: f64,
+    /// Tool-tip error of the axis words as written (rounded to their
+    /// decimals), mm: what the machine really gets.
+    pub tip_residual_written_mm: f64,
+    /// Orientation error of the axis words as written, µrad.
+    pub orientation_residual_written_urad: f64,
     /// Compensation per axis (compensated − theoretical), output order, mm / deg.
     pub compensation: JointValues,
 }
@@ -936,6 +941,10 @@ pub struct CompensatingSolver<'a> {
     pub records: Vec<BlockRecord>,
     /// Warnings.
     pub warnings: Vec<String>,
+    /// Decimals of the written axis words, output order (the machine's or
+    /// `--decimals`): the miss of the values as written is reported beside
+    /// that of the solution. Empty: not rounded.
+    pub decimals: Vec<u32>,
     /// Blocks at a singularity where the best compensation within bounds
     /// was kept with a tool-tip residual above `accept_tip_mm`.
     pub singular_blocks: usize,
@@ -1095,12 +1104,33 @@ impl CompensatingSolver<'_> {
             use crate::diagnose::effects::{DIRECTION_DEAD_BAND, DirectionTracker};
             self.directions = vec![DirectionTracker::new(DIRECTION_DEAD_BAND); self.backlash.len()];
         }
+        let mut lag = [0.0; crate::machine::chain::MAX_JOINTS];
         for (k, &(j, value)) in self.backlash.iter().enumerate() {
             let revolute =
                 self.machine.chain.joints[j].kind == crate::machine::chain::JointKind::Revolute;
             let file_units = if revolute { q[j].to_degrees() } else { q[j] };
-            q[j] += 0.5 * value * self.directions[k].update(file_units);
+            lag[j] = 0.5 * value * self.directions[k].update(file_units);
+            q[j] += lag[j];
         }
+        // Where the machine goes with the words as written: rounded to their
+        // decimals, less the backlash it lags by.
+        let (written_tip, written_axis) = if self.decimals.is_empty() {
+            (after_tip, after_axis)
+        } else {
+            let mut ext = self.machine.to_external(&q);
+            for (v, &d) in ext.iter_mut().zip(&self.decimals) {
+                let scale = 10f64.powi(d as i32);
+                if let Some(i) = crate::numeric::round_half_away(*v * scale) {
+                    *v = i as f64 / scale;
+                }
+            }
+            let mut written = self.machine.to_internal(&ext);
+            for (w, l) in written.iter_mut().zip(lag) {
+                *w -= l;
+            }
+            let p = self.actual_chain.pose(&written, self.errors);
+            (p.tip_distance(pose), p.axis_angle(pose))
+        };
         let ext_c = self.machine.to_external(&q);
         let ext_t = self.machine.to_external(th);
         self.records.push(BlockRecord {
@@ -1110,6 +1140,8 @@ impl CompensatingSolver<'_> {
             tip_residual_mm: after_tip,
             orientation_error_before_urad: r.start_axis_rad * 1e6,
             orientation_residual_urad: after_axis * 1e6,
+            tip_residual_written_mm: written_tip,
+            orientation_residual_written_urad: written_axis * 1e6,
             compensation: ext_c
                 .iter()
                 .zip(&ext_t)
@@ -1461,16 +1493,41 @@ pub struct ReportWriter<W: std::io::Write> {
     out: W,
     blocks: usize,
     buf: Vec<u8>,
+    /// Keys of the per-axis values: the axis and its unit (`X_mm`, `C_deg`).
+    axis_keys: Vec<String>,
+}
+
+/// `values` (output order) as an object keyed by `keys`.
+fn by_axis(keys: &[String], values: serde_json::Value) -> serde_json::Value {
+    match values {
+        serde_json::Value::Array(a) => keys.iter().cloned().zip(a).collect(),
+        other => other,
+    }
 }
 
 impl<W: std::io::Write> ReportWriter<W> {
-    /// Starts the report (writes the opening of the blocks array).
-    pub fn new(mut out: W) -> std::io::Result<Self> {
+    /// Starts the report for `machine` (writes the opening of the blocks
+    /// array). Per-axis values are objects keyed by axis and unit
+    /// (`{"X_mm": …, "C_deg": …}`).
+    pub fn new(mut out: W, machine: &crate::machine::Machine) -> std::io::Result<Self> {
         out.write_all(b"{\n  \"blocks\": [")?;
+        let axis_keys = machine
+            .axes
+            .iter()
+            .map(|a| {
+                let revolute = machine
+                    .chain
+                    .joints
+                    .get(a.joint)
+                    .is_some_and(|j| j.kind == crate::machine::chain::JointKind::Revolute);
+                format!("{}_{}", a.name, if revolute { "deg" } else { "mm" })
+            })
+            .collect();
         Ok(ReportWriter {
             out,
             blocks: 0,
             buf: Vec::with_capacity(512),
+            axis_keys,
         })
     }
 
@@ -1479,7 +1536,10 @@ impl<W: std::io::Write> ReportWriter<W> {
         self.buf.clear();
         self.buf
             .extend_from_slice(if self.blocks == 0 { b"\n" } else { b",\n" });
-        let v = serde_json::to_value(r).map_err(std::io::Error::other)?;
+        let mut v = serde_json::to_value(r).map_err(std::io::Error::other)?;
+        if let Some(c) = v.get_mut("compensation") {
+            *c = by_axis(&self.axis_keys, c.take());
+        }
         let text = serde_json::to_string_pretty(&v).map_err(std::io::Error::other)?;
         indent(&mut self.buf, &text, "    ", true);
         self.out.write_all(&self.buf)?;
@@ -1496,8 +1556,15 @@ impl<W: std::io::Write> ReportWriter<W> {
         } else {
             b"\n  ]".as_slice()
         });
+        let mut summary = serde_json::to_value(summary).map_err(std::io::Error::other)?;
+        if let Some(obj) = summary.as_object_mut() {
+            obj.remove("axes");
+            if let Some(c) = obj.get_mut("compensation_range") {
+                *c = by_axis(&self.axis_keys, c.take());
+            }
+        }
         for (key, v) in [
-            ("summary", serde_json::to_value(summary)),
+            ("summary", Ok(summary)),
             ("warnings", serde_json::to_value(warnings)),
         ] {
             let v = v.map_err(std::io::Error::other)?;
@@ -1542,6 +1609,10 @@ pub struct RunSummary {
     pub orientation_error_before_max_urad: f64,
     /// Largest orientation residual after, µrad.
     pub orientation_residual_max_urad: f64,
+    /// Largest tool-tip error of the words as written, mm.
+    pub tip_residual_written_max_mm: f64,
+    /// Largest orientation error of the words as written, µrad.
+    pub orientation_residual_written_max_urad: f64,
     /// Blocks whose orientation error got worse (by more than 1e-9 µrad).
     pub orientation_worse_blocks: usize,
     /// Largest iteration count.
@@ -1576,6 +1647,8 @@ impl RunSummary {
             tip_residual_max_mm: 0.0,
             orientation_error_before_max_urad: 0.0,
             orientation_residual_max_urad: 0.0,
+            tip_residual_written_max_mm: 0.0,
+            orientation_residual_written_max_urad: 0.0,
             orientation_worse_blocks: 0,
             iterations_max: 0,
             iterations_mean: 0.0,
@@ -1590,6 +1663,11 @@ impl RunSummary {
         s.poses += 1;
         s.tip_error_before_max_mm = s.tip_error_before_max_mm.max(r.tip_error_before_mm);
         s.tip_residual_max_mm = s.tip_residual_max_mm.max(r.tip_residual_mm);
+        s.tip_residual_written_max_mm =
+            s.tip_residual_written_max_mm.max(r.tip_residual_written_mm);
+        s.orientation_residual_written_max_urad = s
+            .orientation_residual_written_max_urad
+            .max(r.orientation_residual_written_urad);
         s.orientation_error_before_max_urad = s
             .orientation_error_before_max_urad
             .max(r.orientation_error_before_urad);
@@ -1628,8 +1706,9 @@ impl RunSummary {
         );
         let _ = writeln!(
             t,
-            "  tool-tip error:    before max {:.4} µm  →  after max {:.3e} mm",
+            "  tool-tip error:    before max {:.4} µm  →  after max {:.3e} mm as written (solution {:.3e} mm)",
             self.tip_error_before_max_mm * 1e3,
+            self.tip_residual_written_max_mm,
             self.tip_residual_max_mm
         );
         let _ = writeln!(

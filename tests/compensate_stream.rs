@@ -30,6 +30,7 @@ fn solver<'a>(
         records: Vec::new(),
         warnings: Vec::new(),
         singular_blocks: 0,
+        decimals: Vec::new(),
         backlash: Vec::new(),
         directions: Vec::new(),
     }

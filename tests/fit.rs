@@ -670,7 +670,18 @@ fn fit_report_has_units_on_every_number() {
     assert!(text.contains("µm") && text.contains("µrad") && text.contains("arcsec"));
     assert!(text.contains("ISO 230-2, axis X"));
     let json = serde_json::to_value(&report).unwrap();
-    assert!(json["columns"][0]["rms_residual"].is_number());
+    // Units in the keys: µm for a translation, µrad for a rotation.
+    assert!(json["columns"][0]["rms_residual_um"].is_number());
+    assert!(json["columns"][0].get("rms_residual").is_none());
+    assert_eq!(json["columns"][0]["value_unit"], "mm");
+    let ebb_json = json["columns"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["name"] == "EBB")
+        .unwrap();
+    assert!(ebb_json["rms_residual_urad"].is_number());
+    assert!(ebb_json["cv_scores_urad"].is_array());
     assert_eq!(json["iso230_2"][0]["unit"], "µm");
 }
 

@@ -47,6 +47,7 @@ fn run_method(
         records: Vec::new(),
         warnings: Vec::new(),
         singular_blocks: 0,
+        decimals: Vec::new(),
         backlash: Vec::new(),
         directions: Vec::new(),
     };

@@ -76,7 +76,7 @@ fn thirty_turns_of_c_at_80_mm() {
     let after: f64 = err
         .lines()
         .find(|l| l.contains("tool-tip error"))
-        .and_then(|l| l.split("after max ").nth(1))
+        .and_then(|l| l.split("(solution ").nth(1))
         .and_then(|s| s.split_whitespace().next())
         .and_then(|v| v.parse().ok())
         .unwrap();
@@ -183,5 +183,72 @@ fn compensate_reverses_backlash_where_diagnose_does() {
         pre,
         vec![0.0, 0.0012, 0.0012, 0.0012, -0.0012],
         "{with:?} vs {without:?}"
+    );
+}
+
+#[test]
+fn the_reported_miss_is_that_of_the_written_words() {
+    // Before, the summary said "after max 1.155e-13 mm" whatever the
+    // decimals; with --decimals 1 the words really miss by tens of µm.
+    use kinpost::demo::{OffAxisLens, lens_path};
+    use kinpost::geometric::model::ErrorModel;
+    use kinpost::machine::Machine;
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("r.json");
+    let (code, out, err) = run(&[
+        "compensate",
+        "-e",
+        "fixtures/errors/zhao2022-xzbc.csv",
+        "fixtures/programs/zhao2022-lens.nc",
+        "--decimals",
+        "2",
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    // Independent: the written words, through the actual machine, against the poses.
+    let machine = Machine::embedded("zhao2022-xzbc").unwrap();
+    let model = ErrorModel::load(&root().join("fixtures/errors/zhao2022-xzbc.csv")).unwrap();
+    let bound = model.bind(&machine.chain).unwrap();
+    let actual = model.apply_fixed(&machine.chain).unwrap();
+    let mut current = vec![0.0; machine.axes.len()];
+    let mut worst = 0.0f64;
+    let poses = lens_path(&OffAxisLens::default());
+    let mut k = 0;
+    for line in out.lines() {
+        let mut any = false;
+        for w in line.split_whitespace() {
+            let axis = machine
+                .axes
+                .iter()
+                .position(|a| w.starts_with(a.name.as_str()));
+            if let (Some(i), Ok(v)) = (axis, w.get(1..).unwrap_or("").parse::<f64>()) {
+                current[i] = v;
+                any = true;
+            }
+        }
+        if any {
+            let p = actual.pose(&machine.to_internal(&current), &bound);
+            worst = worst.max((p.tip - poses[k].tip).norm());
+            k += 1;
+        }
+    }
+    assert_eq!(k, poses.len());
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let reported = r["summary"]["tip_residual_written_max_mm"]
+        .as_f64()
+        .unwrap();
+    assert!(worst > 1e-3, "two decimals miss by micrometres: {worst}");
+    // The program's poses are printed to 9 decimals: agreement to 1e-8 mm.
+    assert!(
+        (reported - worst).abs() < 1e-8,
+        "reported {reported} mm, evaluated {worst} mm"
+    );
+    assert!(r["blocks"][0]["compensation"]["X_mm"].is_number());
+    assert!(r["summary"]["compensation_range"]["C_deg"].is_array());
+    assert!(
+        err.contains(&format!("after max {reported:.3e} mm as written")),
+        "{err}"
     );
 }

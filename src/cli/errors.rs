@@ -487,6 +487,11 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         records: Vec::new(),
         warnings: dynamic_warnings,
         singular_blocks: 0,
+        decimals: machine
+            .axes
+            .iter()
+            .map(|ax| a.decimals.unwrap_or(ax.decimals))
+            .collect(),
         backlash,
         directions: Vec::new(),
     };
@@ -514,7 +519,9 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     let mut run = |report: Option<&mut dyn Write>| -> Result<RunSummary> {
         let mut summary = RunSummary::start(&machine, method);
         let mut writer = match report {
-            Some(w) => Some(ReportWriter::new(w).map_err(|e| Error::io(report_name.clone(), e))?),
+            Some(w) => Some(
+                ReportWriter::new(w, &machine).map_err(|e| Error::io(report_name.clone(), e))?,
+            ),
             None => None,
         };
         let mut sink = |records: &mut Vec<BlockRecord>| -> Result<()> {

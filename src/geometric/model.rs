@@ -210,8 +210,11 @@ pub struct ErrorModel {
     pub effects: Vec<EffectSpec>,
 }
 
-/// Fit statistics of one column.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// Fit statistics of one column. In JSON the residuals and scores carry
+/// their unit in the key (`rms_residual_um` for a translation,
+/// `rms_residual_urad` for a rotation, and so on), and `value_unit` names
+/// the unit of the fitted values (`mm` or `rad`).
+#[derive(Debug, Clone, PartialEq)]
 pub struct ColumnReport {
     /// Axis letter.
     pub axis: String,
@@ -251,6 +254,36 @@ pub struct ColumnReport {
     pub max_residual_arcsec: Option<f64>,
     /// Policy outside the measured travel.
     pub extrapolation: Extrapolation,
+}
+
+impl Serialize for ColumnReport {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        // `µm` → `um`, `µrad` → `urad`: the suffix of the residual keys.
+        let suffix = self.display_unit.replace('µ', "u");
+        let mut m = s.serialize_map(None)?;
+        m.serialize_entry("axis", &self.axis)?;
+        m.serialize_entry("name", &self.name)?;
+        m.serialize_entry("component", &self.component)?;
+        m.serialize_entry("value_unit", &self.unit)?;
+        m.serialize_entry("position_unit", &self.position_unit)?;
+        m.serialize_entry("points", &self.points)?;
+        m.serialize_entry("positions", &self.positions)?;
+        m.serialize_entry(&format!("range_{}", self.position_unit), &self.range)?;
+        m.serialize_entry("degree", &self.degree)?;
+        m.serialize_entry("knots", &self.knots)?;
+        m.serialize_entry("knots_chosen_by", &self.knots_chosen_by)?;
+        m.serialize_entry(&format!("cv_score_{suffix}"), &self.cv_score)?;
+        m.serialize_entry(&format!("cv_scores_{suffix}"), &self.cv_scores)?;
+        m.serialize_entry(&format!("rms_residual_{suffix}"), &self.rms_residual)?;
+        m.serialize_entry(&format!("max_residual_{suffix}"), &self.max_residual)?;
+        if self.rms_residual_arcsec.is_some() {
+            m.serialize_entry("rms_residual_arcsec", &self.rms_residual_arcsec)?;
+            m.serialize_entry("max_residual_arcsec", &self.max_residual_arcsec)?;
+        }
+        m.serialize_entry("extrapolation", &self.extrapolation)?;
+        m.end()
+    }
 }
 
 /// What [`ErrorModel::fit`] found.
