@@ -86,10 +86,14 @@ pub fn solve_linears(
     if lin.is_empty() {
         return Err("the machine has no linear axis to place the tool tip".into());
     }
+    // With the rotaries taking part the tip is no longer affine in the
+    // unknowns: more Newton steps.
+    let mut steps = 8;
     if lin.len() < 3 {
         lin = (0..chain.dof()).collect();
+        steps = 40;
     }
-    for _ in 0..8 {
+    for _ in 0..steps {
         let (pose, jac) = chain.pose_and_jacobian(q, errors);
         let r = tip - pose.tip;
         if r.norm() < 1e-13 {
@@ -141,21 +145,30 @@ pub fn insert_points(
         Pattern::Staggered { m } => {
             let pair = pair.ok_or("the staggered pattern needs a machine with two rotary axes")?;
             let (sa, ha) = (pair.split, pair.held);
-            let (da, db) = (qb[sa] - qa[sa], qb[ha] - qa[ha]);
             let segments = 2 * m + 1;
-            let mut a = qa[sa];
-            let mut b = qa[ha];
-            for i in 1..segments {
-                // Odd segments move the split rotary, even ones the held rotary.
-                if i % 2 == 1 {
-                    a += if i == 1 {
-                        da / (2 * m) as f64
-                    } else {
-                        da / m as f64
-                    };
+            // The value a fraction of the way from `from` to `to`: the end
+            // itself at the end, so that a rotary that has arrived rounds
+            // like its target (an accumulated sum 1e-14 off rounds to the
+            // other side of a half at 6 decimals, and the segment then
+            // seems to move one axis more).
+            let at = |from: f64, to: f64, num: usize, den: usize| {
+                if num == den {
+                    to
                 } else {
-                    b += db / m as f64;
+                    from + (to - from) * (num as f64 / den as f64)
                 }
+            };
+            let (mut a_steps, mut b_steps) = (0usize, 0usize);
+            for i in 1..segments {
+                // Odd segments move the split rotary (by half steps in
+                // units of 1/2m: 1, then 2, …), even ones the held rotary.
+                if i % 2 == 1 {
+                    a_steps += if i == 1 { 1 } else { 2 };
+                } else {
+                    b_steps += 1;
+                }
+                let a = at(qa[sa], qb[sa], a_steps, 2 * m);
+                let b = at(qa[ha], qb[ha], b_steps, m);
                 let f = i as f64 / segments as f64;
                 let mut q: Vec<f64> = qa.iter().zip(qb).map(|(x, y)| x + f * (y - x)).collect();
                 q[sa] = a;

@@ -293,10 +293,32 @@ pub fn looks_like_poses(head: &[u8]) -> bool {
     if crate::cl::looks_like_cl(head) {
         return true;
     }
+    // I J K are a tool vector only on straight moves: on an arc (G2/G3,
+    // modal) they are its centre, on G33.1/G76/G68.2 and the like something
+    // else again.
+    let mut straight = true;
     for (n, raw) in head.split(|b| *b == b'\n').enumerate() {
         let line = crate::gcode::parse_line(raw, n + 1);
+        let mut other_ijk = false;
         for w in line.words() {
-            if matches!(w.address.as_str(), "I" | "J" | "K" | "A3" | "B3" | "C3") {
+            if w.address == "G" {
+                let g = w.value;
+                if g == 0.0 || g == 1.0 {
+                    straight = true;
+                } else if g == 2.0 || g == 3.0 {
+                    straight = false;
+                } else if [33.0, 33.1, 76.0, 68.2, 5.0, 5.1, 5.2, 87.0, 88.0]
+                    .iter()
+                    .any(|c| (g - c).abs() < 1e-9)
+                {
+                    other_ijk = true;
+                }
+            }
+        }
+        for w in line.words() {
+            let vector = matches!(w.address.as_str(), "A3" | "B3" | "C3")
+                || (matches!(w.address.as_str(), "I" | "J" | "K") && straight && !other_ijk);
+            if vector {
                 return true;
             }
             if w.address == "G" && ((w.value - 43.4).abs() < 1e-9 || (w.value - 43.5).abs() < 1e-9)
@@ -309,4 +331,29 @@ pub fn looks_like_poses(head: &[u8]) -> bool {
         }
     }
     false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::looks_like_poses;
+
+    #[test]
+    fn arc_centres_are_not_tool_vectors() {
+        // Found by tests/scenarios.rs: a machine-axis program with arcs was
+        // taken for a pose program, and linkage then passed it through
+        // without dividing a single five-axis block.
+        assert!(!looks_like_poses(
+            b"G0 X10 Y0\nG2 X0 Y10 I-10 J0 F500\nX-10 Y0 I0 J-10\nG1 X1 A5 B3\n"
+        ));
+        assert!(!looks_like_poses(
+            b"G33.1 Z-10 K1.5\nG76 P2 Z-5 I-0.1 J0.1 K1\n"
+        ));
+        assert!(!looks_like_poses(b"G68.2 X0 Y0 Z0 I0 J45 K0\n"));
+        // A straight move with a tool vector, also after an arc.
+        assert!(looks_like_poses(
+            b"G2 X0 Y10 I-10 J0\nG1 X1 Y2 Z3 I0 J0 K1\n"
+        ));
+        assert!(looks_like_poses(b"G1 X1 Y2 Z3 A3=0 B3=0 C3=1\n"));
+        assert!(looks_like_poses(b"G43.4 H1\n"));
+    }
 }
