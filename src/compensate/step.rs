@@ -1,0 +1,513 @@
+//! The linear algebra of one Newton step: the methods, their options, and
+//! the factorisations that solve the step (closed-form Gram, Householder QR,
+//! SVD where ill-conditioned).
+
+use crate::linalg::{self, Col, Qr};
+use crate::machine::chain::{JacobianColumns, MAX_JOINTS, Pose};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
+
+/// Which Jacobian (and which step) to use.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// Task-priority step with the exact Jacobian of the error-aware chain,
+    /// including the derivatives of the fitted error splines (default).
+    Exact,
+    /// Task-priority step with the theoretical Jacobian (error-free chain).
+    Theoretical,
+    /// Seed 000 as printed: stacked 6×n theoretical Jacobian, unweighted
+    /// pseudo-inverse on the stacked residual.
+    Paper,
+}
+
+/// Options of the refinement.
+#[derive(Debug, Clone, Copy)]
+pub struct Options {
+    /// Step method.
+    pub method: Method,
+    /// Largest number of Newton iterations.
+    pub max_iterations: usize,
+    /// Tool-tip residual at which to stop, mm.
+    pub tip_tolerance_mm: f64,
+    /// Weights of the tool-axis residual components (x, y, z of the workpiece frame).
+    pub axis_weights: [f64; 3],
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            method: Method::Exact,
+            max_iterations: 30,
+            tip_tolerance_mm: 1e-12,
+            axis_weights: [1.0, 1.0, 1.0],
+        }
+    }
+}
+
+pub(super) fn residual(target: &Pose, p: &Pose) -> (Vector3<f64>, Vector3<f64>) {
+    (target.tip - p.tip, target.axis - p.axis)
+}
+
+/// Moore–Penrose pseudo-inverse via SVD with a relative singular-value cut-off.
+pub(super) fn pinv(m: &DMatrix<f64>) -> DMatrix<f64> {
+    let svd = m.clone().svd(true, true);
+    let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
+    let eps = smax * 1e-12 * (m.nrows().max(m.ncols()) as f64);
+    svd.pseudo_inverse(eps.max(f64::MIN_POSITIVE))
+        .unwrap_or_else(|_| DMatrix::zeros(m.ncols(), m.nrows()))
+}
+
+/// Damped least-squares solution of `J Δ = r` with joint scaling `scale`
+/// (Δ = S (J S)ᵀ ((J S)(J S)ᵀ + λ² I)⁻¹ r): λ = 0 is the minimum-norm
+/// solution; a larger λ shortens the step along ill-conditioned directions.
+pub(super) fn damped(
+    j: &DMatrix<f64>,
+    r: &DVector<f64>,
+    scale: &[f64],
+    lambda: f64,
+) -> DVector<f64> {
+    let n = j.ncols();
+    let js = DMatrix::from_fn(j.nrows(), n, |row, c| j[(row, c)] * scale[c]);
+    let sol = if lambda == 0.0 {
+        pinv(&js) * r
+    } else {
+        let a = &js * js.transpose() + DMatrix::identity(j.nrows(), j.nrows()) * (lambda * lambda);
+        match a.lu().solve(r) {
+            Some(y) => js.transpose() * y,
+            None => DVector::zeros(n),
+        }
+    };
+    DVector::from_fn(n, |k, _| sol[k] * scale[k])
+}
+
+/// Joint-space vectors of the refinement (entries past the dof unused).
+pub(super) type Joints = [f64; MAX_JOINTS];
+
+/// Largest condition estimate of the Gram matrix `(J_p S)(J_p S)ᵀ` for
+/// the closed-form tip step ([`Factored::factor_gram`]); above it the QR path.
+pub(super) const GRAM_CONDITION_LIMIT: f64 = 1e8;
+
+/// Problems whose (small) matrices have a condition number above this are
+/// handed to the SVD path; below it the Householder QR solution is accurate
+/// to far better than the next Newton step needs.
+pub(super) const QR_CONDITION_LIMIT: f64 = 1e8;
+
+/// Smallest damping (in decades from 1e-6) of the tip step `S (J S)ᵀ ((J S)
+/// (J S)ᵀ + λ² I)⁻¹ r` that keeps it within `caps`, starting from the
+/// undamped step `dq1`; `jp` holds the three tip rows. 3×3 solves on the stack.
+pub(super) fn damp_into_caps(
+    jp: &[Col],
+    rp: &Vector3<f64>,
+    caps: &Joints,
+    n: usize,
+    dq1: &mut Joints,
+) {
+    let within = |d: &Joints| (0..n).all(|k| d[k].abs() <= caps[k]);
+    if within(dq1) {
+        return;
+    }
+    // J S, 3×n.
+    let js = nalgebra::Matrix3xX::from_fn(n, |r, c| jp[r][c] * caps[c]);
+    let jjt = &js * js.transpose();
+    let mut lambda = 1e-6;
+    while lambda < 1e6 {
+        let a = jjt + Matrix3::identity() * (lambda * lambda);
+        let sol = match a.lu().solve(rp) {
+            Some(y) => js.transpose() * y,
+            None => nalgebra::DVector::zeros(n),
+        };
+        for k in 0..n {
+            dq1[k] = sol[k] * caps[k];
+        }
+        if within(dq1) {
+            break;
+        }
+        lambda *= 10.0;
+    }
+}
+
+/// The residual-independent part of one step of the chosen method, on the
+/// stack: the factorisations of [`Factored::step`] for one Jacobian, so that
+/// several steps can share them (see [`refine`]).
+///
+/// Tip part: the minimum-norm solution of `J_p S x = r_p` by QR of
+/// `(J_p S)ᵀ`, `Δ₁ = S x`. Axis part: with `Z` an orthonormal basis of the
+/// null space of `J_p` (one direction: `S z_s` normalised, `z_s` the scaled
+/// problem's null vector; more: trailing columns of the QR of `J_pᵀ`),
+/// `N (W J_o N)⁺ = Z (W J_o Z)⁺`, so `Δ₂ = Z (W J_o Z)⁺ W (r_o − J_o Δ₁)`,
+/// the same step as the SVD form with `N = I − J_p⁺ J_p` and every vector
+/// exactly in the null space up to rounding. Paper: least squares on the
+/// stacked 6×n Jacobian by QR.
+pub(super) struct Factored {
+    /// The last [`Factored::factor`] succeeded.
+    pub(super) usable: bool,
+    pub(super) n: usize,
+    /// The paper's stacked 6×n problem (factored in `scaled`).
+    pub(super) paper: bool,
+    /// QR of `(J_p S)ᵀ` (of the stacked Jacobian for the paper's step).
+    pub(super) scaled: Qr,
+    /// Joint scaling `S` (the trust-region caps).
+    pub(super) caps: Joints,
+    /// The tip rows of the Jacobian (for the damped tip step).
+    pub(super) jp_rows: [Col; 3],
+    /// The axis rows of the Jacobian.
+    pub(super) jo_rows: [Col; 3],
+    /// Axis weights `W`.
+    pub(super) weights: [f64; 3],
+    /// Dimension of the null space of `J_p` the axis part may use (0 when
+    /// the axis cannot move in it).
+    pub(super) free: usize,
+    /// Orthonormal basis of that null space.
+    pub(super) z: [Col; 3],
+    /// `B = W J_o Z` (3 × free).
+    pub(super) b: [Col; 3],
+    /// QR of `J_pᵀ` (null-space basis), then of `B`, when `free > 1`.
+    pub(super) aux: Qr,
+    /// The tip step is solved through the Gram matrix (see
+    /// [`Factored::factor_gram`]) instead of `scaled`.
+    pub(super) gram: bool,
+    /// Rows of `J_p S` (Gram path).
+    pub(super) a_rows: [Col; 3],
+    /// `((J_p S)(J_p S)ᵀ)⁻¹` (Gram path).
+    pub(super) gram_inv: [[f64; 3]; 3],
+}
+
+impl Factored {
+    /// Nothing factored yet.
+    pub(super) const EMPTY: Factored = Factored {
+        usable: false,
+        n: 0,
+        paper: false,
+        scaled: Qr::EMPTY,
+        caps: [0.0; MAX_JOINTS],
+        jp_rows: [[0.0; linalg::ROWS]; 3],
+        jo_rows: [[0.0; linalg::ROWS]; 3],
+        weights: [0.0; 3],
+        free: 0,
+        z: [[0.0; linalg::ROWS]; 3],
+        b: [[0.0; linalg::ROWS]; 3],
+        aux: Qr::EMPTY,
+        gram: false,
+        a_rows: [[0.0; linalg::ROWS]; 3],
+        gram_inv: [[0.0; 3]; 3],
+    };
+
+    /// Factors the step for the Jacobian `jac` (columns, chain order), in
+    /// place; `false` (and `usable` false) when a matrix is too
+    /// ill-conditioned for the QR path (the caller then uses [`step_svd`]).
+    pub(super) fn factor(
+        &mut self,
+        jac: &JacobianColumns,
+        n: usize,
+        opts: &Options,
+        caps: &Joints,
+    ) -> bool {
+        self.usable = self.factor_qr(jac, n, opts, caps);
+        self.usable
+    }
+
+    pub(super) fn factor_qr(
+        &mut self,
+        jac: &JacobianColumns,
+        n: usize,
+        opts: &Options,
+        caps: &Joints,
+    ) -> bool {
+        self.n = n;
+        self.caps = *caps;
+        self.weights = opts.axis_weights;
+        self.free = 0;
+        self.gram = false;
+        self.paper = opts.method == Method::Paper;
+        if self.paper {
+            if n > linalg::COLS {
+                return false;
+            }
+            let cols: [Col; linalg::COLS] = std::array::from_fn(|c| {
+                let mut col = [0.0; linalg::ROWS];
+                if c < n {
+                    col[..6].copy_from_slice(&jac[c]);
+                }
+                col
+            });
+            self.scaled.factor(&cols[..n], 6);
+            return self.scaled.condition() <= QR_CONDITION_LIMIT;
+        }
+        if !(3..=linalg::ROWS).contains(&n) {
+            return false;
+        }
+        // The tip rows, as columns of J_pᵀ (n×3), unscaled and scaled by caps.
+        let mut jpst = [[0.0; linalg::ROWS]; 3];
+        for (r, (col, cols)) in self.jp_rows.iter_mut().zip(jpst.iter_mut()).enumerate() {
+            *col = [0.0; linalg::ROWS];
+            for c in 0..n {
+                col[c] = jac[c][r];
+                cols[c] = jac[c][r] * caps[c];
+            }
+        }
+        for (r, row) in self.jo_rows.iter_mut().enumerate() {
+            *row = [0.0; linalg::ROWS];
+            for c in 0..n {
+                row[c] = jac[c][r + 3];
+            }
+        }
+        if (n == 3 || n == 4) && self.factor_gram(&jpst, n) {
+            return true;
+        }
+        self.scaled.factor(&jpst, n);
+        if self.scaled.condition() > QR_CONDITION_LIMIT {
+            return false;
+        }
+        // Null space of J_p and the weighted axis rows on it. With one free
+        // direction it is the scaled problem's null vector mapped back through S
+        // (J_p (S z) = (J_p S) z = 0), normalised; with more, an orthonormal
+        // basis from the QR of J_pᵀ itself.
+        let free = n - 3;
+        if free == 0 {
+            return true;
+        }
+        if free > 3 {
+            return false;
+        }
+        if free == 1 {
+            let zs = self.scaled.q_column(3);
+            let mut z = [0.0; linalg::ROWS];
+            for k in 0..n {
+                z[k] = caps[k] * zs[k];
+            }
+            let norm = z[..n].iter().map(|x| x * x).sum::<f64>().sqrt();
+            if norm.is_nan() || norm <= 0.0 {
+                return false;
+            }
+            for x in z.iter_mut().take(n) {
+                *x /= norm;
+            }
+            self.z[0] = z;
+        } else {
+            self.aux.factor(&self.jp_rows, n);
+            if self.aux.condition() > QR_CONDITION_LIMIT {
+                return false;
+            }
+            for i in 0..free {
+                self.z[i] = self.aux.q_column(3 + i);
+            }
+        }
+        // B = W J_o Z (3 × free).
+        for i in 0..free {
+            let mut col = [0.0; linalg::ROWS];
+            for (r, x) in col.iter_mut().take(3).enumerate() {
+                *x = self.jo(r, &self.z[i]);
+            }
+            self.b[i] = col;
+        }
+        let scale = self.b[..free]
+            .iter()
+            .flat_map(|c| c[..3].iter())
+            .fold(0.0f64, |m, x| m.max(x.abs()));
+        if scale == 0.0 {
+            // The axis cannot move in the null space (or all weights are 0).
+            return true;
+        }
+        if free > 1 {
+            self.aux.factor(&self.b[..free], 3);
+            if self.aux.condition() > QR_CONDITION_LIMIT {
+                return false;
+            }
+        }
+        self.free = free;
+        true
+    }
+
+    /// The tip step and (for four joints) the null direction of `J_p` for a
+    /// well-conditioned problem of three or four joints, the common case, in
+    /// closed form: with `A = J_p S` (rows `a`), the minimum-norm solution of
+    /// `A x = r_p` is `Aᵀ (A Aᵀ)⁻¹ r_p`, the 3×3 inverse by cofactors; the null
+    /// vector of the 3×4 `A` is its generalised cross product (the signed 3×3
+    /// minors), mapped back through `S`. Used only when the Gram matrix's
+    /// condition estimate `‖G‖_F ‖G⁻¹‖_F` is at most [`GRAM_CONDITION_LIMIT`]
+    /// (`cond(A)` up to 10⁴, where squaring the condition still leaves the
+    /// step far more accurate than the next Newton step needs); otherwise
+    /// `false`, and the caller takes the Householder QR path.
+    pub(super) fn factor_gram(&mut self, a: &[Col; 3], n: usize) -> bool {
+        let dot = |i: usize, j: usize| (0..n).map(|k| a[i][k] * a[j][k]).sum::<f64>();
+        let g = [
+            [dot(0, 0), dot(0, 1), dot(0, 2)],
+            [0.0, dot(1, 1), dot(1, 2)],
+            [0.0, 0.0, dot(2, 2)],
+        ];
+        let (g00, g01, g02, g11, g12, g22) = (g[0][0], g[0][1], g[0][2], g[1][1], g[1][2], g[2][2]);
+        // Cofactors of the symmetric G.
+        let c00 = g11 * g22 - g12 * g12;
+        let c01 = g02 * g12 - g01 * g22;
+        let c02 = g01 * g12 - g02 * g11;
+        let c11 = g00 * g22 - g02 * g02;
+        let c12 = g01 * g02 - g00 * g12;
+        let c22 = g00 * g11 - g01 * g01;
+        let det = g00 * c00 + g01 * c01 + g02 * c02;
+        if det.is_nan() || det <= 0.0 {
+            return false;
+        }
+        let inv = [
+            [c00 / det, c01 / det, c02 / det],
+            [c01 / det, c11 / det, c12 / det],
+            [c02 / det, c12 / det, c22 / det],
+        ];
+        let frob = |m: &[[f64; 3]; 3]| m.iter().flatten().map(|x| x * x).sum::<f64>().sqrt();
+        let full = [[g00, g01, g02], [g01, g11, g12], [g02, g12, g22]];
+        let cond = frob(&full) * frob(&inv);
+        if cond.is_nan() || cond > GRAM_CONDITION_LIMIT {
+            return false;
+        }
+        if n == 4 {
+            // z_k = (−1)^k det(A without column k), then S z, normalised.
+            let minor = |c0: usize, c1: usize, c2: usize| {
+                a[0][c0] * (a[1][c1] * a[2][c2] - a[1][c2] * a[2][c1])
+                    - a[0][c1] * (a[1][c0] * a[2][c2] - a[1][c2] * a[2][c0])
+                    + a[0][c2] * (a[1][c0] * a[2][c1] - a[1][c1] * a[2][c0])
+            };
+            let zs = [
+                minor(1, 2, 3),
+                -minor(0, 2, 3),
+                minor(0, 1, 3),
+                -minor(0, 1, 2),
+            ];
+            let mut z = [0.0; linalg::ROWS];
+            for k in 0..4 {
+                z[k] = self.caps[k] * zs[k];
+            }
+            let norm = z[..4].iter().map(|x| x * x).sum::<f64>().sqrt();
+            if norm.is_nan() || norm <= 0.0 {
+                return false;
+            }
+            for x in z.iter_mut().take(4) {
+                *x /= norm;
+            }
+            self.z[0] = z;
+            let mut col = [0.0; linalg::ROWS];
+            for (r, x) in col.iter_mut().take(3).enumerate() {
+                *x = self.jo(r, &z);
+            }
+            self.b[0] = col;
+            let movable = col[..3].iter().any(|x| *x != 0.0);
+            self.free = if movable { 1 } else { 0 };
+        }
+        self.a_rows = *a;
+        self.gram_inv = inv;
+        self.gram = true;
+        true
+    }
+
+    /// Row `r` of `W J_o` applied to `v`.
+    pub(super) fn jo(&self, r: usize, v: &Col) -> f64 {
+        self.weights[r] * (0..self.n).map(|c| self.jo_rows[r][c] * v[c]).sum::<f64>()
+    }
+
+    /// The step for the residuals `rp` (tip) and `ro` (axis), split into its
+    /// tip part and its axis part; the tip part damped just enough to stay
+    /// inside the trust region (the caps).
+    pub(super) fn step(&self, rp: &Vector3<f64>, ro: &Vector3<f64>) -> (Joints, Joints) {
+        let n = self.n;
+        let mut d1 = [0.0; MAX_JOINTS];
+        let mut d2 = [0.0; MAX_JOINTS];
+        if self.paper {
+            let mut r = [0.0; linalg::ROWS];
+            r[..6].copy_from_slice(&[rp.x, rp.y, rp.z, ro.x, ro.y, ro.z]);
+            let x = self.scaled.least_squares(&r);
+            d1[..n].copy_from_slice(&x[..n]);
+            return (d1, d2);
+        }
+        let x = if self.gram {
+            // Aᵀ (A Aᵀ)⁻¹ r_p.
+            let g = &self.gram_inv;
+            let y: [f64; 3] =
+                std::array::from_fn(|i| g[i][0] * rp.x + g[i][1] * rp.y + g[i][2] * rp.z);
+            let a = &self.a_rows;
+            let mut x = [0.0; linalg::ROWS];
+            for k in 0..n {
+                x[k] = a[0][k] * y[0] + a[1][k] * y[1] + a[2][k] * y[2];
+            }
+            x
+        } else {
+            self.scaled
+                .min_norm_transposed(&[rp.x, rp.y, rp.z, 0.0, 0.0, 0.0])
+        };
+        for k in 0..n {
+            d1[k] = x[k] * self.caps[k];
+        }
+        damp_into_caps(&self.jp_rows, rp, &self.caps, n, &mut d1);
+        let free = self.free;
+        if free == 0 {
+            return (d1, d2);
+        }
+        // v = W r_o − W J_o Δ₁.
+        let mut v = [0.0; linalg::ROWS];
+        for (r, x) in v.iter_mut().take(3).enumerate() {
+            *x = self.weights[r] * ro[r] - self.jo(r, &d1);
+        }
+        let y: [f64; linalg::COLS] = if free == 1 {
+            // B⁺ v = Bᵀ v / |B|² for a single column.
+            let c = &self.b[0];
+            let nn: f64 = c[..3].iter().map(|x| x * x).sum();
+            let mut y = [0.0; linalg::COLS];
+            y[0] = (c[0] * v[0] + c[1] * v[1] + c[2] * v[2]) / nn;
+            y
+        } else {
+            self.aux.least_squares(&v)
+        };
+        for (i, zi) in self.z.iter().enumerate().take(free) {
+            for k in 0..n {
+                d2[k] += zi[k] * y[i];
+            }
+        }
+        (d1, d2)
+    }
+}
+
+/// One step of the chosen method with heap matrices and SVD pseudo-inverses,
+/// split into its tip part and its axis part (the paper's stacked step is
+/// all "tip part"). The tip part is damped just enough to stay inside the
+/// trust region `caps` (Levenberg–Marquardt). The reference form of
+/// the QR path of [`Factored`], used where that one declines
+/// (ill-conditioned matrices).
+pub(super) fn step_svd(
+    jac: &JacobianColumns,
+    n: usize,
+    rp: &Vector3<f64>,
+    ro: &Vector3<f64>,
+    opts: &Options,
+    caps: &[f64],
+) -> (Joints, Joints) {
+    let within = |d: &DVector<f64>| d.iter().zip(caps).all(|(x, c)| x.abs() <= *c);
+    let out = |d: &DVector<f64>| -> Joints {
+        let mut a = [0.0; MAX_JOINTS];
+        a[..n].copy_from_slice(d.as_slice());
+        a
+    };
+    if opts.method == Method::Paper {
+        let j = DMatrix::from_fn(6, n, |r, c| jac[c][r]);
+        let r = DVector::from_vec(vec![rp.x, rp.y, rp.z, ro.x, ro.y, ro.z]);
+        return (out(&(pinv(&j) * r)), [0.0; MAX_JOINTS]);
+    }
+    let jp = DMatrix::from_fn(3, n, |r, c| jac[c][r]);
+    let w = &opts.axis_weights;
+    let jo = DMatrix::from_fn(3, n, |r, c| w[r] * jac[c][r + 3]);
+    let rp = DVector::from_column_slice(rp.as_slice());
+    let ro = DVector::from_vec(vec![w[0] * ro.x, w[1] * ro.y, w[2] * ro.z]);
+    let mut dq1 = damped(&jp, &rp, caps, 0.0);
+    if !within(&dq1) {
+        // Smallest damping (in decades) that keeps the tip step in bounds.
+        let mut lambda = 1e-6;
+        while lambda < 1e6 {
+            dq1 = damped(&jp, &rp, caps, lambda);
+            if within(&dq1) {
+                break;
+            }
+            lambda *= 10.0;
+        }
+    }
+    let jp_pinv = pinv(&jp);
+    let null = DMatrix::identity(n, n) - &jp_pinv * &jp;
+    let jon = &jo * &null;
+    let dq2 = &null * (pinv(&jon) * (ro - &jo * &dq1));
+    (out(&dq1), out(&dq2))
+}
