@@ -717,7 +717,12 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     )
     .map_err(io)?;
     writeln!(out, "G21 G90 G94").map_err(io)?;
-    for record in ClReader::new(input, &opts.file_name) {
+    let records = crate::cl::lower(
+        ClReader::new(input, &opts.file_name),
+        &opts.file_name,
+        crate::cl::DEFAULT_ARC_TOLERANCE_MM,
+    );
+    for record in records {
         let record = record?;
         stats.lines += 1;
         bytes_read += record.text.len() as u64;
@@ -836,6 +841,8 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
             ClStatement::Multax(_) | ClStatement::Other { .. } => {
                 writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?
             }
+            ClStatement::Block(b) => writeln!(out, "{b}").map_err(io)?,
+            ClStatement::Warning(w) => stats.warnings.push(w.clone()),
         }
     }
     Ok(stats)
