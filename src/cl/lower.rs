@@ -801,3 +801,165 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Iterator for Lowered<I> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cl::ClReader;
+
+    fn run(text: &str) -> Result<Vec<ClStatement>, Error> {
+        lower(ClReader::new(text.as_bytes(), "t.apt"), "t.apt", 1e-3)
+            .map(|r| r.map(|r| r.statement))
+            .collect()
+    }
+
+    fn gotos(s: &[ClStatement]) -> Vec<[f64; 3]> {
+        s.iter()
+            .filter_map(|s| match s {
+                ClStatement::Goto { tip, .. } => Some(*tip),
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn blocks(s: &[ClStatement]) -> Vec<String> {
+        s.iter()
+            .filter_map(|s| match s {
+                ClStatement::Block(b) => Some(b.clone()),
+                _ => None,
+            })
+            .collect()
+    }
+
+    fn near(a: [f64; 3], b: [f64; 3]) -> bool {
+        norm(sub(a, b)) < 1e-9
+    }
+
+    #[test]
+    fn spindle_forms() {
+        let s = run("SPINDL/12000,RPM,CLW\nSPINDL/RPM,800,CCLW\nSPINDL/SMM,200,CLW\nSPINDL/SFM,100,CCLW\nSPINDL/OFF\n").unwrap();
+        assert!(matches!(
+            s[0],
+            ClStatement::Spindle {
+                rpm: Some(12000.0),
+                dir: Some(crate::cl::SpindleDir::Clockwise),
+                off: false
+            }
+        ));
+        assert!(matches!(
+            s[1],
+            ClStatement::Spindle {
+                rpm: Some(800.0),
+                dir: Some(crate::cl::SpindleDir::CounterClockwise),
+                off: false
+            }
+        ));
+        assert_eq!(blocks(&s), ["G96 S200 M3", "G96 S30.48 M4"]);
+        assert!(matches!(s[4], ClStatement::Spindle { off: true, .. }));
+    }
+
+    #[test]
+    fn tools_and_cutcom() {
+        let s =
+            run("LOAD/TOOL,3,ADJUST,13\nSELECT/TOOL,4\nCUTCOM/LEFT\nCUTCOM/RIGHT\nCUTCOM/OFF\n")
+                .unwrap();
+        assert_eq!(
+            blocks(&s),
+            ["T3 M6", "G43 H13", "T4", "G41 D3", "G42 D3", "G40"]
+        );
+    }
+
+    /// A quarter circle counter-clockwise about +Z: every point on the
+    /// circle, the chord error within the tolerance, the end exact.
+    #[test]
+    fn circle_is_linearised_within_tolerance() {
+        let s = run("UNITS/MM\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/0,10,0\n").unwrap();
+        let g = gotos(&s);
+        assert!(near(*g.last().unwrap(), [0.0, 10.0, 0.0]));
+        assert!(g.len() > 20);
+        for w in g.windows(2) {
+            assert!((norm(w[1]) - 10.0).abs() < 1e-9);
+            // Counter-clockwise: y grows, x falls.
+            assert!(w[1][1] > w[0][1] && w[1][0] < w[0][0]);
+            let mid = scale(add(w[0], w[1]), 0.5);
+            assert!(10.0 - norm(mid) <= 1e-3 + 1e-12);
+        }
+        // About -Z the same end point is three quarters clockwise.
+        let s = run("UNITS/MM\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,-1\nGOTO/0,10,0\n").unwrap();
+        assert!(gotos(&s).iter().any(|p| p[0] < -9.9));
+        // A full circle: start equal to end.
+        let s = run("UNITS/MM\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,1\nGOTO/10,0,0\n").unwrap();
+        assert!(gotos(&s).iter().any(|p| p[0] < -9.99));
+    }
+
+    #[test]
+    fn bad_circles_are_refused() {
+        let e = run("UNITS/MM\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,1\nGOTO/0,11,0\n").unwrap_err();
+        assert!(e.to_string().contains("t.apt:4:1"), "{e}");
+        let e = run("UNITS/MM\nCIRCLE/0,0,0,0,0,1\nGOTO/0,10,0\n").unwrap_err();
+        assert!(e.to_string().contains("t.apt:3:1"), "{e}");
+    }
+
+    /// A hole: rapid to the retract level and to RAPTO, feed to FEDTO,
+    /// back to the retract level; pecks for DEEP.
+    #[test]
+    fn cycle_holes_are_expanded() {
+        let s = run("UNITS/MM\nGOTO/0,0,30\nCYCLE/DRILL,FEDTO,5,MMPM,100,RAPTO,2,RTRCTO,30,DWELL,1\nGOTO/5,5,0\nCYCLE/OFF\nGOTO/0,0,30\n").unwrap();
+        let g = gotos(&s);
+        let want = [
+            [0.0, 0.0, 30.0],
+            [5.0, 5.0, 30.0],
+            [5.0, 5.0, 2.0],
+            [5.0, 5.0, -5.0],
+            [5.0, 5.0, 30.0],
+            [0.0, 0.0, 30.0],
+        ];
+        assert_eq!(g.len(), want.len());
+        for (a, b) in g.iter().zip(want) {
+            assert!(near(*a, b), "{g:?}");
+        }
+        assert!(blocks(&s).contains(&"G4 P1".to_string()));
+        let s =
+            run("UNITS/MM\nCYCLE/DEEP,FEDTO,10,1STPECK,4,MMPM,100,RAPTO,2,RTRCTO,20\nGOTO/0,0,0\n")
+                .unwrap();
+        let z: Vec<f64> = gotos(&s).iter().map(|p| p[2]).collect();
+        assert_eq!(z.iter().cloned().fold(f64::INFINITY, f64::min), -10.0);
+        assert!(z.contains(&-4.0) && z.contains(&-8.0), "{z:?}");
+        let e = run("CYCLE/TAP,FEDTO,5\n").unwrap_err();
+        assert!(e.to_string().contains("t.apt:1:1"));
+    }
+
+    /// CSYS: the set-up frame's axes are the matrix columns, its origin the
+    /// last column; points become `Rᵀ (p − t)`.
+    #[test]
+    fn csys_translation_and_rotation() {
+        let s = run("UNITS/MM\nCSYS/1,0,0,10,0,1,0,20,0,0,1,30\nGOTO/11,22,33\n").unwrap();
+        assert!(near(gotos(&s)[0], [1.0, 2.0, 3.0]));
+        // Set-up X along CL -Z, Z along CL +X (a quarter turn about Y).
+        let s = run("UNITS/MM\nCSYS/0,0,1,0,0,1,0,0,-1,0,0,0\nGOTO/250,5,-12,1,0,0\n").unwrap();
+        match &s[2] {
+            ClStatement::Goto { tip, axis } => {
+                assert!(near(*tip, [12.0, 5.0, 250.0]), "{tip:?}");
+                assert!(near(axis.unwrap(), [0.0, 0.0, 1.0]));
+            }
+            other => panic!("{other:?}"),
+        }
+        let e = run("CSYS/2,0,0,0,0,1,0,0,0,0,1,0\n").unwrap_err();
+        assert!(e.to_string().contains("t.apt:1:1"));
+    }
+
+    #[test]
+    fn never_silent() {
+        let e = run("UNITS/MM\nGOTO/0,0,0\nGOFWD/S1,TANTO,S2\n").unwrap_err();
+        assert!(e.to_string().contains("t.apt:3:1"), "{e}");
+        let e = run("UNITS/MM\nFEDRAT/MMPM,1e300\n").unwrap_err();
+        assert!(e.to_string().contains("t.apt:2:1"), "{e}");
+        // No UNITS: a warning, millimetres; comments are counted.
+        let s = run("PARTNO/X\nGOTO/0,0,0\n").unwrap();
+        let warnings: Vec<_> = s
+            .iter()
+            .filter(|s| matches!(s, ClStatement::Warning(_)))
+            .collect();
+        assert_eq!(warnings.len(), 2, "{s:?}");
+    }
+}
