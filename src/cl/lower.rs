@@ -88,6 +88,7 @@ pub struct Lowered<I> {
     cycle: Option<Cycle>,
     feed: Option<(f64, FeedUnit)>,
     tool: Option<u32>,
+    per_rev: bool,
     commented: BTreeMap<String, usize>,
 }
 
@@ -114,6 +115,7 @@ pub fn lower<I: Iterator<Item = Result<ClRecord, Error>>>(
         cycle: None,
         feed: None,
         tool: None,
+        per_rev: false,
         commented: BTreeMap::new(),
     }
 }
@@ -209,6 +211,22 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
             },
         );
         self.pos = Some(tip);
+    }
+
+    /// A feed: per revolution as `G95` and the value in mm/rev, back to
+    /// per minute as `G94`.
+    fn feed_record(&mut self, r: &ClRecord, value: f64, unit: FeedUnit) {
+        let per_rev = matches!(unit, FeedUnit::Mmpr | FeedUnit::Ipr);
+        if per_rev != self.per_rev {
+            self.per_rev = per_rev;
+            self.block(r, if per_rev { "G95" } else { "G94" });
+        }
+        let (value, unit) = match unit {
+            FeedUnit::Mmpr => (value, FeedUnit::Mmpm),
+            FeedUnit::Ipr => (value * 25.4, FeedUnit::Mmpm),
+            u => (value, u),
+        };
+        self.emit(r, ClStatement::Fedrat { value, unit });
     }
 
     fn numbers(&self, r: &ClRecord, args: &[Arg], what: &str) -> Result<Vec<f64>, Error> {
@@ -348,7 +366,7 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
         self.go(r, r_plane, true);
         let old_feed = self.feed;
         if let Some((f, u)) = c.feed {
-            self.emit(r, ClStatement::Fedrat { value: f, unit: u });
+            self.feed_record(r, f, u);
         }
         let bottom = -c.depth;
         match c.kind {
@@ -392,7 +410,7 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
         if let Some((f, u)) = old_feed
             && c.feed.is_some()
         {
-            self.emit(r, ClStatement::Fedrat { value: f, unit: u });
+            self.feed_record(r, f, u);
         }
         Ok(())
     }
@@ -721,7 +739,7 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
                     return Err(self.err(&r, format!("feed rate {value:e} is absurd (more than {MAX_FEED_MM_MIN} mm/min or {MAX_FEED_MM_REV} mm/rev)")));
                 }
                 self.feed = Some((*value, *unit));
-                self.out.push_back(r);
+                self.feed_record(&r, *value, *unit);
             }
             ClStatement::Units(u) => {
                 self.units_seen = true;
@@ -946,6 +964,24 @@ mod tests {
         }
         let e = run("CSYS/2,0,0,0,0,1,0,0,0,0,1,0\n").unwrap_err();
         assert!(e.to_string().contains("t.apt:1:1"));
+    }
+
+    #[test]
+    fn per_revolution_feeds() {
+        let s = run("UNITS/MM\nFEDRAT/0.1,MMPR\nFEDRAT/IPR,0.01\nFEDRAT/500,MMPM\n").unwrap();
+        assert_eq!(blocks(&s), ["G95", "G94"]);
+        let f: Vec<f64> = s
+            .iter()
+            .filter_map(|s| match s {
+                ClStatement::Fedrat {
+                    value,
+                    unit: FeedUnit::Mmpm,
+                } => Some(*value),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(f.len(), 3);
+        assert!((f[1] - 0.254).abs() < 1e-12);
     }
 
     #[test]
