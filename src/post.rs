@@ -67,6 +67,10 @@ pub struct PostOptions {
     pub modal_axes: bool,
     /// Name of the input file for messages.
     pub file_name: String,
+    /// APT CL: largest chord error of linearised arcs, mm.
+    pub arc_tolerance_mm: f64,
+    /// APT CL: units of a program without `UNITS` (None: mm, with a warning).
+    pub cl_units: Option<crate::cl::ClUnits>,
 }
 
 impl Default for PostOptions {
@@ -77,6 +81,8 @@ impl Default for PostOptions {
             axis_tolerance_rad: 1e-4,
             modal_axes: false,
             file_name: "<stdin>".into(),
+            arc_tolerance_mm: crate::cl::DEFAULT_ARC_TOLERANCE_MM,
+            cl_units: None,
         }
     }
 }
@@ -720,7 +726,8 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     let records = crate::cl::lower(
         ClReader::new(input, &opts.file_name),
         &opts.file_name,
-        crate::cl::DEFAULT_ARC_TOLERANCE_MM,
+        opts.arc_tolerance_mm,
+        opts.cl_units,
     );
     for record in records {
         let record = record?;

@@ -396,3 +396,75 @@ fn solidworks_cam_post_follows_the_cl_path() {
         );
     }
 }
+
+fn post_stdin(args: &[&str], input: &str) -> (i32, String, String) {
+    use std::io::Write;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_kinpost"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(["post", "-m", MACHINE, "--input-kind", "cl"])
+        .args(args)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(input.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// The SolidWorks CAM spindle form is accepted; motion statements kinpost
+/// does not convert and absurd feeds are refused with file:line:col.
+#[test]
+fn real_forms_and_refusals() {
+    let (code, nc, _) = post_stdin(&[], "UNIT/MM\nSPINDL/12000,RPM,CLW\nGOTO/1,2,3\n");
+    assert_eq!(code, 0);
+    assert!(nc.contains("S12000 M3\n"), "{nc}");
+    let (code, _, err) = post_stdin(&[], "UNITS/MM\nGOTO/0,0,0\nGOFWD/S1,TANTO,S2\n");
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("<stdin>:3:1"), "{err}");
+    let (code, nc, err) = post_stdin(&[], "UNITS/MM\nFEDRAT/MMPM,1e300\nGOTO/1,0,0\n");
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("<stdin>:2:1") && !nc.contains("F1000"),
+        "{err}"
+    );
+}
+
+/// `--units` sets the units of a program without `UNITS` (no warning
+/// then); without either, millimetres and a warning. `--arc-tolerance`
+/// sets the chord error: 0.1 mm needs fewer moves than the default.
+#[test]
+fn units_and_arc_tolerance_options() {
+    let (code, nc, err) = post_stdin(&[], "GOTO/1,0,0\n");
+    assert_eq!(code, 0);
+    assert!(
+        nc.contains("X1.0000 ") && err.contains("millimetres assumed"),
+        "{err}"
+    );
+    let (code, nc, err) = post_stdin(&["--units", "inch"], "GOTO/1,0,0\n");
+    assert_eq!(code, 0);
+    assert!(
+        nc.contains("X25.4000 ") && !err.contains("assumed"),
+        "{nc}{err}"
+    );
+    let arc = "UNITS/MM\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,1\nGOTO/10,0,0\n";
+    let moves = |nc: &str| nc.lines().filter(|l| l.contains('X')).count();
+    let (_, fine, _) = post_stdin(&[], arc);
+    let (_, coarse, _) = post_stdin(&["--arc-tolerance", "0.1"], arc);
+    // Full circle, radius 10: 2π / (2 acos(1 − tol/r)) chords.
+    let chords = |tol: f64| (std::f64::consts::TAU / (2.0 * (1.0 - tol / 10.0f64).acos())).ceil();
+    assert_eq!(moves(&fine) as f64, 1.0 + chords(1e-3));
+    assert_eq!(moves(&coarse) as f64, 1.0 + chords(0.1));
+    let (code, _, _) = post_stdin(&["--arc-tolerance", "0"], arc);
+    assert_eq!(code, 2);
+}

@@ -94,19 +94,35 @@ pub struct Lowered<I> {
 
 /// Lowers the records of `inner` (see the module documentation); arcs are
 /// linearised within `arc_tolerance_mm`.
+///
+/// `default_units`: the units of a program without `UNITS` (`None`:
+/// millimetres, with a warning at the first motion).
 pub fn lower<I: Iterator<Item = Result<ClRecord, Error>>>(
     inner: I,
     file: impl Into<String>,
     arc_tolerance_mm: f64,
+    default_units: Option<ClUnits>,
 ) -> Lowered<I> {
+    let mut out = VecDeque::new();
+    if let Some(u) = default_units {
+        out.push_back(ClRecord {
+            line: 0,
+            col: 0,
+            text: b"UNITS (--units)".to_vec(),
+            statement: ClStatement::Units(u),
+        });
+    }
     Lowered {
         inner,
         file: file.into(),
-        out: VecDeque::new(),
+        out,
         finished: false,
         tol_mm: arc_tolerance_mm.max(1e-9),
-        mm_per_unit: 1.0,
-        units_seen: false,
+        mm_per_unit: match default_units {
+            Some(ClUnits::Inches) => 25.4,
+            _ => 1.0,
+        },
+        units_seen: default_units.is_some(),
         warned_units: false,
         csys: None,
         pos: None,
@@ -826,7 +842,7 @@ mod tests {
     use crate::cl::ClReader;
 
     fn run(text: &str) -> Result<Vec<ClStatement>, Error> {
-        lower(ClReader::new(text.as_bytes(), "t.apt"), "t.apt", 1e-3)
+        lower(ClReader::new(text.as_bytes(), "t.apt"), "t.apt", 1e-3, None)
             .map(|r| r.map(|r| r.statement))
             .collect()
     }
