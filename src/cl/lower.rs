@@ -272,11 +272,12 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
                 )),
             );
         }
+        let from_axis = self.axis;
         if let Some(a) = axis {
             self.axis = a;
         }
         if let Some(c) = self.circle.take() {
-            return self.arc(r, c, tip);
+            return self.arc(r, c, tip, from_axis);
         }
         if let Some(c) = self.cycle.clone() {
             return self.hole(r, &c, tip);
@@ -285,7 +286,16 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
         Ok(())
     }
 
-    fn arc(&mut self, r: &ClRecord, c: Circle, end: [f64; 3]) -> Result<(), Error> {
+    /// The arc from the current point to `end`; the tool axis turns from
+    /// `from_axis` to the current one in proportion to the angle.
+    fn arc(
+        &mut self,
+        r: &ClRecord,
+        c: Circle,
+        end: [f64; 3],
+        from_axis: [f64; 3],
+    ) -> Result<(), Error> {
+        let to_axis = self.axis;
         let Some(start) = self.pos else {
             return Err(self.err(
                 r,
@@ -363,8 +373,15 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
                     ),
                 )
             };
+            let mix = add(scale(from_axis, 1.0 - f), scale(to_axis, f));
+            self.axis = if norm(mix) > 1e-9 {
+                scale(mix, norm(to_axis) / norm(mix))
+            } else {
+                to_axis
+            };
             self.go(r, p, false);
         }
+        self.axis = to_axis;
         Ok(())
     }
 
@@ -924,6 +941,24 @@ mod tests {
         // A full circle: start equal to end.
         let s = run("UNITS/MM\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,1\nGOTO/10,0,0\n").unwrap();
         assert!(gotos(&s).iter().any(|p| p[0] < -9.99));
+    }
+
+    /// A tool axis that changes over an arc turns with it, not at once.
+    #[test]
+    fn arc_turns_the_tool_axis_gradually() {
+        let s =
+            run("UNITS/MM\nGOTO/10,0,0,0,0,1\nCIRCLE/0,0,0,0,0,1\nGOTO/0,10,0,0,1,0\n").unwrap();
+        let axes: Vec<[f64; 3]> = s
+            .iter()
+            .filter_map(|s| match s {
+                ClStatement::Goto { axis, .. } => *axis,
+                _ => None,
+            })
+            .collect();
+        let mid = axes[axes.len() / 2];
+        assert!(mid[1] > 0.3 && mid[2] > 0.3, "{mid:?}");
+        assert!((norm(mid) - 1.0).abs() < 1e-12);
+        assert!(near(*axes.last().unwrap(), [0.0, 1.0, 0.0]));
     }
 
     #[test]
