@@ -5,6 +5,10 @@
 //! starts a comment that runs to the end of the line. The accepted syntax is
 //! written down in `grammar/apt-cl.ebnf`.
 //!
+//! [`lower`] turns the constructs CAM systems write (`CIRCLE`, `CYCLE`,
+//! `CSYS`, `CUTCOM`, `LOAD/TOOL`, ...) into these plain statements; see
+//! docs/programs.md.
+//!
 //! Statements the converter needs (`GOTO`, `FEDRAT`, `RAPID`, `TLAXIS`,
 //! `MULTAX`, `LOADTL`, `SPINDL`, `COOLNT`, `UNITS`, `FINI`/`END`) are
 //! interpreted; every other statement is kept as [`ClStatement::Other`].

@@ -694,8 +694,10 @@ impl Run {
 /// Statements are translated: `GOTO` → `G0`/`G1` with the machine's axes,
 /// `FEDRAT` → `F`, `RAPID` → `G0` for the next `GOTO`, `LOADTL` → `T.. M6`,
 /// `SPINDL` → `S.. M3/M4/M5`, `COOLNT` → `M7/M8/M9`, `FINI` → `M30`,
-/// `END` → `M2`, `$$` and `PARTNO` → comments; any other statement is kept
-/// as a comment so nothing is lost.
+/// `END` → `M2`, `$$` and `PARTNO` → comments. `CIRCLE`, `CYCLE`, `CSYS`,
+/// `CUTCOM`, `LOAD/TOOL` and the other forms CAM systems write are lowered
+/// first ([`crate::cl::lower`]); a statement that moves the tool and is not
+/// converted is an error, any other statement is kept as a comment.
 pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
     solver: &mut dyn PoseSolver,
