@@ -5,6 +5,10 @@
 //! starts a comment that runs to the end of the line. The accepted syntax is
 //! written down in `grammar/apt-cl.ebnf`.
 //!
+//! [`lower`] turns the constructs CAM systems write (`CIRCLE`, `CYCLE`,
+//! `CSYS`, `CUTCOM`, `LOAD/TOOL`, ...) into these plain statements; see
+//! docs/programs.md.
+//!
 //! Statements the converter needs (`GOTO`, `FEDRAT`, `RAPID`, `TLAXIS`,
 //! `MULTAX`, `LOADTL`, `SPINDL`, `COOLNT`, `UNITS`, `FINI`/`END`) are
 //! interpreted; every other statement is kept as [`ClStatement::Other`].
@@ -37,6 +41,9 @@ use nom::{
 };
 
 use crate::error::{Error, Location};
+
+mod lower;
+pub use lower::{DEFAULT_ARC_TOLERANCE_MM, Lowered, MOTION_MAJORS, lower};
 
 /// Feed rate units of `FEDRAT`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -113,6 +120,11 @@ pub enum ClStatement {
     Comment(String),
     /// `FINI` or `END`: end of the program.
     End,
+    /// A literal G-code block to write as it is (made by [`lower`], never
+    /// by the reader): `G41 D1`, `T3 M6`, `G4 P0.5`, ...
+    Block(String),
+    /// A warning for stderr (made by [`lower`], never by the reader).
+    Warning(String),
     /// Any other statement: `PARTNO`, `TOOL PATH`, `TLDATA`, `MSYS`, `PAINT`,
     /// `END-OF-PATH`, `CUTTER`, ... and `SPINDL`/`COOLNT` forms not
     /// interpreted above (`SPINDL/SFM,..`).
@@ -688,6 +700,8 @@ fn spindle(args: &[Arg]) -> Result<Option<ClStatement>, StatementError> {
                 dir: None,
                 off: true,
             }));
+        } else if a.is("RPM") && rpm.is_some() && k == 1 {
+            // `SPINDL/n,RPM,...`: the unit after the speed.
         } else if a.is("RPM") {
             let Some(v) = args.get(k + 1) else {
                 return Err(a.err("expected a speed after RPM"));

@@ -79,6 +79,10 @@ pub struct PostOptions {
     pub modal_axes: bool,
     /// Name of the input file for messages.
     pub file_name: String,
+    /// APT CL: largest chord error of linearised arcs, mm.
+    pub arc_tolerance_mm: f64,
+    /// APT CL: units of a program without `UNITS` (None: mm, with a warning).
+    pub cl_units: Option<crate::cl::ClUnits>,
 }
 
 impl Default for PostOptions {
@@ -89,6 +93,8 @@ impl Default for PostOptions {
             axis_tolerance_rad: 1e-4,
             modal_axes: false,
             file_name: "<stdin>".into(),
+            arc_tolerance_mm: crate::cl::DEFAULT_ARC_TOLERANCE_MM,
+            cl_units: None,
         }
     }
 }
@@ -698,8 +704,10 @@ impl Run {
 /// Statements are translated: `GOTO` → `G0`/`G1` with the machine's axes,
 /// `FEDRAT` → `F`, `RAPID` → `G0` for the next `GOTO`, `LOADTL` → `T.. M6`,
 /// `SPINDL` → `S.. M3/M4/M5`, `COOLNT` → `M7/M8/M9`, `FINI` → `M30`,
-/// `END` → `M2`, `$$` and `PARTNO` → comments; any other statement is kept
-/// as a comment so nothing is lost.
+/// `END` → `M2`, `$$` and `PARTNO` → comments. `CIRCLE`, `CYCLE`, `CSYS`,
+/// `CUTCOM`, `LOAD/TOOL` and the other forms CAM systems write are lowered
+/// first ([`crate::cl::lower`]); a statement that moves the tool and is not
+/// converted is an error, any other statement is kept as a comment.
 pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
     solver: &mut dyn PoseSolver,
@@ -727,7 +735,13 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     )
     .map_err(io)?;
     writeln!(out, "G21 G90 G94").map_err(io)?;
-    for record in ClReader::new(input, &opts.file_name) {
+    let records = crate::cl::lower(
+        ClReader::new(input, &opts.file_name),
+        &opts.file_name,
+        opts.arc_tolerance_mm,
+        opts.cl_units,
+    );
+    for record in records {
         let record = record?;
         stats.lines += 1;
         bytes_read += record.text.len() as u64;
@@ -845,6 +859,8 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
             ClStatement::Multax(_) | ClStatement::Other { .. } => {
                 writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?
             }
+            ClStatement::Block(b) => writeln!(out, "{b}").map_err(io)?,
+            ClStatement::Warning(w) => stats.warnings.push(w.clone()),
         }
     }
     Ok(stats)

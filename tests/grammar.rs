@@ -201,6 +201,8 @@ fn cl_kind(s: &ClStatement) -> &'static str {
         ClStatement::Comment(_) => "Comment",
         ClStatement::End => "End",
         ClStatement::Other { .. } => "Other",
+        ClStatement::Block(_) => "Block",
+        ClStatement::Warning(_) => "Warning",
     }
 }
 

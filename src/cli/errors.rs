@@ -512,6 +512,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         axis_tolerance_rad: f64::INFINITY,
         modal_axes: false,
         file_name: inp.name.clone(),
+        ..PostOptions::default()
     };
     let mut progress = RunProgress::new(inp.size, a.quiet, "compensate");
     // The per-block records stream into the summary and (with --report) into

@@ -223,6 +223,23 @@ pub struct PostArgs {
     /// Print no summary on standard error.
     #[arg(long, short = 'q')]
     pub quiet: bool,
+    /// APT CL: largest chord error of a `CIRCLE` arc turned into straight
+    /// moves, in mm (0.001 = 1 µm).
+    #[arg(long = "arc-tolerance", value_name = "MM", default_value_t = 0.001)]
+    pub arc_tolerance_mm: f64,
+    /// APT CL: units of a program without `UNITS` (default: mm, with a
+    /// warning).
+    #[arg(long, value_enum)]
+    pub units: Option<UnitsArg>,
+}
+
+/// Units of `--units`.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum UnitsArg {
+    /// Millimetres.
+    Mm,
+    /// Inches.
+    Inch,
 }
 
 /// `kinpost parse`.
@@ -311,6 +328,11 @@ fn completions(a: CompletionsArgs) -> Result<()> {
 }
 
 fn post(a: PostArgs) -> Result<()> {
+    if !(a.arc_tolerance_mm.is_finite() && a.arc_tolerance_mm >= 1e-6) {
+        return Err(Error::Usage(
+            "--arc-tolerance must be a number in mm, at least 0.000001".into(),
+        ));
+    }
     if a.axis_tolerance_urad.is_nan() || a.axis_tolerance_urad < 0.0 {
         return Err(Error::Usage(
             "--axis-tolerance-urad must be a number ≥ 0".into(),
@@ -334,6 +356,11 @@ fn post(a: PostArgs) -> Result<()> {
         axis_tolerance_rad: a.axis_tolerance_urad * 1e-6,
         modal_axes: a.modal_axes,
         file_name: inp.name.clone(),
+        arc_tolerance_mm: a.arc_tolerance_mm,
+        cl_units: a.units.map(|u| match u {
+            UnitsArg::Mm => crate::cl::ClUnits::Mm,
+            UnitsArg::Inch => crate::cl::ClUnits::Inches,
+        }),
     };
     let mut progress = RunProgress::new(inp.size, a.quiet, "post");
     let stats = write_atomically(a.output.as_deref(), |out| {

@@ -330,6 +330,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
         axis_tolerance_rad: opts.axis_tolerance_rad,
         modal_axes: true,
         file_name: opts.file_name.clone(),
+        ..PostOptions::default()
     };
     let mut ik = IkSolver::new(machine);
     let mut conv = poses.then(|| GcodeConverter::new(machine, &mut ik, &post_opts));
