@@ -38,6 +38,7 @@ fuzz_target!(|data: &[u8]| {
         axis_tolerance_rad: if sel & 8 != 0 { f64::INFINITY } else { 1e-4 },
         modal_axes: sel & 16 != 0,
         file_name: "fuzz.nc".into(),
+        ..PostOptions::default()
     };
     let mut solver = IkSolver::new(machine);
     let mut out = Vec::new();

@@ -32,7 +32,7 @@ pub struct Cli {
 pub enum Command {
     /// Convert a program of tool poses (G-code X Y Z + I J K / A3= B3= C3=, or
     /// APT CL GOTO/) into machine axis words. Works as a stdin→stdout filter
-    /// and as a LinuxCNC [FILTER] program.
+    /// and as a LinuxCNC `[FILTER]` program.
     Post(PostArgs),
     /// Parse a program and summarise its blocks, words and opaque lines, or
     /// re-emit it from the parse tree (--echo; byte-identical).
@@ -272,7 +272,7 @@ pub struct MachineArgs {
     /// RTTR or 3T.
     #[arg(long, value_name = "FAMILY", conflicts_with = "json")]
     pub template: Option<String>,
-    /// Write a machine file for a LinuxCNC configuration: its [KINS]
+    /// Write a machine file for a LinuxCNC configuration: its `[KINS]`
     /// KINEMATICS (xyzac-trt-kins, xyzbc-trt-kins, 5axiskins) and the HAL
     /// setp values of its HAL files.
     #[arg(long, value_name = "INI", conflicts_with_all = ["json", "list", "template"])]
