@@ -3,6 +3,7 @@
 pub mod diagnose;
 pub mod errors;
 pub mod linkage;
+pub mod machine;
 
 use crate::error::{Error, Result};
 use crate::input;
@@ -502,7 +503,7 @@ fn machine(a: MachineArgs) -> Result<()> {
         }
         serde_json::to_string_pretty(&file).unwrap_or_default()
     } else {
-        machine.summary_text(&solver)
+        machine::summary_text(&machine, &solver)
     };
     writeln!(out, "{text}").map_err(|e| Error::io("<stdout>", e))
 }

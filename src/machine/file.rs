@@ -11,42 +11,14 @@
 //! errors (an unknown element kind, a zero axis vector, a duplicate joint,
 //! ...) at the key or value concerned.
 
+use super::axis::{AxisSpec, RotaryMode};
 use super::chain::{Chain, ChainPart, Element, JointKind, JointValues, MAX_JOINTS};
 use super::jsonpos::{Seg, Target, first_duplicate_key, line_col, line_text, locate};
-use super::rotary::{RotaryMode, input_value, output_value};
+use super::rotary::{input_value, output_value};
 use crate::error::{Error, Location, Result};
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use serde_json::{Map, Value};
 use std::path::Path;
-
-/// One machine axis as the NC program sees it.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct AxisSpec {
-    /// NC address (the joint's name in the chain).
-    pub name: String,
-    /// Index of the joint in the chain (the position in `q`).
-    pub joint: usize,
-    /// Linear or rotary.
-    pub kind: JointKind,
-    /// Lower travel limit in file units (mm or degrees), if any.
-    pub min: Option<f64>,
-    /// Upper travel limit in file units (mm or degrees), if any.
-    pub max: Option<f64>,
-    /// Rotary behaviour; always [`RotaryMode::Limited`] for linear axes.
-    pub rotary: RotaryMode,
-    /// Decimals written for this axis (a global `--decimals` overrides it).
-    pub decimals: u32,
-}
-
-impl AxisSpec {
-    /// The unit of the axis in files and programs: `"mm"` or `"deg"`.
-    pub fn unit(&self) -> &'static str {
-        match self.kind {
-            JointKind::Prismatic => "mm",
-            JointKind::Revolute => "deg",
-        }
-    }
-}
 
 /// A machine: its kinematic chain and how its axes are driven and written.
 #[derive(Debug, Clone, PartialEq)]
@@ -220,53 +192,6 @@ impl Machine {
             .collect()
     }
 
-    /// A human-readable summary: chain, axes, and the IK family chosen.
-    pub fn summary_text(&self, solver: &super::ik::IkSolver) -> String {
-        use std::fmt::Write;
-        let mut s = String::new();
-        let _ = writeln!(s, "machine {}", self.name);
-        if !self.description.is_empty() {
-            let _ = writeln!(s, "  {}", self.description);
-        }
-        if !self.source.is_empty() {
-            let _ = writeln!(s, "  source: {}", self.source);
-        }
-        let _ = writeln!(s, "inverse kinematics: {}", solver.family());
-        let _ = writeln!(s, "chain (workpiece → tool tip, mm and degrees):");
-        for d in self.element_descriptions() {
-            let _ = writeln!(s, "  {d}");
-        }
-        let _ = writeln!(s, "axes (output order):");
-        for a in &self.axes {
-            let limits = match (a.min, a.max) {
-                (Some(lo), Some(hi)) => format!("{lo} … {hi} {}", a.unit()),
-                (Some(lo), None) => format!("≥ {lo} {}", a.unit()),
-                (None, Some(hi)) => format!("≤ {hi} {}", a.unit()),
-                (None, None) => "no limits".to_string(),
-            };
-            let mode = if a.kind == JointKind::Revolute {
-                format!(", {}", a.rotary)
-            } else {
-                String::new()
-            };
-            let _ = writeln!(s, "  {}: {limits}{mode}, {} decimals", a.name, a.decimals);
-        }
-        s.trim_end().to_string()
-    }
-
-    /// A JSON summary (same content as [`Machine::summary_text`]).
-    pub fn summary_json(&self, solver: &super::ik::IkSolver) -> Value {
-        serde_json::json!({
-            "name": self.name,
-            "description": self.description,
-            "source": self.source,
-            "ik_family": solver.family().to_string(),
-            "chain": self.element_descriptions(),
-            "axes": self.axes,
-            "output_order": self.axes.iter().map(|a| a.name.clone()).collect::<Vec<_>>(),
-        })
-    }
-
     /// The machine as a machine file (the layout of `docs/machines.md`,
     /// full precision): loading it gives the same machine back. Element
     /// transforms that rotate are written as a `translate` followed by a
@@ -332,8 +257,8 @@ impl Machine {
         })
     }
 
-    /// One line per chain element, in file units.
-    fn element_descriptions(&self) -> Vec<String> {
+    /// One line per chain element, in file units (`revolute C axis [0, 0, -1]`).
+    pub fn element_descriptions(&self) -> Vec<String> {
         let fmt_v = |v: &Vector3<f64>| format!("[{}, {}, {}]", round(v.x), round(v.y), round(v.z));
         self.chain
             .elements
@@ -1023,33 +948,6 @@ mod tests {
         assert!((p.tip - Vector3::new(0.0, -r, 5.0 - 20.0 * b.cos())).norm() < 1e-12);
         let back = m.to_external(&q);
         assert!((back[3] - 90.0).abs() < 1e-12 && (back[2] - 30.0).abs() < 1e-12);
-    }
-
-    #[test]
-    fn summaries_name_the_family_and_the_axes() {
-        let m = Machine::embedded("wang2023-xyzab").unwrap();
-        let s = crate::machine::IkSolver::new(&m);
-        let text = m.summary_text(&s);
-        assert!(text.starts_with("machine wang2023-xyzab"));
-        assert!(text.contains("five-axis 2R3T"));
-        assert!(text.contains("translate [0, 0, 265]"));
-        assert!(text.contains("A: no limits, continuous, 3 decimals"));
-        let json = m.summary_json(&s);
-        assert_eq!(
-            json["output_order"],
-            serde_json::json!(["X", "Y", "Z", "B", "A"])
-        );
-        assert_eq!(json["axes"][3]["min"], serde_json::json!(-90.0));
-        let r = Machine::from_json_str(
-            r#"{"chain": [{"rotate": {"axis": [0, 0, 1], "angle": 90}}, {"prismatic": {"name": "X", "axis": [1, 0, 0]}}]}"#,
-            "dir/plain.json",
-        )
-        .unwrap();
-        assert_eq!(r.name, "plain");
-        assert!(
-            r.summary_text(&crate::machine::IkSolver::new(&r))
-                .contains("rotate axis [0, 0, 1] angle 90")
-        );
     }
 
     #[test]

@@ -8,18 +8,21 @@
 //! - [`rotary`]: limited, continuous and modulo rotary axes; unwinding.
 //! - [`template`]: starting machine files per family; the list of embedded machines.
 
+pub mod axis;
 pub mod chain;
 pub mod file;
 pub mod ik;
+pub mod ik_error;
 pub(crate) mod jsonpos;
 pub mod linuxcnc;
 pub mod newton_ik;
 pub mod rotary;
 pub mod template;
 
+pub use axis::{AxisSpec, RotaryMode};
 pub use chain::{
     Chain, ChainPart, ErrorMotion, JointErrors, JointKind, JointValues, NoErrors, Pose,
 };
-pub use file::{AxisSpec, Machine};
+pub use file::Machine;
 pub use ik::{Family, IkError, IkOptions, IkSolution, IkSolver};
-pub use rotary::{RotaryMode, output_value};
+pub use rotary::output_value;

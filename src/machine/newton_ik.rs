@@ -22,7 +22,7 @@
 //! finds the solution nearest to it; it does not enumerate branches.
 
 use super::chain::{Chain, NoErrors, Pose};
-use super::ik::IkError;
+use super::ik_error::IkError;
 use nalgebra::{DMatrix, DVector};
 
 /// Settings of the damped-Newton solver.

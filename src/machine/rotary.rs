@@ -6,40 +6,9 @@
 //! the pose, so every value the inverse kinematics returns is a choice among
 //! `θ + 2πk`; the functions here make that choice.
 
+use super::axis::{AxisSpec, RotaryMode};
 use super::chain::JointKind;
-use super::file::AxisSpec;
 use std::f64::consts::{PI, TAU};
-
-/// How a rotary axis behaves when it turns past a full revolution.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum RotaryMode {
-    /// Travel limited by `min`/`max` (required for rotary axes). Linear axes
-    /// are always `Limited` (with optional limits).
-    Limited,
-    /// Unlimited travel; the output is unwound: the value nearest the
-    /// previous block, which may exceed ±360°.
-    Continuous,
-    /// Output wrapped to `[0, 360)`; the controller takes the shortest way.
-    Modulo,
-}
-
-impl RotaryMode {
-    /// The name used in machine files.
-    pub fn name(self) -> &'static str {
-        match self {
-            RotaryMode::Limited => "limited",
-            RotaryMode::Continuous => "continuous",
-            RotaryMode::Modulo => "modulo",
-        }
-    }
-}
-
-impl std::fmt::Display for RotaryMode {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
 
 /// Slack allowed when comparing a value with an axis limit, in file units
 /// (mm or degrees): values computed exactly at a limit may land a few ulps
