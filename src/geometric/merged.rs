@@ -9,8 +9,8 @@
 //! The numbers agree with [`AxisErrors::error_at`] to rounding (the cubics
 //! are rebuilt from each column's values and slopes at the interval ends).
 
+use super::axis_errors::{AxisErrors, wrap_angle};
 use super::bspline::Extrapolation;
-use super::model::AxisErrors;
 use crate::machine::chain::ErrorMotion;
 
 /// The error motions of one axis as one piecewise cubic (see the module).
@@ -114,7 +114,7 @@ impl MergedAxis {
 
     fn evaluate(&self, pos: f64, derivative: bool) -> (ErrorMotion, ErrorMotion) {
         let x = if self.rotary {
-            super::model::wrap_angle(pos, (self.lo, self.hi))
+            wrap_angle(pos, (self.lo, self.hi))
         } else {
             pos
         };

@@ -5,11 +5,13 @@
 //! * [`iso230_2`]: ISO 230-2 positioning figures from bidirectional runs.
 //! * [`model`]: the fitted [`ErrorModel`], its JSON form, and
 //!   [`BoundErrors`], the chain evaluator's error source.
+//! * [`axis_errors`]: one axis's fitted error columns ([`axis_errors::AxisErrors`]).
 //! * [`merged`]: an axis's error splines as one piecewise cubic, for speed.
 //! * [`synth`]: deterministic synthetic tables for the fixture machines.
 //!
 //! See `docs/error-tables.md`.
 
+pub mod axis_errors;
 pub mod bspline;
 pub mod iso230_2;
 pub mod merged;
