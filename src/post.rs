@@ -10,6 +10,7 @@ use crate::error::{Error, Location, Result};
 use crate::gcode::{ItemKind, Line, LineReader};
 use crate::machine::{IkSolver, Machine, Pose};
 use crate::program::format::{push_fixed, push_scaled, scaled_integer};
+use crate::program::modal::Motion;
 use crate::program::{ModalState, PoseStart, TcpCode, Units, WordRef};
 use nalgebra::Vector3;
 use std::io::{BufRead, Write};
@@ -352,11 +353,20 @@ impl<'a> GcodeConverter<'a> {
                 String::from_utf8_lossy(&line.bytes),
             )
         };
+        // Only G codes of a plain move (no cycle, no non-modal code): the
+        // blocks whose unreadable text may still be a tool vector.
+        let plain_move = words.iter().all(|w| {
+            w.address != "G"
+                || [
+                    0.0, 1.0, 17.0, 18.0, 19.0, 20.0, 21.0, 40.0, 49.0, 90.0, 91.0, 93.0, 94.0,
+                ]
+                .contains(&w.value)
+        });
         let applied = self.modal.apply(&words, &keywords);
         self.words = recycle(words);
         let meaning = applied.map_err(|e| {
             // Text not understood in the block explains the failure best.
-            match opaque_in_pose_block(line, true, true) {
+            match opaque_in_pose_block(line, true, true, true) {
                 Some(i) => opaque_error(i),
                 None => {
                     Error::input_with(loc(e.item), e.message, String::from_utf8_lossy(&line.bytes))
@@ -368,7 +378,10 @@ impl<'a> GcodeConverter<'a> {
                 .warnings
                 .push(format!("{}: {w}", loc(meaning.pose_items.first().copied())));
         }
-        if let Some(i) = opaque_in_pose_block(line, self.modal.pose_mode, meaning.pose.is_some()) {
+        let straight = plain_move && matches!(meaning.motion, Motion::Rapid | Motion::Linear);
+        if let Some(i) =
+            opaque_in_pose_block(line, self.modal.pose_mode, meaning.pose.is_some(), straight)
+        {
             return Err(opaque_error(i));
         }
         let Some((tip, axis)) = meaning.pose else {
@@ -555,9 +568,23 @@ fn recycle<'x, 'y>(mut v: Vec<WordRef<'x>>) -> Vec<WordRef<'y>> {
 
 /// The item index of an opaque item in a block that must be converted (or may
 /// carry coordinates in pose mode).
-fn opaque_in_pose_block(line: &Line, pose_mode: bool, is_pose: bool) -> Option<usize> {
+fn opaque_in_pose_block(
+    line: &Line,
+    pose_mode: bool,
+    is_pose: bool,
+    straight: bool,
+) -> Option<usize> {
     if !(pose_mode || is_pose) {
-        return None;
+        if !straight {
+            return None;
+        }
+        // Outside pose mode a straight move whose unreadable text holds a
+        // tool vector (`G1 X1.2.3 Y0 Z0 I0 J0 K1`: the parser stops at the
+        // malformed number) still asks for pose conversion: refuse it
+        // rather than pass it through unconverted.
+        return line.items.iter().position(|it| {
+            matches!(it.kind, ItemKind::Opaque) && holds_tool_vector(line.item_bytes(it))
+        });
     }
     line.items.iter().position(|it| {
         matches!(it.kind, ItemKind::Opaque)
@@ -569,6 +596,31 @@ fn opaque_in_pose_block(line: &Line, pose_mode: bool, is_pose: bool) -> Option<u
                     )
                 }))
     })
+}
+
+/// Whether unreadable text holds a tool-vector word: `I`, `J` or `K`
+/// followed by a number, or `A3=`, `B3=`, `C3=`.
+fn holds_tool_vector(bytes: &[u8]) -> bool {
+    // Names (`o<i0>`, `#<i1>`), expressions (`[...]`) and comments left out.
+    let mut depth = 0i32;
+    let up: Vec<u8> = bytes
+        .iter()
+        .filter(|&&b| {
+            match b {
+                b'<' | b'[' | b'(' => depth += 1,
+                b'>' | b']' | b')' => depth -= 1,
+                _ => return depth <= 0,
+            }
+            false
+        })
+        .map(u8::to_ascii_uppercase)
+        .collect();
+    up.windows(2).any(|w| {
+        matches!(w[0], b'I' | b'J' | b'K')
+            && (w[1].is_ascii_digit() || matches!(w[1], b'-' | b'+' | b'.'))
+    }) || up
+        .windows(3)
+        .any(|w| matches!(w[0], b'A' | b'B' | b'C') && w[1] == b'3' && w[2] == b'=')
 }
 
 /// The separator between words in this line's style: nothing when the first

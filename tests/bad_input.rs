@@ -103,7 +103,12 @@ fn malformed_number_later_in_the_block_is_named_not_the_missing_coordinate() {
 
 #[test]
 fn comma_as_decimal_point() {
-    let r = post("p.nc", b"G1 X1 Y0 Z0\nG1 X1,5 Y0 Z0\n", &[]);
+    // No tool vector and no TCP code: the program asks for pose mode by option.
+    let r = post(
+        "p.nc",
+        b"G1 X1 Y0 Z0\nG1 X1,5 Y0 Z0\n",
+        &["--pose-start", "on"],
+    );
     expect(
         &r,
         1,

@@ -53,7 +53,7 @@ pub struct SimulateArgs {
     #[command(flatten)]
     pub axis_tolerance: super::AxisTolerance,
     /// When pose mode starts (pose programs).
-    #[arg(long, value_enum, default_value = "on")]
+    #[arg(long, value_enum, default_value = "tcp")]
     pub pose_start: PoseStartArg,
     /// Write the recording here (atomically). Default: standard output.
     #[arg(long, short = 'o', value_name = "REC.csv")]

@@ -119,7 +119,7 @@ pub struct AnalyzeArgs {
     #[arg(long, value_name = "FILE.svg")]
     pub svg: Option<PathBuf>,
     /// When pose mode starts (pose programs).
-    #[arg(long, value_enum, default_value = "on")]
+    #[arg(long, value_enum, default_value = "tcp")]
     pub pose_start: PoseStartArg,
     #[command(flatten)]
     pub axis_tolerance: super::AxisTolerance,
@@ -391,7 +391,7 @@ pub struct CompensateArgs {
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<PathBuf>,
     /// When pose mode starts.
-    #[arg(long, value_enum, default_value = "on")]
+    #[arg(long, value_enum, default_value = "tcp")]
     pub pose_start: PoseStartArg,
     /// Input format.
     #[arg(long, value_enum, default_value = "auto")]

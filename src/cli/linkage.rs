@@ -48,7 +48,7 @@ pub struct LinkageArgs {
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<PathBuf>,
     /// When pose mode starts (pose programs).
-    #[arg(long, value_enum, default_value = "on")]
+    #[arg(long, value_enum, default_value = "tcp")]
     pub pose_start: PoseStartArg,
     /// Print no report on standard error.
     #[arg(long, short = 'q')]

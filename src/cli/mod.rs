@@ -174,9 +174,13 @@ impl AxisTolerance {
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum PoseStartArg {
     /// Every straight move with X Y Z / I J K is a tool pose from the first
-    /// block on; G49 / TRAFOOF switch pose mode off, G43.4 / G43.5 / TRAORI on.
+    /// block on (for CAM output that writes poses without a TCP code);
+    /// G49 / TRAFOOF switch pose mode off, G43.4 / G43.5 / TRAORI on.
     On,
-    /// Only after G43.4 / G43.5 / TRAORI, or a move that carries a tool axis.
+    /// The default: pose mode only where the program asks for it — after
+    /// G43.4 / G43.5 / TRAORI, or a straight move that carries a tool axis
+    /// (I J K, A3= B3= C3=). A program that never asks passes through
+    /// unchanged.
     Tcp,
 }
 
@@ -208,7 +212,7 @@ pub struct PostArgs {
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=12))]
     pub decimals: Option<u32>,
     /// When pose mode starts.
-    #[arg(long, value_enum, default_value = "on")]
+    #[arg(long, value_enum, default_value = "tcp")]
     pub pose_start: PoseStartArg,
     /// Largest tool-axis miss accepted on a machine that cannot reach every
     /// tool axis (four-axis machines), in µrad (1 µrad ≈ 0.2 arcsec). Poses

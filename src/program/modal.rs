@@ -202,6 +202,8 @@ impl ModalState {
         let mut non_modal = false;
         let mut feed_item = None;
         let mut fanuc_tcp_here = false;
+        let mut frame = None;
+        let lathe_cycle = words.iter().any(|w| w.address == "Q");
         for w in words {
             match w.address {
                 "G" => {
@@ -212,8 +214,23 @@ impl ModalState {
                         20 | 30 => self.motion = Motion::Arc,
                         800 => self.motion = Motion::Rapid,
                         810..=890 => self.motion = Motion::Other,
+                        // Threads and splines: motion modes whose I J K are
+                        // pitches, tapers or control points, not a tool axis.
+                        330 | 331 | 760 | 50 | 51 | 52 | 62 | 730 | 740 => {
+                            self.motion = Motion::Other
+                        }
+                        // A tilted or rotated work plane (G68.2, G68.3,
+                        // G68.4, G68, G51.1 mirroring): its I J K are angles.
+                        // It changes how every later move lands, so it is
+                        // refused in pose mode (below) and passes through
+                        // outside it.
+                        680 | 682 | 683 | 684 | 511 => frame = Some(w.item),
                         900 => self.absolute = true,
                         910 => self.absolute = false,
+                        // LinuxCNC's lathe cycles G70–G72 (with a Q word: the
+                        // contour's subroutine) run their own moves; without
+                        // Q, G70/G71 are Sinumerik's inch / mm.
+                        700 | 710 | 711 | 712 | 720 | 721 | 722 if lathe_cycle => non_modal = true,
                         200 | 700 | 7000 => self.units = Units::Inch,
                         210 | 710 | 7100 => self.units = Units::Mm,
                         930 => self.feed_mode = FeedMode::InverseTime,
@@ -255,6 +272,15 @@ impl ModalState {
         let has_tip = words.iter().any(|w| is_tip(w.address));
         let has_axis = words.iter().any(|w| is_axis(w.address));
         let straight = matches!(self.motion, Motion::Rapid | Motion::Linear);
+        if let Some(item) = frame {
+            if self.pose_mode {
+                return Err(BlockError {
+                    item: Some(item),
+                    message: "a work-plane rotation or mirror (G68, G68.2–G68.4, G51.1) in pose mode is not converted: the poses are in the workpiece frame of the machine; rotate them in the CAM system".into(),
+                });
+            }
+            non_modal = true;
+        }
         if straight && has_axis && !non_modal {
             self.pose_mode = true;
         }
@@ -452,6 +478,31 @@ mod tests {
         assert_eq!(tip, Vector3::new(5.0, 2.0, 3.0));
         assert!((axis - Vector3::new(0.6, 0.0, 0.8)).norm() < 1e-15);
         assert_eq!(b.feed, Some(100.0));
+    }
+
+    #[test]
+    fn threads_cycles_and_tilted_planes_carry_no_tool_vector() {
+        // Found on the LinuxCNC corpus: their I J K switched pose mode on.
+        for g in [76.0, 33.1, 6.2, 73.0] {
+            let mut m = ModalState::new(PoseStart::Off);
+            let b = m
+                .apply(&[w("G", g, 0), w("Z", -5.0, 1), w("I", -0.1, 2), w("K", 1.0, 3)], &[])
+                .unwrap();
+            assert!(b.pose.is_none() && !m.pose_mode, "G{g}");
+        }
+        // A LinuxCNC lathe cycle (G71 with Q) is not Sinumerik's G71 (mm).
+        let mut m = ModalState::new(PoseStart::Off);
+        m.apply(&[w("G", 20.0, 0)], &[]).unwrap();
+        m.apply(&[w("G", 71.0, 0), w("Q", 100.0, 1), w("I", 1.0, 2)], &[]).unwrap();
+        assert!(!m.pose_mode);
+        assert_eq!(m.units, Units::Inch);
+        // G68.2 passes through outside pose mode, and is refused in it.
+        let mut m = ModalState::new(PoseStart::Off);
+        let b = m.apply(&[w("G", 68.2, 0), w("I", 0.0, 1), w("J", 45.0, 2), w("K", 0.0, 3)], &[]);
+        assert!(b.unwrap().pose.is_none() && !m.pose_mode);
+        let mut m = ModalState::new(PoseStart::On);
+        let e = m.apply(&[w("G", 68.2, 0), w("J", 45.0, 1)], &[]).unwrap_err();
+        assert!(e.message.contains("work-plane rotation"), "{}", e.message);
     }
 
     #[test]
