@@ -269,17 +269,12 @@ impl NearTrig {
             if dj == 0.0 {
                 continue;
             }
-            let (sd, cd) = if dj.abs() <= Self::NEAR_RAD {
-                let d2 = dj * dj;
-                (
-                    dj - dj * d2 * (1.0 / 6.0),
-                    1.0 - d2 * (0.5 - d2 * (1.0 / 24.0)),
-                )
+            let d = if dj.abs() <= Self::NEAR_RAD {
+                small_sin_cos(dj)
             } else {
                 dj.sin_cos()
             };
-            let (s0, c0) = self.sc[j];
-            t.sc[j] = (s0 * cd + c0 * sd, c0 * cd - s0 * sd);
+            t.sc[j] = add_angles(self.sc[j], d);
         }
         t
     }
@@ -294,12 +289,25 @@ impl NearTrig {
         if d == 0.0 {
             return self.sc[j];
         }
-        let d2 = d * d;
-        let sd = d - d * d2 * (1.0 / 6.0);
-        let cd = 1.0 - d2 * (0.5 - d2 * (1.0 / 24.0));
-        let (s0, c0) = self.sc[j];
-        (s0 * cd + c0 * sd, c0 * cd - s0 * sd)
+        add_angles(self.sc[j], small_sin_cos(d))
     }
+}
+
+/// `(sin d, cos d)` of a small angle (|d| ≤ 1e-4 rad) from the series, to
+/// far below an ulp.
+#[inline]
+fn small_sin_cos(d: f64) -> (f64, f64) {
+    let d2 = d * d;
+    (
+        d - d * d2 * (1.0 / 6.0),
+        1.0 - d2 * (0.5 - d2 * (1.0 / 24.0)),
+    )
+}
+
+/// `(sin(a + b), cos(a + b))` from those of `a` and `b` (addition theorem).
+#[inline]
+fn add_angles((sa, ca): (f64, f64), (sb, cb): (f64, f64)) -> (f64, f64) {
+    (sa * cb + ca * sb, ca * cb - sa * sb)
 }
 
 /// Where [`Chain::pose_backward`] takes the revolute joints' rotations from.

@@ -486,22 +486,41 @@ mod tests {
         for g in [76.0, 33.1, 6.2, 73.0] {
             let mut m = ModalState::new(PoseStart::Off);
             let b = m
-                .apply(&[w("G", g, 0), w("Z", -5.0, 1), w("I", -0.1, 2), w("K", 1.0, 3)], &[])
+                .apply(
+                    &[
+                        w("G", g, 0),
+                        w("Z", -5.0, 1),
+                        w("I", -0.1, 2),
+                        w("K", 1.0, 3),
+                    ],
+                    &[],
+                )
                 .unwrap();
             assert!(b.pose.is_none() && !m.pose_mode, "G{g}");
         }
         // A LinuxCNC lathe cycle (G71 with Q) is not Sinumerik's G71 (mm).
         let mut m = ModalState::new(PoseStart::Off);
         m.apply(&[w("G", 20.0, 0)], &[]).unwrap();
-        m.apply(&[w("G", 71.0, 0), w("Q", 100.0, 1), w("I", 1.0, 2)], &[]).unwrap();
+        m.apply(&[w("G", 71.0, 0), w("Q", 100.0, 1), w("I", 1.0, 2)], &[])
+            .unwrap();
         assert!(!m.pose_mode);
         assert_eq!(m.units, Units::Inch);
         // G68.2 passes through outside pose mode, and is refused in it.
         let mut m = ModalState::new(PoseStart::Off);
-        let b = m.apply(&[w("G", 68.2, 0), w("I", 0.0, 1), w("J", 45.0, 2), w("K", 0.0, 3)], &[]);
+        let b = m.apply(
+            &[
+                w("G", 68.2, 0),
+                w("I", 0.0, 1),
+                w("J", 45.0, 2),
+                w("K", 0.0, 3),
+            ],
+            &[],
+        );
         assert!(b.unwrap().pose.is_none() && !m.pose_mode);
         let mut m = ModalState::new(PoseStart::On);
-        let e = m.apply(&[w("G", 68.2, 0), w("J", 45.0, 1)], &[]).unwrap_err();
+        let e = m
+            .apply(&[w("G", 68.2, 0), w("J", 45.0, 1)], &[])
+            .unwrap_err();
         assert!(e.message.contains("work-plane rotation"), "{}", e.message);
     }
 
