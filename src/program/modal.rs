@@ -156,6 +156,10 @@ pub struct ModalState {
     pub feed: Option<f64>,
     /// Pose mode on.
     pub pose_mode: bool,
+    /// A frame statement (G68…, AROT …) has been seen: it stays active on
+    /// the controller, where it would move the machine axis words kinpost
+    /// writes, so pose mode may not start after it.
+    pub frame_seen: bool,
     /// Modal tool tip, mm (None until the program sets the coordinate).
     pub tip: [Option<f64>; 3],
     /// Modal tool axis (programmed components, not normalised).
@@ -175,6 +179,7 @@ impl ModalState {
             feed_mode: FeedMode::PerMinute,
             feed: None,
             pose_mode: start == PoseStart::On,
+            frame_seen: false,
             tip: [None; 3],
             axis: Vector3::z(),
             axis_set: false,
@@ -225,6 +230,7 @@ impl ModalState {
                         // refused in pose mode (below) and passes through
                         // outside it.
                         680 | 682 | 683 | 684 | 511 => frame = Some(w.item),
+                        690 => self.frame_seen = false,
                         900 => self.absolute = true,
                         910 => self.absolute = false,
                         // LinuxCNC's lathe cycles G70–G72 (with a Q word: the
@@ -263,6 +269,21 @@ impl ModalState {
                     tcp_codes.push(TcpCode::SiemensOn(*item));
                 }
                 "TRAFOOF" => self.pose_mode = false,
+                // Sinumerik frames: their X Y Z are offsets, angles or
+                // factors, never a tool tip. Under TRAORI they would move
+                // every later pose, which kinpost does not fold in: refused
+                // in pose mode (below), passed through outside it.
+                // `TRANS`, `ROT`, `SCALE`, `MIRROR` alone delete the
+                // programmable frame.
+                "TRANS" | "ROT" | "SCALE" | "MIRROR"
+                    if !words.iter().any(|w| matches!(w.address, "X" | "Y" | "Z")) =>
+                {
+                    self.frame_seen = false;
+                }
+                "TRANS" | "ATRANS" | "ROT" | "AROT" | "SCALE" | "ASCALE" | "MIRROR" | "AMIRROR"
+                | "ROTS" | "AROTS" | "CROTS" => {
+                    frame = frame.or(Some(*item));
+                }
                 _ => {}
             }
         }
@@ -273,16 +294,29 @@ impl ModalState {
         let has_axis = words.iter().any(|w| is_axis(w.address));
         let straight = matches!(self.motion, Motion::Rapid | Motion::Linear);
         if let Some(item) = frame {
+            self.frame_seen = true;
             if self.pose_mode {
                 return Err(BlockError {
                     item: Some(item),
-                    message: "a work-plane rotation or mirror (G68, G68.2–G68.4, G51.1) in pose mode is not converted: the poses are in the workpiece frame of the machine; rotate them in the CAM system".into(),
+                    message: "a frame (G68, G68.2–G68.4, G51.1; Sinumerik TRANS, ATRANS, ROT, AROT, SCALE, MIRROR) in pose mode is not converted: the poses must be in the machine's workpiece frame; apply the frame in the CAM system".into(),
                 });
             }
             non_modal = true;
         }
         if straight && has_axis && !non_modal {
             self.pose_mode = true;
+        }
+        if self.pose_mode && self.frame_seen {
+            let item = tcp_codes
+                .first()
+                .map(|c| match c {
+                    TcpCode::FanucOn(i) | TcpCode::SiemensOn(i) => *i,
+                })
+                .or_else(|| words.first().map(|w| w.item));
+            return Err(BlockError {
+                item,
+                message: "pose mode starts while a frame set earlier in the program (G68…, TRANS, ROT, AROT, SCALE, MIRROR) is active: the controller would move kinpost's machine axis words by it; cancel the frame before, or apply it in the CAM system".into(),
+            });
         }
 
         let mut meaning = BlockMeaning {
@@ -521,7 +555,32 @@ mod tests {
         let e = m
             .apply(&[w("G", 68.2, 0), w("J", 45.0, 1)], &[])
             .unwrap_err();
-        assert!(e.message.contains("work-plane rotation"), "{}", e.message);
+        assert!(e.message.contains("a frame (G68"), "{}", e.message);
+    }
+
+    #[test]
+    fn sinumerik_frames_are_never_poses() {
+        // Under TRAORI `AROT Y90.` came out with axis words appended.
+        let mut m = ModalState::new(PoseStart::Off);
+        m.apply(&[], &[(0, "TRAORI")]).unwrap();
+        let e = m.apply(&[w("Y", 90.0, 2)], &[(0, "AROT")]).unwrap_err();
+        assert_eq!(e.item, Some(0));
+        // Outside pose mode a frame passes through, but pose mode may not
+        // start while it is active; deleting it (`TRANS` alone, G69) allows it.
+        let mut m = ModalState::new(PoseStart::Off);
+        assert!(
+            m.apply(&[w("X", 10.0, 2)], &[(0, "TRANS")])
+                .unwrap()
+                .pose
+                .is_none()
+        );
+        let e = m.apply(&[], &[(0, "TRAORI")]).unwrap_err();
+        assert!(e.message.contains("frame set earlier"), "{}", e.message);
+        let mut m = ModalState::new(PoseStart::Off);
+        m.apply(&[w("X", 10.0, 2)], &[(0, "TRANS")]).unwrap();
+        m.apply(&[], &[(0, "TRANS")]).unwrap();
+        m.apply(&[], &[(0, "TRAORI")]).unwrap();
+        assert!(m.pose_mode);
     }
 
     #[test]
