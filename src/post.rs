@@ -109,6 +109,9 @@ pub struct PostStats {
     pub poses: usize,
     /// Largest tool-axis miss, rad.
     pub max_axis_miss_rad: f64,
+    /// Largest deviation of a programmed tool vector's length from 1
+    /// (normalised; per-block warnings only beyond 1e-5).
+    pub max_vector_deviation: f64,
     /// Warnings with their locations.
     pub warnings: Vec<String>,
 }
@@ -378,6 +381,10 @@ impl<'a> GcodeConverter<'a> {
                 .warnings
                 .push(format!("{}: {w}", loc(meaning.pose_items.first().copied())));
         }
+        self.stats.max_vector_deviation = self
+            .stats
+            .max_vector_deviation
+            .max(meaning.vector_deviation);
         let straight = plain_move && matches!(meaning.motion, Motion::Rapid | Motion::Linear);
         if let Some(i) =
             opaque_in_pose_block(line, self.modal.pose_mode, meaning.pose.is_some(), straight)
@@ -821,7 +828,8 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                         text,
                     ));
                 }
-                if (norm - 1.0).abs() > 1e-9 {
+                stats.max_vector_deviation = stats.max_vector_deviation.max((norm - 1.0).abs());
+                if (norm - 1.0).abs() > crate::program::modal::QUIET_NORMALISATION {
                     stats.warnings.push(format!(
                         "{loc}: tool axis of length {norm:.9} normalised to unit length"
                     ));

@@ -1149,3 +1149,30 @@ fn unreachable_tool_axis_is_refused_by_every_command_that_posts() {
         assert_eq!(r.code, 0, "{args:?}: {}", r.stderr);
     }
 }
+
+#[test]
+fn nearly_unit_tool_vectors_are_normalised_quietly_with_one_summary() {
+    // CAM output printed to 6 decimals is off by about 1e-6: one summary
+    // line, not a warning per block; the embedded machine is named.
+    let r = post(
+        "p.nc",
+        b"G1 X40 Y0 Z5 I0 J0 K1.000001 F100\nG1 X41 Y0 Z5 I0 J0 K0.9999995\n",
+        &[],
+    );
+    expect(
+        &r,
+        0,
+        &[
+            "largest deviation of a length from 1: 1.000e-6",
+            "note: no --machine given; the poses were converted for the embedded machine zhao2022-xzbc",
+        ],
+    );
+    assert!(!r.stderr.contains("warning"), "{}", r.stderr);
+    // With a machine named, no note.
+    let r = post(
+        "p.nc",
+        b"G1 X40 Y0 Z5 I0 J0 K1.000001 F100\n",
+        &["--machine", "zhao2022-xzbc"],
+    );
+    assert!(!r.stderr.contains("note:"), "{}", r.stderr);
+}

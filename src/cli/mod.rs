@@ -393,6 +393,20 @@ fn post(a: PostArgs) -> Result<()> {
             stats.lines,
             stats.max_axis_miss_rad * 1e6
         );
+        if stats.max_vector_deviation > 0.0 {
+            let _ = writeln!(
+                e,
+                "kinpost: tool vectors normalised to unit length; largest deviation of a length from 1: {:.3e}",
+                stats.max_vector_deviation
+            );
+        }
+        if a.machine.machine.is_none() && stats.poses > 0 {
+            let _ = writeln!(
+                e,
+                "kinpost: note: no --machine given; the poses were converted for the embedded machine {} (kinpost machine --list)",
+                machine.name
+            );
+        }
     }
     Ok(())
 }

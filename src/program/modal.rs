@@ -126,6 +126,10 @@ pub struct BlockMeaning {
     pub feed_item: Option<usize>,
     /// Warnings (e.g. a tool vector normalised).
     pub warnings: Vec<String>,
+    /// How far the programmed tool vector's length was from 1 (0 when it
+    /// was not given or exactly 1); normalised quietly up to
+    /// [`QUIET_NORMALISATION`], with a warning beyond.
+    pub vector_deviation: f64,
 }
 
 /// A problem with a block: message and the item it concerns.
@@ -136,6 +140,11 @@ pub struct BlockError {
     /// What is wrong and what was expected.
     pub message: String,
 }
+
+/// Largest deviation of a tool vector's length from 1 that is normalised
+/// without a warning per block (CAM output printed to 6–9 decimals is off
+/// by up to about 1e-6); the run's summary reports the largest.
+pub const QUIET_NORMALISATION: f64 = 1e-5;
 
 /// Tolerance on the length of a programmed tool vector: within it the vector
 /// is normalised with a warning; beyond it the block is an error.
@@ -331,6 +340,7 @@ impl ModalState {
             feed: self.feed,
             feed_item,
             warnings: Vec::new(),
+            vector_deviation: 0.0,
         };
         if !self.pose_mode || non_modal || !(has_tip || has_axis) {
             return Ok(meaning);
@@ -464,7 +474,8 @@ impl ModalState {
                 ),
             });
         }
-        if (norm - 1.0).abs() > 1e-9 {
+        meaning.vector_deviation = (norm - 1.0).abs();
+        if meaning.vector_deviation > QUIET_NORMALISATION {
             meaning.warnings.push(format!(
                 "tool vector of length {norm:.9} normalised to unit length"
             ));
