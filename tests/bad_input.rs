@@ -1176,3 +1176,29 @@ fn nearly_unit_tool_vectors_are_normalised_quietly_with_one_summary() {
     );
     assert!(!r.stderr.contains("note:"), "{}", r.stderr);
 }
+
+#[test]
+fn analyze_and_simulate_refuse_a_malformed_pose_line() {
+    // Before: the line was skipped ("240 poses", exit 0).
+    let lens = std::fs::read_to_string(fixture("programs/zhao2022-lens.nc")).unwrap();
+    let bad: String = lens
+        .lines()
+        .enumerate()
+        .map(|(i, l)| if i == 19 { l.replacen(".082263857", ".082263857.3", 1) } else { l.to_string() } + "\n")
+        .collect();
+    assert!(bad.contains("X45.082263857.3"));
+    let d = dir_with(&[("p.nc", bad.as_bytes())]);
+    let errors = fixture("errors/zhao2022-xzbc.csv");
+    for args in [
+        vec!["analyze", "-e", &errors, "p.nc"],
+        vec!["simulate", "-p", "p.nc", "-o", "rec.csv"],
+    ] {
+        let r = run_in(d.path(), &args);
+        expect(
+            &r,
+            1,
+            &["p.nc:20:1: malformed number `X45.082263857.3`: more than one decimal point"],
+        );
+    }
+    assert!(!d.path().join("rec.csv").exists());
+}

@@ -2,6 +2,8 @@
 //! in a block that must be converted: a malformed number, a number that is
 //! not finite or does not fit, or syntax kinpost does not evaluate.
 
+use crate::gcode::{ItemKind, Line};
+
 /// The longest piece of offending text quoted in a message.
 const QUOTE_MAX: usize = 48;
 
@@ -99,6 +101,63 @@ fn quote(s: &str) -> String {
         let head: String = s.chars().take(QUOTE_MAX).collect();
         format!("{head}…")
     }
+}
+
+/// The item index of an opaque item in a block that must be converted (or may
+/// carry coordinates in pose mode).
+pub fn opaque_in_pose_block(
+    line: &Line,
+    pose_mode: bool,
+    is_pose: bool,
+    straight: bool,
+) -> Option<usize> {
+    if !(pose_mode || is_pose) {
+        if !straight {
+            return None;
+        }
+        // Outside pose mode a straight move whose unreadable text holds a
+        // tool vector (`G1 X1.2.3 Y0 Z0 I0 J0 K1`: the parser stops at the
+        // malformed number) still asks for pose conversion: refuse it
+        // rather than pass it through unconverted.
+        return line.items.iter().position(|it| {
+            matches!(it.kind, ItemKind::Opaque) && holds_tool_vector(line.item_bytes(it))
+        });
+    }
+    line.items.iter().position(|it| {
+        matches!(it.kind, ItemKind::Opaque)
+            && (is_pose
+                || line.item_bytes(it).iter().any(|b| {
+                    matches!(
+                        b.to_ascii_uppercase(),
+                        b'X' | b'Y' | b'Z' | b'I' | b'J' | b'K'
+                    )
+                }))
+    })
+}
+
+/// Whether unreadable text holds a tool-vector word: `I`, `J` or `K`
+/// followed by a number, or `A3=`, `B3=`, `C3=`.
+fn holds_tool_vector(bytes: &[u8]) -> bool {
+    // Names (`o<i0>`, `#<i1>`), expressions (`[...]`) and comments left out.
+    let mut depth = 0i32;
+    let up: Vec<u8> = bytes
+        .iter()
+        .filter(|&&b| {
+            match b {
+                b'<' | b'[' | b'(' => depth += 1,
+                b'>' | b']' | b')' => depth -= 1,
+                _ => return depth <= 0,
+            }
+            false
+        })
+        .map(u8::to_ascii_uppercase)
+        .collect();
+    up.windows(2).any(|w| {
+        matches!(w[0], b'I' | b'J' | b'K')
+            && (w[1].is_ascii_digit() || matches!(w[1], b'-' | b'+' | b'.'))
+    }) || up
+        .windows(3)
+        .any(|w| matches!(w[0], b'A' | b'B' | b'C') && w[1] == b'3' && w[2] == b'=')
 }
 
 #[cfg(test)]

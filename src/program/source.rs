@@ -64,6 +64,21 @@ pub fn gcode_poses<R: BufRead>(
                 line.text_lossy(),
             )
         })?;
+        // A pose block with text kinpost does not read (`X1.2.3`) is an
+        // error, as in `post`: skipping it would drop a pose silently.
+        let straight = matches!(meaning.motion, Motion::Rapid | Motion::Linear);
+        if let Some(i) = super::opaque::opaque_in_pose_block(
+            line,
+            modal.pose_mode,
+            meaning.pose.is_some(),
+            straight,
+        ) {
+            return Err(Error::input_with(
+                Location::new(file, line.number, line.items[i].start + 1),
+                super::opaque::describe_opaque(line.item_bytes(&line.items[i])),
+                line.text_lossy(),
+            ));
+        }
         if let Some((tip, axis)) = meaning.pose {
             let feed_mm_min = match meaning.feed_mode {
                 super::FeedMode::PerMinute => meaning.feed.map(|f| f * meaning.units.mm_per_unit()),
