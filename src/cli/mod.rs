@@ -393,7 +393,8 @@ fn post(a: PostArgs) -> Result<()> {
             stats.lines,
             stats.max_axis_miss_rad * 1e6
         );
-        if stats.max_vector_deviation > 0.0 {
+        // Below 1e-9 it is the rounding of a vector printed to 9 decimals.
+        if stats.max_vector_deviation > 1e-9 {
             let _ = writeln!(
                 e,
                 "kinpost: tool vectors normalised to unit length; largest deviation of a length from 1: {:.3e}",
