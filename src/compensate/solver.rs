@@ -77,7 +77,7 @@ pub struct CompensatingSolver<'a> {
     /// Direction of the last motion of each joint in `backlash`, by the
     /// rule `diagnose` and `simulate` use (a reversal counts once the axis
     /// is back by more than the dead band); filled on the first block.
-    pub directions: Vec<crate::diagnose::effects::DirectionTracker>,
+    pub directions: Vec<crate::geometric::effects::DirectionTracker>,
 }
 
 impl CompensatingSolver<'_> {
@@ -87,7 +87,7 @@ impl CompensatingSolver<'_> {
         model: &crate::geometric::model::ErrorModel,
         chain: &Chain,
     ) -> (Vec<(usize, f64)>, Vec<String>) {
-        use crate::diagnose::effects::Effect;
+        use crate::geometric::effects::Effect;
         let mut backlash = Vec::new();
         let mut warnings = Vec::new();
         for e in &model.effects {
@@ -225,7 +225,7 @@ impl CompensatingSolver<'_> {
         // program (mm, degrees), with the dead band of the effect catalogue.
         let mut q = q;
         if self.directions.len() != self.backlash.len() {
-            use crate::diagnose::effects::{DIRECTION_DEAD_BAND, DirectionTracker};
+            use crate::geometric::effects::{DIRECTION_DEAD_BAND, DirectionTracker};
             self.directions = vec![DirectionTracker::new(DIRECTION_DEAD_BAND); self.backlash.len()];
         }
         let mut lag = [0.0; crate::machine::chain::MAX_JOINTS];

@@ -14,8 +14,8 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::effects::{Effect, EffectKind, EffectSpec};
 use super::prepare::Prepared;
+use crate::geometric::effects::{Effect, EffectKind, EffectSpec};
 use crate::machine::chain::JointKind;
 
 /// A family of candidate terms: one effect on one axis (or pair).

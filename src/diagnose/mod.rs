@@ -3,7 +3,8 @@
 //! the proof on held-out data, and the improved model.
 //!
 //! * [`recording`]: the recording CSV of `formats.md` §2 (reader, writer).
-//! * [`effects`]: the catalogue of `formats.md` §4 and [`parse_effect_spec`].
+//! * the catalogue of `formats.md` §4 lives in [`crate::geometric::effects`]
+//!   (re-exported here as [`effects`]).
 //! * [`simulate`](mod@simulate): simulated recordings ([`simulate()`]).
 //! * [`fit`]: linearised effect fits, onset profiles, cross-validation.
 //! * [`report`]: the report ([`Report`]): JSON, text, SVG.
@@ -13,7 +14,6 @@
 // Numerical code: several parallel arrays are indexed by one counter.
 #![allow(clippy::needless_range_loop)]
 
-pub mod effects;
 pub mod fit;
 pub mod prepare;
 pub mod programs;
@@ -24,7 +24,7 @@ pub mod simulate;
 
 use std::collections::BTreeMap;
 
-pub use effects::{Effect, EffectKind, EffectSpec, parse_effect_spec};
+pub use crate::geometric::effects::{self, Effect, EffectKind, EffectSpec, parse_effect_spec};
 pub use recording::{Recording, RecordingReader, Sample};
 pub use report::{Finding, Report, RunnerUp, Where};
 pub use simulate::{
@@ -32,7 +32,7 @@ pub use simulate::{
     simulate,
 };
 
-use effects::BoundEffect;
+use crate::geometric::effects::BoundEffect;
 use fit::{Candidate, Family, Fitted, SearchCtx, Selected, Term};
 use prepare::{ModelMachine, Prepared, noise_floor, prepare};
 use report::{Condition, Locate, Series, Window};

@@ -8,10 +8,12 @@
 
 use nalgebra::{Matrix4, Unit, Vector3};
 
-use super::effects::{BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionState};
 use super::recording::Recording;
 use super::simulate::central_pair;
 use crate::error::{Error, Location, Result};
+use crate::geometric::effects::{
+    BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionState,
+};
 use crate::geometric::{BoundErrors, ErrorModel};
 use crate::machine::chain::{Chain, Element, JointErrors, JointKind, NoErrors, error_matrix};
 

@@ -6,8 +6,8 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use super::effects::{Effect, EffectSpec, axis_is_rotary};
 use crate::geometric::ErrorModel;
+use crate::geometric::effects::{Effect, EffectSpec, axis_is_rotary};
 
 /// Where an effect acts.
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -18,13 +18,13 @@
 
 use nalgebra::Vector3;
 
-use super::effects::{
-    BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionState, chain_with_effects,
-};
 use super::recording::{Recording, Sample};
 use super::rng::Rng;
 use crate::error::{Error, Location, Result};
 use crate::geometric::ErrorModel;
+use crate::geometric::effects::{
+    BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionState, chain_with_effects,
+};
 use crate::machine::chain::{Chain, JointErrors, JointKind, NoErrors};
 
 /// A commanded machine position: the end point of a block.

@@ -12,8 +12,8 @@ use super::iso230_2::{self, Iso230_2};
 use super::table::{
     Component, ErrorTable, RAD_PER_ARCSEC, angle_unit, is_rotary_axis, length_unit, parse_tables,
 };
-use crate::diagnose::effects::{BoundEffect, Effect, EffectSpec, StaticTerm};
 use crate::error::{Error, Location, Result};
+use crate::geometric::effects::{BoundEffect, Effect, EffectSpec, StaticTerm};
 use crate::machine::chain::{Chain, ErrorMotion, JointErrors, JointKind, error_matrix};
 
 /// Value of the `format` field of a model JSON file.
