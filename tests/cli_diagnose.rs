@@ -198,3 +198,78 @@ fn improved_model_closes_the_loop() {
     );
     assert!(after < 0.3 * before, "{before} → {after}");
 }
+
+#[test]
+fn an_untidy_recording_names_its_faults_and_claims_no_machine_effect() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("untidy.csv");
+    kinpost(&[
+        "simulate",
+        "--machine",
+        "zhao2022-xzbc",
+        "--errors",
+        &root("fixtures/errors/zhao2022-xzbc.csv"),
+        "--program",
+        &root("fixtures/programs/zhao2022-xzbc-exercise.nc"),
+        "--seed",
+        "11",
+        "--time-offset",
+        "0.015",
+        "--outliers",
+        "0.005",
+        "--round",
+        "0.0001",
+        "-o",
+        rec.to_str().unwrap(),
+    ]);
+    let v = diagnose_json(&rec, &[]);
+    let findings = v["findings"].as_array().unwrap();
+    let names: Vec<&str> = findings
+        .iter()
+        .map(|f| f["effect"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["time_offset", "outliers"], "{v}");
+    let offset = findings[0]["parameters"]["offset_s"].as_f64().unwrap();
+    assert!((offset - 0.015).abs() < 0.0015, "{offset}");
+    assert!(findings.iter().all(|f| f["machine_physics"] == false));
+    assert!(findings.iter().all(|f| f["axis"].is_null()));
+    assert!(findings[1]["parameters"]["count"].as_f64().unwrap() >= 1.0);
+    assert_eq!(v["resolution"]["meas_mm"].as_f64(), Some(0.0001));
+    assert!(
+        v["verdict"]
+            .as_str()
+            .unwrap()
+            .starts_with("consistent with measurement noise"),
+        "{}",
+        v["verdict"]
+    );
+}
+
+#[test]
+fn a_recording_of_another_machine_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("trt.csv");
+    kinpost(&[
+        "simulate",
+        "--machine",
+        "xyzbc-trt",
+        "--program",
+        &root("fixtures/programs/xyzbc-trt.ngc"),
+        "-o",
+        rec.to_str().unwrap(),
+    ]);
+    let out = Command::new(BIN)
+        .args([
+            "diagnose",
+            "--machine",
+            "xyzbc-nutating",
+            "--recording",
+            rec.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("does not fit this machine"), "{err}");
+    assert!(err.contains("trt.csv"), "{err}");
+}

@@ -47,6 +47,24 @@ pub struct SimulateArgs {
     /// Acceleration limit along the path, in mm/s² (0: constant feed per block).
     #[arg(long, value_name = "MM/S2", default_value_t = 200.0)]
     pub accel: f64,
+    /// Clock offset of the recording, in s: the sample stamped t shows the
+    /// machine at t − offset (formats.md §2c; `diagnose` names it
+    /// `time_offset`).
+    #[arg(
+        long,
+        value_name = "S",
+        default_value_t = 0.0,
+        allow_hyphen_values = true
+    )]
+    pub time_offset: f64,
+    /// Fraction (0 … 0.5) of samples with a gross measurement fault of
+    /// 0.1 … 1 mm (a broken laser beam; `diagnose` names them `outliers`).
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.0)]
+    pub outliers: f64,
+    /// Round every written value to a multiple of this step, in mm (axes
+    /// in mm or deg, as an export with few decimals does). 0: no rounding.
+    #[arg(long, value_name = "STEP", default_value_t = 0.0)]
+    pub round: f64,
     /// Feed of rapid moves and of moves without a programmed feed, in mm/min.
     #[arg(long, value_name = "MM/MIN", default_value_t = 3000.0)]
     pub rapid_feed: f64,
@@ -171,6 +189,24 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
             shown(a.accel)
         )));
     }
+    if !(a.time_offset.is_finite() && a.time_offset.abs() <= 3600.0) {
+        return Err(Error::Usage(format!(
+            "--time-offset {}: expected −3600 … 3600 s",
+            shown(a.time_offset)
+        )));
+    }
+    if !(0.0..=0.5).contains(&a.outliers) {
+        return Err(Error::Usage(format!(
+            "--outliers {}: expected a fraction of 0 … 0.5",
+            shown(a.outliers)
+        )));
+    }
+    if !(0.0..=10.0).contains(&a.round) {
+        return Err(Error::Usage(format!(
+            "--round {}: expected a step of 0 … 10 mm",
+            shown(a.round)
+        )));
+    }
     let model = match &a.errors {
         Some(p) => Some(super::errors::load_errors(p)?),
         None => None,
@@ -198,6 +234,9 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         seed: a.seed,
         sample_interval_s: a.sample_interval,
         accel_mm_s2: (a.accel > 0.0).then_some(a.accel),
+        time_offset_s: a.time_offset,
+        outlier_fraction: a.outliers,
+        quantum: a.round,
     };
     let rec = run_simulate(&machine.chain, model.as_ref(), &wps, &effects, &opts)?;
     let n = rec.samples.len();

@@ -6,6 +6,8 @@
 //! * the catalogue of `formats.md` §4 lives in [`crate::geometric::effects`]
 //!   (re-exported here as [`effects`]).
 //! * [`simulate`](mod@simulate): simulated recordings ([`simulate()`]).
+//! * [`untidy`]: what is not machine physics (resolution, outliers, clock
+//!   offset), found and removed first.
 //! * [`fit`]: linearised effect fits, onset profiles, cross-validation.
 //! * [`report`]: the report ([`Report`]): JSON, text, SVG.
 //!
@@ -15,12 +17,15 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod fit;
+pub mod plausible;
 pub mod prepare;
 pub mod programs;
 pub mod recording;
 pub mod report;
 pub mod rng;
 pub mod simulate;
+pub mod unexplained;
+pub mod untidy;
 
 use std::collections::BTreeMap;
 
@@ -34,7 +39,7 @@ pub use simulate::{
 
 use crate::geometric::effects::BoundEffect;
 use fit::{Candidate, Family, Fitted, SearchCtx, Selected, Term};
-use prepare::{ModelMachine, Prepared, noise_floor, prepare};
+use prepare::{ModelMachine, Prepared, prepare};
 use report::{Condition, Locate, Series, Window};
 
 use crate::error::{Error, Location, Result};
@@ -104,10 +109,46 @@ pub fn diagnose(
         ));
     }
     let machine = ModelMachine::new(chain, errors)?;
+    let n_all = rec.samples.len();
+    let ln_rows = ((3 * n_all) as f64).ln();
+    let tidy = untidy::tidy(
+        &machine,
+        rec,
+        opts.noise_floor_mm.filter(|s| *s > 0.0),
+        ln_rows + opts.bic_margin,
+    )?;
+    if tidy.rec.samples.len() < 20 {
+        return Err(Error::input(
+            Location::new("<recording>", 0, 0),
+            format!(
+                "only {} of the {n_all} samples are left once the clock offset and the outliers are removed; a diagnosis needs at least 20",
+                tidy.rec.samples.len()
+            ),
+        ));
+    }
+    let original = rec;
+    let rec = &tidy.rec;
     let prep = prepare(&machine, rec)?;
-    let (per, est) = noise_floor(&prep.r);
-    let sigma = opts.noise_floor_mm.filter(|s| *s > 0.0).unwrap_or(est);
+    let (per, sigma) = untidy::floor_of(
+        &prep,
+        tidy.rounding_xyz,
+        opts.noise_floor_mm.filter(|s| *s > 0.0),
+    );
     let s2 = sigma * sigma;
+    // What the rounding of the values alone can leave as structure.
+    let unresolved = {
+        let (meas, cmd) = tidy.rounding_xyz;
+        let pooled = |v: [f64; 3]| ((v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) / 3.0).sqrt();
+        let meas = pooled(meas);
+        let cmd = pooled(cmd);
+        // Rounding of the measured tip is dithered by noise larger than it.
+        let noise = pooled(per);
+        if meas > 0.5 * noise {
+            cmd.hypot(meas)
+        } else {
+            cmd
+        }
+    };
     let n_rows = prep.rows() as f64;
     let ctx = SearchCtx {
         sigma,
@@ -120,6 +161,7 @@ pub fn diagnose(
         .collect();
 
     // Forward stepwise selection.
+    let mut rejected: Vec<report::Rejected> = Vec::new();
     let mut terms: Vec<Term> = Vec::new();
     let mut fitted_meta: Vec<(f64, (f64, f64))> = Vec::new();
     let mut rounds: Vec<Vec<Candidate>> = Vec::new();
@@ -138,13 +180,40 @@ pub fn diagnose(
             first_round = cands.clone();
         }
         let mut accepted = None;
-        for c in cands.iter().take(3) {
-            if c.score < opts.bic_margin {
+        let mut tried = 0;
+        for c in &cands {
+            if c.score < opts.bic_margin || tried == 3 {
                 break;
             }
             let mut trial = terms.clone();
             trial.push(c.term);
-            let hold = fit::holdout_rss(&prep, &fit::design(&prep, &trial));
+            let cols = fit::design(&prep, &trial);
+            // Physical signs and plausibility, with the others in the fit.
+            let (beta, _) = fit::lsq(&prep, &cols, &|_| true);
+            let own = &beta.as_slice()[beta.len() - c.term.family.linear_params()..];
+            let effect = fit::term_effect(&prep, &c.term, own);
+            if let Some(reason) = plausible::implausible(&effect, &prep) {
+                reject(&mut rejected, &effect, &machine.chain, reason);
+                continue;
+            }
+            // Rounded commands leave a residual that follows the axes
+            // where they stop; an effect smaller than it is not resolved.
+            let size = (c.delta_rss / n_rows).sqrt();
+            if size < unresolved {
+                reject(
+                    &mut rejected,
+                    &effect,
+                    &machine.chain,
+                    format!(
+                        "it moves the tip by {:.3} µm RMS, less than the {:.3} µm the rounding of the recorded values leaves",
+                        size * 1e3,
+                        unresolved * 1e3
+                    ),
+                );
+                continue;
+            }
+            tried += 1;
+            let hold = fit::holdout_rss(&prep, &cols);
             if hold_prev - hold >= ctx.ln_n * s2 {
                 accepted = Some((*c, hold));
                 break;
@@ -175,15 +244,32 @@ pub fn diagnose(
     }
 
     // Final joint fit with covariance (non-linear parameters by their
-    // Gauss–Newton columns).
-    let all = fit::design(&prep, &terms);
-    let (beta, _) = fit::lsq(&prep, &all, &|_| true);
-    let mut offsets = Vec::with_capacity(terms.len());
-    let mut off = 0;
-    for t in &terms {
-        offsets.push(off);
-        off += t.family.linear_params();
-    }
+    // Gauss–Newton columns). A term that the joint fit pushes to
+    // parameters physics does not allow leaves the model.
+    let (all, beta, offsets) = loop {
+        let all = fit::design(&prep, &terms);
+        let (beta, _) = fit::lsq(&prep, &all, &|_| true);
+        let mut offsets = Vec::with_capacity(terms.len());
+        let mut off = 0;
+        for t in &terms {
+            offsets.push(off);
+            off += t.family.linear_params();
+        }
+        let bad = terms.iter().enumerate().find_map(|(k, t)| {
+            let b = &beta.as_slice()[offsets[k]..offsets[k] + t.family.linear_params()];
+            let e = fit::term_effect(&prep, t, b);
+            plausible::implausible(&e, &prep).map(|r| (k, e, r))
+        });
+        match bad {
+            None => break (all, beta, offsets),
+            Some((k, e, reason)) => {
+                reject(&mut rejected, &e, &machine.chain, reason);
+                terms.remove(k);
+                fitted_meta.remove(k);
+                rounds.remove(k);
+            }
+        }
+    };
     let mut full = all.clone();
     let mut nl_index = vec![None; terms.len()];
     let mut onset_index = vec![None; terms.len()];
@@ -285,6 +371,16 @@ pub fn diagnose(
 
     let rms_before = rms(&prep.r);
     let rms_after = rms(&after);
+    if rms_after > untidy::MISFIT_AFTER_MM {
+        return Err(Error::input(
+            Location::new("<recording>", 0, 0),
+            format!(
+                "the recording does not fit this machine: even with the effects that fit best the measured tool tip stays {:.3} mm RMS from the model (more than {} mm). Is it a recording of this machine, with its axes in mm and degrees and the tip in the workpiece frame?",
+                rms_after,
+                untidy::MISFIT_AFTER_MM
+            ),
+        ));
+    }
     let hold_after = fit::holdout_rss(&prep, &all);
     let to_rms = |rss: f64| (rss / n_rows).sqrt();
     let t_span = [prep.t[0], prep.t[prep.n - 1]];
@@ -361,16 +457,50 @@ pub fn diagnose(
     let chi2 = |r: &[[f64; 3]]| rms(r).powi(2) / s2;
     let chi_before = chi2(&prep.r);
     let chi_after = chi2(&after);
+    let locate = locate(&prep, &after, sigma);
+    let measurement = tidy.findings(original);
+    let faults = if measurement.is_empty() {
+        String::new()
+    } else {
+        let parts: Vec<String> = measurement
+            .iter()
+            .map(|m| match m.effect.as_str() {
+                "time_offset" => format!(
+                    "a clock offset of {:.3} ms",
+                    m.parameters.get("offset_s").copied().unwrap_or(0.0) * 1e3
+                ),
+                _ => format!(
+                    "{} gross outlier(s)",
+                    m.parameters.get("count").copied().unwrap_or(0.0)
+                ),
+            })
+            .collect();
+        format!(
+            " once the measurement faults are removed ({})",
+            parts.join(", ")
+        )
+    };
+    // Significantly above the noise: χ² per degree of freedom more than
+    // 4 standard deviations of its own above 1, and 10 % above.
+    let above = |chi: f64| chi > 1.1 && (chi - 1.0) * (1.5 * n_rows).sqrt() > 4.0;
+    let unexplained = if above(chi_after) {
+        unexplained::unexplained(&prep, &after, sigma, &locate.windows)
+    } else {
+        None
+    };
+    let where_text = unexplained
+        .as_ref()
+        .map_or(String::new(), |u| format!(": it shows {}", u.condition));
     let verdict = if findings.is_empty() {
-        if chi_before < 1.1 {
+        if !above(chi_before) {
             format!(
-                "consistent with measurement noise: the residual RMS {:.3} µm is at the noise floor {:.3} µm; no missing physics found",
+                "consistent with measurement noise{faults}: the residual RMS {:.3} µm is at the noise floor {:.3} µm; no missing physics found",
                 rms_before * 1e3,
                 sigma * 1e3
             )
         } else {
             format!(
-                "unexplained mismatch: the residual RMS {:.3} µm exceeds the noise floor {:.3} µm, but no effect of the catalogue explains it on held-out data",
+                "unexplained mismatch{faults}: the residual RMS {:.3} µm exceeds the noise floor {:.3} µm, but no effect of the catalogue explains it on held-out data{where_text}",
                 rms_before * 1e3,
                 sigma * 1e3
             )
@@ -388,9 +518,9 @@ pub fn diagnose(
                 )
             })
             .collect();
-        let rest = if chi_after > 1.1 {
+        let rest = if above(chi_after) {
             format!(
-                "; a mismatch above the noise remains (RMS {:.3} µm vs floor {:.3} µm)",
+                "; a mismatch above the noise remains (RMS {:.3} µm vs floor {:.3} µm){where_text}",
                 rms_after * 1e3,
                 sigma * 1e3
             )
@@ -398,17 +528,16 @@ pub fn diagnose(
             "; what remains is consistent with measurement noise".to_string()
         };
         format!(
-            "missing physics found: {}; held-out RMS {:.3} → {:.3} µm{rest}",
+            "missing physics found{faults}: {}; held-out RMS {:.3} → {:.3} µm{rest}",
             names.join(", "),
             to_rms(hold_before) * 1e3,
             to_rms(hold_after) * 1e3
         )
     };
 
-    let locate = locate(&prep, &after, sigma);
     let series = series(&prep, &after, top_term.as_ref(), &tips_all);
     Ok(Report {
-        samples: prep.n,
+        samples: original.samples.len(),
         noise_floor_mm: sigma,
         rms_before_mm: rms_before,
         rms_after_mm: rms_after,
@@ -438,7 +567,30 @@ pub fn diagnose(
             opts.bic_margin
         ),
         series,
+        measurement,
+        samples_used: prep.n,
+        resolution: tidy.resolution_keys(&prep),
+        rejected,
+        unexplained,
     })
+}
+
+/// Notes a rejected candidate (once per effect and axis).
+fn reject(list: &mut Vec<report::Rejected>, effect: &Effect, chain: &Chain, reason: String) {
+    let name = effect.kind().name().to_string();
+    let axis = effect.axis_label();
+    if list.iter().any(|r| r.effect == name && r.axis == axis) {
+        return;
+    }
+    list.push(report::Rejected {
+        effect: name,
+        axis,
+        parameters: effect
+            .parameters(report::effect_is_rotary(effect, chain))
+            .into_iter()
+            .collect(),
+        reason,
+    });
 }
 
 /// Exact tool tips of the model plus `specs`, each acting from its onset

@@ -72,6 +72,88 @@ pub struct Finding {
     pub spec: EffectSpec,
 }
 
+/// A finding that is not machine physics (`formats.md` §2c): the
+/// recording's clock offset (`time_offset`) or its gross outliers
+/// (`outliers`). Found and removed before any machine effect is fitted;
+/// never written into a model.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MeasurementFinding {
+    /// `time_offset` or `outliers`.
+    pub effect: String,
+    /// Always null: measurement faults belong to no axis.
+    pub axis: Option<String>,
+    /// `offset_s`; or `count` and `fraction`.
+    pub parameters: BTreeMap<String, f64>,
+    /// One standard deviation of each parameter where it has one.
+    pub uncertainty: BTreeMap<String, f64>,
+    /// Where it shows.
+    #[serde(rename = "where")]
+    pub where_: Where,
+    /// RMS per coordinate of the residual it accounts for, over the whole
+    /// recording, mm.
+    pub rms_explained_mm: f64,
+    /// Always false.
+    pub machine_physics: bool,
+    /// For outliers: the samples set aside (the first 50), with their
+    /// departure from the running median.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub samples: Vec<FlaggedSample>,
+}
+
+/// One sample set aside as a gross outlier.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FlaggedSample {
+    /// Index in the recording (0 = first data row).
+    pub index: usize,
+    /// Its time stamp, s.
+    pub t_s: f64,
+    /// Its block.
+    pub block: Option<u64>,
+    /// Its departure from the running median of its neighbours, mm.
+    pub departure_mm: [f64; 3],
+}
+
+/// A candidate that fitted the data but not physics: a negative lag,
+/// backlash or time constant, or a size the recording's motion could not
+/// reveal. Evidence against that effect, not a finding.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Rejected {
+    /// Effect name.
+    pub effect: String,
+    /// Axis label.
+    pub axis: Option<String>,
+    /// The parameters it wanted.
+    pub parameters: BTreeMap<String, f64>,
+    /// Why it is not a finding.
+    pub reason: String,
+}
+
+/// What the residual correlates with, when no effect explains it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Correlation {
+    /// `axis position`, `axis velocity`, `time` or `frequency`.
+    pub with: String,
+    /// The axis, where one applies.
+    pub axis: Option<String>,
+    /// In words, with units.
+    pub detail: String,
+    /// Share of the residual's variance it accounts for (0 … 1).
+    pub share: f64,
+}
+
+/// Where and with what an unexplained mismatch shows.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Unexplained {
+    /// First and last block of the windows that depart from the noise.
+    pub blocks: [Option<u64>; 2],
+    /// The same in time, s.
+    pub t_s: [f64; 2],
+    /// When it shows, in words.
+    pub condition: String,
+    /// What it correlates with, strongest first.
+    pub correlates_with: Vec<Correlation>,
+}
+
 /// A time window of the residual.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Window {
@@ -176,6 +258,24 @@ pub struct Report {
     /// Plot data.
     #[serde(skip)]
     pub series: Series,
+    /// Findings that are not machine physics (clock offset, outliers);
+    /// the JSON lists them first in `findings`, marked
+    /// `"machine_physics": false`.
+    #[serde(skip)]
+    pub measurement: Vec<MeasurementFinding>,
+    /// Samples the machine effects were fitted on (without outliers and
+    /// the ends a clock offset leaves without a command).
+    pub samples_used: usize,
+    /// Resolution of the recording's values where they are rounded
+    /// (`meas_mm`, and per axis `X_mm`, `C_deg`, …); the noise floor is
+    /// never below the rounding's q²/12.
+    pub resolution: BTreeMap<String, f64>,
+    /// Candidates that fitted the data with parameters physics does not
+    /// allow.
+    pub rejected: Vec<Rejected>,
+    /// Where and with what the mismatch shows when no effect explains it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unexplained: Option<Unexplained>,
 }
 
 /// A scored candidate.
@@ -195,6 +295,12 @@ fn um(mm: f64) -> String {
 
 /// Formats a parameter with its unit from the suffix.
 fn param_text(name: &str, v: f64, sd: Option<f64>) -> String {
+    if name == "count" {
+        return format!("count = {v:.0}");
+    }
+    if name == "fraction" {
+        return format!("fraction = {:.3} %", v * 100.0);
+    }
     let (base, unit, scale, dec) = if let Some(b) = name.strip_suffix("_mm") {
         (b, "µm", 1000.0, 3)
     } else if let Some(b) = name.strip_suffix("_deg") {
@@ -228,14 +334,33 @@ fn param_text(name: &str, v: f64, sd: Option<f64>) -> String {
 }
 
 impl Report {
-    /// The report as JSON (`formats.md` §3 plus extra fields).
+    /// The report as JSON (`formats.md` §3 plus extra fields). `findings`
+    /// lists the measurement findings first (`"machine_physics": false`),
+    /// then the machine effects by importance (`"machine_physics": true`).
     pub fn to_json(&self) -> serde_json::Value {
-        serde_json::to_value(self).unwrap_or(serde_json::Value::Null)
+        let mut v = serde_json::to_value(self).unwrap_or(serde_json::Value::Null);
+        let mut all: Vec<serde_json::Value> = self
+            .measurement
+            .iter()
+            .filter_map(|m| serde_json::to_value(m).ok())
+            .collect();
+        for f in &self.findings {
+            if let Ok(mut x) = serde_json::to_value(f) {
+                if let Some(o) = x.as_object_mut() {
+                    o.insert("machine_physics".into(), serde_json::Value::Bool(true));
+                }
+                all.push(x);
+            }
+        }
+        if let Some(o) = v.as_object_mut() {
+            o.insert("findings".into(), serde_json::Value::Array(all));
+        }
+        v
     }
 
     /// Pretty-printed JSON text.
     pub fn to_json_string(&self) -> String {
-        serde_json::to_string_pretty(self).unwrap_or_default()
+        serde_json::to_string_pretty(&self.to_json()).unwrap_or_default()
     }
 
     /// A readable report; every number carries its unit.
@@ -269,6 +394,36 @@ impl Report {
             um(self.holdout_rms_before_mm),
             um(self.holdout_rms_after_mm)
         ));
+        if !self.resolution.is_empty() {
+            let r: Vec<String> = self
+                .resolution
+                .iter()
+                .map(|(k, v)| param_text(k, *v, None))
+                .collect();
+            s.push_str(&format!(
+                "  values rounded: {} (the noise floor is never below the rounding's q²/12)\n",
+                r.join(", ")
+            ));
+        }
+        if self.samples_used != self.samples {
+            s.push_str(&format!(
+                "  machine effects fitted on {} of the {} samples\n",
+                self.samples_used, self.samples
+            ));
+        }
+        for m in &self.measurement {
+            let ps: Vec<String> = m
+                .parameters
+                .iter()
+                .map(|(n, v)| param_text(n, *v, m.uncertainty.get(n).copied()))
+                .collect();
+            s.push_str(&format!(
+                "  measurement fault, not machine physics: {}: {}\n     {}\n",
+                m.effect,
+                ps.join(", "),
+                m.where_.condition
+            ));
+        }
         let departs: Vec<&Window> = self
             .locate
             .windows
@@ -342,6 +497,31 @@ impl Report {
                     r.axis.as_deref().map_or(String::new(), |a| format!(" {a}")),
                     r.delta_bic
                 ));
+            }
+        }
+        for r in &self.rejected {
+            let ps: Vec<String> = r
+                .parameters
+                .iter()
+                .map(|(n, v)| param_text(n, *v, None))
+                .collect();
+            s.push_str(&format!(
+                "  not a finding: {}{} ({}): {}\n",
+                r.effect,
+                r.axis.as_deref().map_or(String::new(), |a| format!(" {a}")),
+                ps.join(", "),
+                r.reason
+            ));
+        }
+        if let Some(u) = &self.unexplained {
+            s.push_str("  the remaining mismatch correlates with:\n");
+            if u.correlates_with.is_empty() {
+                s.push_str(
+                    "    none of the axis positions, velocities, time or a single frequency\n",
+                );
+            }
+            for c in &u.correlates_with {
+                s.push_str(&format!("    {}\n", c.detail));
             }
         }
         s.push_str(&format!("  verdict: {}\n", self.verdict));

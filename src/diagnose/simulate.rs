@@ -52,6 +52,18 @@ pub struct SimOptions {
     /// Acceleration limit along the path, mm/s² (deg/s² for rotary moves);
     /// `None` for constant feed within each block.
     pub accel_mm_s2: Option<f64>,
+    /// Clock offset of the recording, s (`formats.md` §2c): the sample
+    /// stamped t shows the machine at t − offset, while its command
+    /// columns hold the command at t. 0 for none.
+    pub time_offset_s: f64,
+    /// Fraction of samples (0 … 1) whose measured tip carries a gross
+    /// fault (a broken laser beam): an error of 0.1 … 1 mm in a random
+    /// direction. 0 for none.
+    pub outlier_fraction: f64,
+    /// Resolution of the recorder's export: every written value (axes in
+    /// mm or deg, measured tip in mm) rounded to a multiple of it. 0 for
+    /// none.
+    pub quantum: f64,
 }
 
 impl Default for SimOptions {
@@ -61,6 +73,9 @@ impl Default for SimOptions {
             seed: 1,
             sample_interval_s: 0.1,
             accel_mm_s2: Some(200.0),
+            time_offset_s: 0.0,
+            outlier_fraction: 0.0,
+            quantum: 0.0,
         }
     }
 }
@@ -338,11 +353,22 @@ pub fn sample_waypoints(
         ));
     }
     let count = count as usize;
-    let mut out = Vec::with_capacity(count);
+    let times = (0..count).map(|i| (i as f64 * sample_interval_s * 1e9).round() / 1e9);
+    Ok(points_at(&segs, waypoints, n, times))
+}
+
+/// The commanded trajectory at increasing `times` (rounded to 1 ns by the
+/// caller where it wants clean numbers): before the start at the first
+/// waypoint, after the end at the last.
+fn points_at(
+    segs: &[Segment],
+    waypoints: &[Waypoint],
+    n: usize,
+    times: impl Iterator<Item = f64>,
+) -> Vec<TrajPoint> {
+    let mut out = Vec::new();
     let mut seg = 0usize;
-    for i in 0..count {
-        // Rounded to 1 ns so that times print cleanly.
-        let t = (i as f64 * sample_interval_s * 1e9).round() / 1e9;
+    for t in times {
         while seg + 1 < segs.len() && t >= segs[seg + 1].t_start {
             seg += 1;
         }
@@ -365,6 +391,29 @@ pub fn sample_waypoints(
             }
         };
         out.push(TrajPoint { t, block, q, v });
+    }
+    out
+}
+
+/// The machine's own trajectory when the recording's clock is offset by
+/// `offset_s`: at each of `traj`'s stamps t, the command at t − offset.
+fn delayed(
+    chain: &Chain,
+    waypoints: &[Waypoint],
+    accel_mm_s2: Option<f64>,
+    traj: &[TrajPoint],
+    offset_s: f64,
+) -> Result<Vec<TrajPoint>> {
+    let segs = timeline(chain, waypoints, accel_mm_s2)?;
+    let mut out = points_at(
+        &segs,
+        waypoints,
+        chain.dof(),
+        traj.iter().map(|p| (p.t - offset_s).max(0.0)),
+    );
+    // The machine's own clock: effects that grow with time see it.
+    for (o, p) in out.iter_mut().zip(traj) {
+        o.t = p.t - offset_s;
     }
     Ok(out)
 }
@@ -504,23 +553,65 @@ pub fn simulate(
             "the noise must be a non-negative number of mm",
         ));
     }
+    let faults_ok = opts.time_offset_s.is_finite()
+        && (0.0..=1.0).contains(&opts.outlier_fraction)
+        && opts.quantum.is_finite()
+        && opts.quantum >= 0.0;
+    if !faults_ok {
+        return Err(Error::input(
+            Location::new("<simulate>", 0, 0),
+            "the clock offset must be finite, the outlier fraction 0 … 1 and the quantum ≥ 0",
+        ));
+    }
     let traj = sample_waypoints(chain, waypoints, opts.sample_interval_s, opts.accel_mm_s2)?;
-    let tips = evaluate_trajectory(chain, errors, effects, &traj)?;
+    let tips = if opts.time_offset_s != 0.0 {
+        let machine = delayed(
+            chain,
+            waypoints,
+            opts.accel_mm_s2,
+            &traj,
+            opts.time_offset_s,
+        )?;
+        evaluate_trajectory(chain, errors, effects, &machine)?
+    } else {
+        evaluate_trajectory(chain, errors, effects, &traj)?
+    };
     let mut rng = Rng::new(opts.seed);
+    // Faults draw from their own stream, so that a recording with faults
+    // has the same noise as the one without.
+    let mut faults = Rng::new(opts.seed ^ 0x5eed_fa17);
+    let round = |v: f64| {
+        if opts.quantum > 0.0 {
+            (v / opts.quantum).round() * opts.quantum
+        } else {
+            v
+        }
+    };
     let samples = traj
         .into_iter()
         .zip(tips)
-        .map(|(p, tip)| Sample {
-            t: p.t,
-            block: Some(p.block),
-            q: p.q,
-            meas: [
+        .map(|(p, tip)| {
+            let mut meas = [
                 tip.x + opts.noise_mm * rng.normal(),
                 tip.y + opts.noise_mm * rng.normal(),
                 tip.z + opts.noise_mm * rng.normal(),
-            ],
-            meas_axis: None,
-            temps: Vec::new(),
+            ];
+            if opts.outlier_fraction > 0.0 && faults.uniform() < opts.outlier_fraction {
+                let d = [faults.normal(), faults.normal(), faults.normal()];
+                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-12);
+                let size = 0.1 + 0.9 * faults.uniform();
+                for c in 0..3 {
+                    meas[c] += size * d[c] / len;
+                }
+            }
+            Sample {
+                t: p.t,
+                block: Some(p.block),
+                q: p.q.into_iter().map(round).collect(),
+                meas: meas.map(round),
+                meas_axis: None,
+                temps: Vec::new(),
+            }
         })
         .collect();
     Ok(Recording {

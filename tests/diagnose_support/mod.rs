@@ -193,6 +193,7 @@ pub fn sim_options(seed: u64) -> SimOptions {
         seed,
         sample_interval_s: 0.1,
         accel_mm_s2: Some(300.0),
+        ..SimOptions::default()
     }
 }
 
