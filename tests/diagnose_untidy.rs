@@ -149,6 +149,16 @@ fn a_clock_offset_alone_is_named_and_measured_within_ten_percent() {
                 let (_, r) = run(&sc, &[], |o| o.time_offset_s = offset);
                 (measurement(&r, "time_offset"), machine_findings(&r))
             });
+            let worst = res
+                .iter()
+                .filter_map(|(f, _)| f.map(|d| ((d - offset) / offset).abs()))
+                .fold(0.0, f64::max);
+            println!(
+                "{m:?}: clock offset {offset} s found in {} of {} seeds, worst error {:.2} %",
+                res.iter().filter(|(f, _)| f.is_some()).count(),
+                res.len(),
+                worst * 100.0
+            );
             for (found, others) in &res {
                 let d = found.unwrap_or_else(|| panic!("{m:?} {offset}: not found"));
                 assert!(

@@ -569,7 +569,13 @@ pub fn diagnose(
         series,
         measurement,
         samples_used: prep.n,
-        resolution: tidy.resolution_keys(&prep),
+        // Rounding far below the noise (an export with many decimals) is
+        // not worth a line.
+        resolution: if unresolved.max(tidy.rounding_xyz.0[0]) > 0.1 * sigma {
+            tidy.resolution_keys(&prep)
+        } else {
+            BTreeMap::new()
+        },
         rejected,
         unexplained,
     })

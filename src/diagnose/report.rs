@@ -266,9 +266,10 @@ pub struct Report {
     /// Samples the machine effects were fitted on (without outliers and
     /// the ends a clock offset leaves without a command).
     pub samples_used: usize,
-    /// Resolution of the recording's values where they are rounded
-    /// (`meas_mm`, and per axis `X_mm`, `C_deg`, …); the noise floor is
-    /// never below the rounding's q²/12.
+    /// Resolution of the recording's values where they are rounded enough
+    /// to matter (the rounding's noise above a tenth of the floor):
+    /// `meas_mm`, and per axis `X_mm`, `C_deg`, …; the noise floor is never
+    /// below the rounding's q²/12.
     pub resolution: BTreeMap<String, f64>,
     /// Candidates that fitted the data with parameters physics does not
     /// allow.
