@@ -84,19 +84,18 @@ fn the_worked_example_is_what_the_shipped_fixtures_give() {
     let cmds = documented_commands(&doc);
     assert_eq!(cmds.len(), 2, "{cmds:?}");
     let dir = tempfile::tempdir().unwrap();
+    // The fixtures are named from the repository root.
+    let located = |w: &String| {
+        if w.starts_with("fixtures/") {
+            root.join(w).display().to_string()
+        } else {
+            w.clone()
+        }
+    };
     let mut stdout = String::new();
     for words in &cmds {
         assert_eq!(words[0], "kinpost");
-        let args: Vec<String> = words[1..]
-            .iter()
-            .map(|w| {
-                if w.starts_with("fixtures/") {
-                    root.join(w).display().to_string()
-                } else {
-                    w.clone()
-                }
-            })
-            .collect();
+        let args: Vec<String> = words[1..].iter().map(located).collect();
         let out = std::process::Command::new(env!("CARGO_BIN_EXE_kinpost"))
             .args(&args)
             .current_dir(dir.path())
@@ -112,13 +111,7 @@ fn the_worked_example_is_what_the_shipped_fixtures_give() {
     // The same diagnosis as JSON (formats.md §3).
     let mut json_args: Vec<String> = cmds[1][1..]
         .iter()
-        .map(|w| {
-            if w.starts_with("fixtures/") {
-                root.join(w).display().to_string()
-            } else {
-                w.clone()
-            }
-        })
+        .map(located)
         .filter(|w| {
             !w.ends_with(".svg") && !w.ends_with(".json") && w != "--svg" && w != "--write-model"
         })
