@@ -252,3 +252,87 @@ fn the_reported_miss_is_that_of_the_written_words() {
         "{err}"
     );
 }
+
+/// The axis words of every converted line of `text`: X Y Z B C.
+fn axis_rows(text: &str) -> Vec<[f64; 5]> {
+    text.lines()
+        .filter(|l| l.contains(" C"))
+        .map(|l| {
+            let get = |a: char| {
+                l.split_whitespace()
+                    .find(|w| w.starts_with(a) && w[1..].parse::<f64>().is_ok())
+                    .map(|w| w[1..].parse().unwrap())
+                    .unwrap()
+            };
+            [get('X'), get('Y'), get('Z'), get('B'), get('C')]
+        })
+        .collect()
+}
+
+#[test]
+fn a_change_of_branch_at_the_tilt_limit_is_warned_of_with_its_mid_block_departure() {
+    // Tilting through 0 towards −X on xyzbc-trt (B −35 … 110°): past
+    // B = −35° the pose is reached with B = +40°, C = 180°. The controller
+    // moves the joints along a straight line, so the table swings half a
+    // turn within the block.
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("flip.ngc");
+    let mut prog = String::from("G43.4 H1\n");
+    for (k, th) in (-20..50).step_by(10).enumerate() {
+        let t = (th as f64).to_radians();
+        prog.push_str(&format!(
+            "G1 X{:.3} Y10 Z20 I{:.9} J0 K{:.9} F500\n",
+            k as f64 * 2.0,
+            t.sin(),
+            t.cos()
+        ));
+    }
+    prog.push_str("M30\n");
+    std::fs::write(&p, &prog).unwrap();
+    let (code, out, err) = run(&["post", "--machine", "xyzbc-trt", p.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let warnings: Vec<&str> = err.lines().filter(|l| l.contains("turns")).collect();
+    assert_eq!(warnings.len(), 1, "{err}");
+    assert!(warnings[0].contains("flip.ngc:8:"), "{err}");
+    assert!(warnings[0].contains("C turns 180.0°"), "{err}");
+    // The departure, recomputed from the written words through the
+    // machine's forward kinematics at the joint midpoint.
+    let m = kinpost::machine::Machine::embedded("xyzbc-trt").unwrap();
+    let rows = axis_rows(&out);
+    let (a, b) = (rows[rows.len() - 2], rows[rows.len() - 1]);
+    let tip = |r: [f64; 5]| {
+        let q = m.to_internal(&r);
+        m.chain.pose(&q, &kinpost::machine::NoErrors).tip
+    };
+    // C is a modulo axis: a half turn may go either way.
+    let departures: Vec<f64> = [0.0, -360.0]
+        .iter()
+        .map(|turn| {
+            let mut m: Vec<f64> = (0..5).map(|k| 0.5 * (a[k] + b[k])).collect();
+            m[4] = a[4] + 0.5 * (b[4] + turn - a[4]);
+            let mid = tip([m[0], m[1], m[2], m[3], m[4]]);
+            (mid - 0.5 * (tip(a) + tip(b))).norm()
+        })
+        .collect();
+    assert!(departures.iter().all(|d| *d > 10.0), "{departures:?}");
+    let said: f64 = warnings[0]
+        .split("tool is ")
+        .nth(1)
+        .and_then(|s| s.split(" mm").next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(
+        departures.iter().any(|d| (said - d).abs() < 0.01),
+        "{said} vs {departures:?}"
+    );
+    // A program that stays on its branch gets no such warning.
+    let (code, _, err) = run(&[
+        "post",
+        "--machine",
+        "xyzbc-trt",
+        "fixtures/programs/xyzbc-trt.ngc",
+    ]);
+    assert_eq!(code, 0);
+    assert!(!err.contains(" turns "), "{err}");
+}
