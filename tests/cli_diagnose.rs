@@ -218,7 +218,7 @@ fn an_untidy_recording_names_its_faults_and_claims_no_machine_effect() {
         "--outliers",
         "0.005",
         "--round",
-        "0.0001",
+        "0.001",
         "-o",
         rec.to_str().unwrap(),
     ]);
@@ -234,7 +234,7 @@ fn an_untidy_recording_names_its_faults_and_claims_no_machine_effect() {
     assert!(findings.iter().all(|f| f["machine_physics"] == false));
     assert!(findings.iter().all(|f| f["axis"].is_null()));
     assert!(findings[1]["parameters"]["count"].as_f64().unwrap() >= 1.0);
-    assert_eq!(v["resolution"]["meas_mm"].as_f64(), Some(0.0001));
+    assert_eq!(v["resolution"]["meas_mm"].as_f64(), Some(0.001));
     assert!(
         v["verdict"]
             .as_str()

@@ -102,7 +102,9 @@ impl CompensatingSolver<'_> {
                         backlash.push((j, v));
                     }
                 }
-                Effect::ServoLag { axis, .. } | Effect::ThermalDrift { axis, .. } => warnings.push(format!(
+                Effect::ServoLag { axis, .. }
+                | Effect::ThermalDrift { axis, .. }
+                | Effect::Vibration { axis, .. } => warnings.push(format!(
                     "the model's {} of {axis} depends on speed or time along the run; compensate does not apply it (it is a controller feed-forward or a thermal model's job)",
                     e.effect.kind().name()
                 )),

@@ -39,6 +39,8 @@ pub enum Family {
     RotaryCenterOffset(usize),
     /// Pivot (tool) length.
     PivotLength,
+    /// Vibration of a linear joint (non-linear parameter: frequency, Hz).
+    Vibration(usize),
 }
 
 impl Family {
@@ -54,6 +56,7 @@ impl Family {
             Family::ZeroOffset(_) => EffectKind::ZeroOffset,
             Family::RotaryCenterOffset(_) => EffectKind::RotaryCenterOffset,
             Family::PivotLength => EffectKind::PivotLength,
+            Family::Vibration(_) => EffectKind::Vibration,
         }
     }
 
@@ -66,7 +69,8 @@ impl Family {
             | Family::Scale(j)
             | Family::Cyclic(j)
             | Family::ZeroOffset(j)
-            | Family::RotaryCenterOffset(j) => Some(j),
+            | Family::RotaryCenterOffset(j)
+            | Family::Vibration(j) => Some(j),
             Family::Squareness(_, b) => Some(b),
             Family::PivotLength => None,
         }
@@ -84,14 +88,17 @@ impl Family {
     /// Number of linear coefficients.
     pub fn linear_params(self) -> usize {
         match self {
-            Family::Cyclic(_) | Family::RotaryCenterOffset(_) => 2,
+            Family::Cyclic(_) | Family::RotaryCenterOffset(_) | Family::Vibration(_) => 2,
             _ => 1,
         }
     }
 
     /// Whether a non-linear parameter (τ or period) is searched.
     pub fn has_nonlinear(self) -> bool {
-        matches!(self, Family::ThermalDrift(_) | Family::Cyclic(_))
+        matches!(
+            self,
+            Family::ThermalDrift(_) | Family::Cyclic(_) | Family::Vibration(_)
+        )
     }
 
     /// Every family that applies to the machine of `prep`.
@@ -105,6 +112,7 @@ impl Family {
             v.push(Family::ServoLag(j));
             if prep.kinds[j] == JointKind::Prismatic {
                 v.push(Family::ThermalDrift(j));
+                v.push(Family::Vibration(j));
             }
             v.push(Family::Scale(j));
             v.push(Family::Cyclic(j));
@@ -230,6 +238,12 @@ pub fn base_columns(prep: &Prepared, fam: Family, nl: f64) -> Cols {
                 }
             }
             Family::PivotLength => put(0, prep.tool_axis[i]),
+            Family::Vibration(j) => {
+                let x = std::f64::consts::TAU * nl * prep.t[i];
+                let (s, co) = x.sin_cos();
+                put(0, scaled(j, s));
+                put(1, scaled(j, co));
+            }
         }
     }
     c
@@ -659,104 +673,54 @@ pub fn search_family(
             }
             let (f_lo, f_hi) = (1.0 / p_max, 1.0 / p_min);
             let df = 1.0 / (2.5 * range);
-            let grid = (((f_hi - f_lo) / df).ceil() as usize).clamp(2, 250);
-            let step = (f_hi - f_lo) / (grid - 1) as f64;
-            // Per-sample projections, so that a frequency costs one pass:
-            // x = J_j·[sin θ, cos θ], θ = 2π f q.
-            let ks = sel.cols.k;
-            let mut w = Vec::with_capacity(prep.n);
-            let mut pr = Vec::with_capacity(prep.n);
-            let mut ps = vec![0.0; prep.n * ks];
-            for i in 0..prep.n {
-                let jj = prep.jj(i, j);
-                w.push(jj[0] * jj[0] + jj[1] * jj[1] + jj[2] * jj[2]);
-                pr.push(jj[0] * prep.r[i][0] + jj[1] * prep.r[i][1] + jj[2] * prep.r[i][2]);
-                for a in 0..3 {
-                    if ks > 0 {
-                        let row = sel.cols.row(3 * i + a);
-                        for z in 0..ks {
-                            ps[i * ks + z] += jj[a] * row[z];
-                        }
-                    }
-                }
-            }
-            // Score of one frequency from the per-sample (sin θ, cos θ).
-            let mut cs = vec![0.0; 2 * ks];
-            let mut score = |trig: &[(f64, f64)]| -> f64 {
-                let (mut ss, mut sc, mut cc, mut rs, mut rc) = (0.0, 0.0, 0.0, 0.0, 0.0);
-                cs.iter_mut().for_each(|x| *x = 0.0);
-                for (i, &(sn, co)) in trig.iter().enumerate() {
-                    ss += w[i] * sn * sn;
-                    sc += w[i] * sn * co;
-                    cc += w[i] * co * co;
-                    rs += pr[i] * sn;
-                    rc += pr[i] * co;
-                    for z in 0..ks {
-                        let v = ps[i * ks + z];
-                        cs[z] += sn * v;
-                        cs[ks + z] += co * v;
-                    }
-                }
-                let mut a = [ss, sc, sc, cc];
-                let mut c = [rs, rc];
-                if ks > 0 {
-                    for u in 0..2 {
-                        let mut mrow = vec![0.0; ks];
-                        for (zz, m) in mrow.iter_mut().enumerate() {
-                            for z in 0..ks {
-                                *m += cs[u * ks + z] * sel.ginv[(z, zz)];
-                            }
-                        }
-                        for z in 0..ks {
-                            c[u] -= mrow[z] * sel.h[z];
-                            for v in 0..2 {
-                                a[u * 2 + v] -= mrow[z] * cs[v * ks + z];
-                            }
-                        }
-                    }
-                }
-                quad_form_2(&a, &c, [ss, cc])
-            };
-            let trig_at = |f: f64| -> Vec<(f64, f64)> {
-                let omega = std::f64::consts::TAU * f;
-                (0..prep.n)
-                    .map(|i| (omega * prep.qj(i, j)).sin_cos())
-                    .collect()
-            };
-            // The grid is uniform in frequency: each sample's (sin, cos)
-            // advances by a fixed rotation from one grid value to the next
-            // (re-seeded exactly every 32 steps against rounding drift).
-            let rot = trig_at(step);
-            let mut trig = Vec::new();
-            let mut vals: Vec<(f64, f64)> = Vec::with_capacity(grid);
-            for g in 0..grid {
-                let f = f_lo + step * g as f64;
-                if g % 32 == 0 {
-                    trig = trig_at(f);
-                } else {
-                    for (t, r) in trig.iter_mut().zip(&rot) {
-                        *t = (t.0 * r.1 + t.1 * r.0, t.1 * r.1 - t.0 * r.0);
-                    }
-                }
-                vals.push((score(&trig), f));
-            }
-            vals.sort_by(|a, b| b.0.total_cmp(&a.0));
-            let f_best = vals[0].1;
-            let (f, _) = crate::numeric::golden_section_max(
-                &mut |f| score(&trig_at(f)),
-                (f_best - step).max(f_lo),
-                (f_best + step).min(f_hi),
-                16,
-            );
-            let p = 1.0 / f;
-            let base = base_columns(prep, fam, p);
-            let prof = scan(prep, sel, &base, onsets, None, ctx.min_after);
-            let (k, d, pen) = choose_onset(&prof, ctx, n_on);
+            let x: Vec<f64> = (0..prep.n).map(|i| prep.qj(i, j)).collect();
+            let (f, d, k, pen, grid) =
+                periodic_search(prep, sel, ctx, fam, j, &x, (f_lo, f_hi), df, 250)?;
             let penalty = (k_lin + 1.0) * ctx.ln_n + 2.0 * (grid as f64).ln() + pen;
             Some(Candidate {
                 term: Term {
                     family: fam,
-                    nl: p,
+                    nl: 1.0 / f,
+                    onset: onsets[k],
+                },
+                delta_rss: d,
+                score: d / s2 - penalty,
+                penalty,
+            })
+        }
+        Family::Vibration(j) => {
+            let span = prep.t[prep.n - 1] - prep.t[0];
+            let mut dts: Vec<f64> = prep.t.windows(2).map(|w| w[1] - w[0]).collect();
+            if span <= 0.0 || dts.is_empty() {
+                return None;
+            }
+            let mid = dts.len() / 2;
+            dts.select_nth_unstable_by(mid, f64::total_cmp);
+            // From ten cycles per recording and 0.2 Hz (slower is a drift
+            // or a mismatch confined to part of the recording, not a
+            // structure's oscillation) to just below the Nyquist frequency
+            // of the median interval.
+            let (f_lo, f_hi) = ((10.0 / span).max(MIN_VIBRATION_HZ), 0.49 / dts[mid]);
+            if f_lo >= f_hi {
+                return None;
+            }
+            let df = 1.0 / (2.5 * span);
+            let (f, d, k, pen, grid) = periodic_search(
+                prep,
+                sel,
+                ctx,
+                fam,
+                j,
+                &prep.t,
+                (f_lo, f_hi),
+                df,
+                VIBRATION_GRID,
+            )?;
+            let penalty = (k_lin + 1.0) * ctx.ln_n + 2.0 * (grid as f64).ln() + pen;
+            Some(Candidate {
+                term: Term {
+                    family: fam,
+                    nl: f,
                     onset: onsets[k],
                 },
                 delta_rss: d,
@@ -790,6 +754,128 @@ pub fn search_family(
             })
         }
     }
+}
+
+/// Lowest frequency searched for a vibration, Hz.
+pub const MIN_VIBRATION_HZ: f64 = 0.2;
+
+/// Grid size cap of the vibration frequency search.
+pub const VIBRATION_GRID: usize = 20_000;
+
+/// The frequency search of a periodic family (cyclic in a position,
+/// vibration in time): sinusoid columns `J_j·[sin 2πf·x, cos 2πf·x]` scored
+/// on a uniform frequency grid over `band` with spacing `df` (at most
+/// `max_grid` values), refined by golden section, then the onset profiled.
+/// Returns (frequency, ΔRSS, onset index, onset penalty, grid size).
+#[allow(clippy::too_many_arguments)]
+fn periodic_search(
+    prep: &Prepared,
+    sel: &Selected,
+    ctx: &SearchCtx,
+    fam: Family,
+    j: usize,
+    x: &[f64],
+    band: (f64, f64),
+    df: f64,
+    max_grid: usize,
+) -> Option<(f64, f64, usize, f64, usize)> {
+    let (f_lo, f_hi) = band;
+    let onsets = &prep.onsets;
+    let grid = (((f_hi - f_lo) / df).ceil() as usize).clamp(2, max_grid);
+    let step = (f_hi - f_lo) / (grid - 1) as f64;
+    // Per-sample projections, so that a frequency costs one pass:
+    // columns J_j·[sin θ, cos θ], θ = 2π f x (x a position or time).
+    let ks = sel.cols.k;
+    let mut w = Vec::with_capacity(prep.n);
+    let mut pr = Vec::with_capacity(prep.n);
+    let mut ps = vec![0.0; prep.n * ks];
+    for i in 0..prep.n {
+        let jj = prep.jj(i, j);
+        w.push(jj[0] * jj[0] + jj[1] * jj[1] + jj[2] * jj[2]);
+        pr.push(jj[0] * prep.r[i][0] + jj[1] * prep.r[i][1] + jj[2] * prep.r[i][2]);
+        for a in 0..3 {
+            if ks > 0 {
+                let row = sel.cols.row(3 * i + a);
+                for z in 0..ks {
+                    ps[i * ks + z] += jj[a] * row[z];
+                }
+            }
+        }
+    }
+    // Score of one frequency from the per-sample (sin θ, cos θ).
+    let mut cs = vec![0.0; 2 * ks];
+    let mut score = |trig: &[(f64, f64)]| -> f64 {
+        let (mut ss, mut sc, mut cc, mut rs, mut rc) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        cs.iter_mut().for_each(|x| *x = 0.0);
+        for (i, &(sn, co)) in trig.iter().enumerate() {
+            ss += w[i] * sn * sn;
+            sc += w[i] * sn * co;
+            cc += w[i] * co * co;
+            rs += pr[i] * sn;
+            rc += pr[i] * co;
+            for z in 0..ks {
+                let v = ps[i * ks + z];
+                cs[z] += sn * v;
+                cs[ks + z] += co * v;
+            }
+        }
+        let mut a = [ss, sc, sc, cc];
+        let mut c = [rs, rc];
+        if ks > 0 {
+            for u in 0..2 {
+                let mut mrow = vec![0.0; ks];
+                for (zz, m) in mrow.iter_mut().enumerate() {
+                    for z in 0..ks {
+                        *m += cs[u * ks + z] * sel.ginv[(z, zz)];
+                    }
+                }
+                for z in 0..ks {
+                    c[u] -= mrow[z] * sel.h[z];
+                    for v in 0..2 {
+                        a[u * 2 + v] -= mrow[z] * cs[v * ks + z];
+                    }
+                }
+            }
+        }
+        quad_form_2(&a, &c, [ss, cc])
+    };
+    let trig_at = |f: f64| -> Vec<(f64, f64)> {
+        let omega = std::f64::consts::TAU * f;
+        (0..prep.n).map(|i| (omega * x[i]).sin_cos()).collect()
+    };
+    // The grid is uniform in frequency: each sample's (sin, cos)
+    // advances by a fixed rotation from one grid value to the next
+    // (re-seeded exactly every 32 steps against rounding drift).
+    let rot = trig_at(step);
+    let mut trig = Vec::new();
+    let mut vals: Vec<(f64, f64)> = Vec::with_capacity(grid);
+    for g in 0..grid {
+        let f = f_lo + step * g as f64;
+        if g % 32 == 0 {
+            trig = trig_at(f);
+        } else {
+            for (t, r) in trig.iter_mut().zip(&rot) {
+                *t = (t.0 * r.1 + t.1 * r.0, t.1 * r.1 - t.0 * r.0);
+            }
+        }
+        vals.push((score(&trig), f));
+    }
+    vals.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let f_best = vals[0].1;
+    let (f, _) = crate::numeric::golden_section_max(
+        &mut |f| score(&trig_at(f)),
+        (f_best - step).max(f_lo),
+        (f_best + step).min(f_hi),
+        16,
+    );
+    let nl = match fam {
+        Family::Cyclic(_) => 1.0 / f,
+        _ => f,
+    };
+    let base = base_columns(prep, fam, nl);
+    let prof = scan(prep, sel, &base, onsets, None, ctx.min_after);
+    let (k, d, pen) = choose_onset(&prof, ctx, onsets.len());
+    Some((f, d, k, pen, grid))
 }
 
 /// Least squares on the rows of the samples for which `train(i)` holds:
@@ -910,6 +996,15 @@ pub fn term_effect(prep: &Prepared, term: &Term, beta: &[f64]) -> Effect {
             }
         }
         Family::PivotLength => Effect::PivotLength { delta_mm: beta[0] },
+        Family::Vibration(j) => {
+            let (c, s) = (beta[0], beta[1]);
+            Effect::Vibration {
+                axis: name(j),
+                amplitude: c.hypot(s),
+                frequency_hz: term.nl,
+                phase_deg: s.atan2(c).to_degrees(),
+            }
+        }
     }
 }
 
@@ -919,7 +1014,7 @@ pub fn parameter_sd(prep: &Prepared, term: &Term, beta: &[f64], cov: &DMatrix<f6
     let sd = |k: usize| cov[(k, k)].max(0.0).sqrt();
     match term.family {
         Family::ThermalDrift(_) => vec![sd(0), sd(1)],
-        Family::Cyclic(_) => {
+        Family::Cyclic(_) | Family::Vibration(_) => {
             let (c, s) = (beta[0], beta[1]);
             let a = c.hypot(s).max(1e-300);
             let ga = [c / a, s / a];

@@ -166,13 +166,34 @@ pub fn diagnose(
     let mut fitted_meta: Vec<(f64, (f64, f64))> = Vec::new();
     let mut rounds: Vec<Vec<Candidate>> = Vec::new();
     let mut first_round: Vec<Candidate> = Vec::new();
+    let rss0: f64 = prep
+        .r
+        .iter()
+        .map(|v| v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        .sum();
     let mut hold_prev = fit::holdout_rss(&prep, &fit::design(&prep, &[]));
     let hold_before = hold_prev;
     while terms.len() < opts.max_effects {
         let sel = Selected::new(&prep, fit::design(&prep, &terms));
+        // The vibration search scans thousands of frequencies: it runs in
+        // the first round, then only while the residual left by the terms
+        // so far is above the noise, or for an axis whose vibration was a
+        // candidate in the first round (a vibration near the Nyquist
+        // frequency raises the noise floor estimate itself).
+        let rss_now = rss0 - sel.h.dot(&(&sel.ginv * &sel.h));
+        let chi_now = rss_now / (s2 * n_rows);
+        let above_noise = chi_now > 1.05 && (chi_now - 1.0) * (1.5 * n_rows).sqrt() > 4.0;
         let mut cands: Vec<Candidate> = families
             .iter()
             .filter(|f| !terms.iter().any(|t| t.family == **f))
+            .filter(|f| {
+                !matches!(f, Family::Vibration(_))
+                    || terms.is_empty()
+                    || above_noise
+                    || first_round
+                        .iter()
+                        .any(|c| c.term.family == **f && c.score >= opts.bic_margin)
+            })
             .filter_map(|f| fit::search_family(&prep, &sel, *f, &ctx))
             .collect();
         cands.sort_by(|a, b| b.score.total_cmp(&a.score));

@@ -163,6 +163,23 @@ pub fn implausible(effect: &Effect, prep: &Prepared) -> Option<String> {
                 format!("an axis line {d:.3} mm from the modelled one is not a location error")
             })
         }
+        Effect::Vibration {
+            amplitude,
+            frequency_hz,
+            axis,
+            ..
+        } => {
+            let j = joint(axis)?;
+            if *frequency_hz <= 0.0 {
+                return Some(format!("a negative frequency ({frequency_hz:.4} Hz)"));
+            }
+            (amplitude.abs() > MAX_OFFSET).then(|| {
+                format!(
+                    "a vibration of amplitude {amplitude:.3} {} is not a structure's",
+                    unit(j)
+                )
+            })
+        }
         Effect::PivotLength { delta_mm } => (delta_mm.abs() > MAX_PIVOT_MM)
             .then(|| format!("a pivot length {delta_mm:.3} mm off is another tool, not an error")),
     }

@@ -308,6 +308,8 @@ fn param_text(name: &str, v: f64, sd: Option<f64>) -> String {
         (b, "deg", 1.0, 5)
     } else if let Some(b) = name.strip_suffix("_s") {
         (b, "s", 1.0, 4)
+    } else if let Some(b) = name.strip_suffix("_hz") {
+        (b, "Hz", 1.0, 4)
     } else if let Some(b) = name.strip_suffix("_urad") {
         (b, "µrad", 1.0, 2)
     } else if name == "ppm" {
@@ -596,6 +598,11 @@ pub fn condition_text(effect: &Effect, rotary: bool) -> String {
             format!("varies with the {axis} angle: {axis} turns about a displaced line")
         }
         Effect::PivotLength { .. } => "along the tool axis, showing as the tool tilts".to_string(),
+        Effect::Vibration {
+            axis, frequency_hz, ..
+        } => format!(
+            "in time, along {axis}: an oscillation at {frequency_hz:.4} Hz whatever the position"
+        ),
     }
 }
 

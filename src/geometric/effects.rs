@@ -13,6 +13,7 @@
 //! | `zero_offset` | `value_mm` / `value_deg` | Δq = constant |
 //! | `rotary_center_offset` | `dx_mm`, `dy_mm`, `dz_mm` | the joint turns about an axis line displaced by d (frame before the joint) |
 //! | `pivot_length` | `delta_mm` | the tip sits δ further along the tool axis (i, j, k) |
+//! | `vibration` | `amplitude_mm`, `frequency_hz`, `phase_deg` | Δq = a · sin(2π f t + φ), t the recording's time |
 //!
 //! Rotary axes use `_deg` where a linear axis uses `_mm` (`value_deg`,
 //! `amplitude_deg`, `period_deg`). The command-line syntax is parsed by
@@ -47,11 +48,13 @@ pub enum EffectKind {
     RotaryCenterOffset,
     /// Tool length / pivot length error.
     PivotLength,
+    /// A time-periodic motion at a fixed frequency.
+    Vibration,
 }
 
 impl EffectKind {
     /// Every kind, in catalogue order.
-    pub const ALL: [EffectKind; 9] = [
+    pub const ALL: [EffectKind; 10] = [
         EffectKind::Backlash,
         EffectKind::ServoLag,
         EffectKind::ThermalDrift,
@@ -61,6 +64,7 @@ impl EffectKind {
         EffectKind::ZeroOffset,
         EffectKind::RotaryCenterOffset,
         EffectKind::PivotLength,
+        EffectKind::Vibration,
     ];
 
     /// The catalogue name (`backlash`, `servo_lag`, …).
@@ -75,6 +79,7 @@ impl EffectKind {
             EffectKind::ZeroOffset => "zero_offset",
             EffectKind::RotaryCenterOffset => "rotary_center_offset",
             EffectKind::PivotLength => "pivot_length",
+            EffectKind::Vibration => "vibration",
         }
     }
 
@@ -93,7 +98,10 @@ impl EffectKind {
     pub fn is_dynamic(self) -> bool {
         matches!(
             self,
-            EffectKind::Backlash | EffectKind::ServoLag | EffectKind::ThermalDrift
+            EffectKind::Backlash
+                | EffectKind::ServoLag
+                | EffectKind::ThermalDrift
+                | EffectKind::Vibration
         )
     }
 }
@@ -179,6 +187,17 @@ pub enum Effect {
         /// Displacement along the tool axis, mm.
         delta_mm: f64,
     },
+    /// Δq = a · sin(2π f t + φ), t the recording's time.
+    Vibration {
+        /// Axis letter.
+        axis: String,
+        /// Amplitude, mm or deg.
+        amplitude: f64,
+        /// Frequency, Hz.
+        frequency_hz: f64,
+        /// Phase at t = 0, deg.
+        phase_deg: f64,
+    },
 }
 
 /// An effect with an optional start: it acts from the first sample of block
@@ -222,6 +241,7 @@ impl Effect {
             Effect::ZeroOffset { .. } => EffectKind::ZeroOffset,
             Effect::RotaryCenterOffset { .. } => EffectKind::RotaryCenterOffset,
             Effect::PivotLength { .. } => EffectKind::PivotLength,
+            Effect::Vibration { .. } => EffectKind::Vibration,
         }
     }
 
@@ -234,7 +254,8 @@ impl Effect {
             | Effect::Scale { axis, .. }
             | Effect::Cyclic { axis, .. }
             | Effect::ZeroOffset { axis, .. }
-            | Effect::RotaryCenterOffset { axis, .. } => Some(axis.clone()),
+            | Effect::RotaryCenterOffset { axis, .. }
+            | Effect::Vibration { axis, .. } => Some(axis.clone()),
             Effect::Squareness { axes, .. } => Some(format!("{}{}", axes[0], axes[1])),
             Effect::PivotLength { .. } => None,
         }
@@ -273,6 +294,16 @@ impl Effect {
                 p("dz_mm", offset_mm[2]),
             ],
             Effect::PivotLength { delta_mm } => vec![p("delta_mm", *delta_mm)],
+            Effect::Vibration {
+                amplitude,
+                frequency_hz,
+                phase_deg,
+                ..
+            } => vec![
+                p(&format!("amplitude_{u}"), *amplitude),
+                p("frequency_hz", *frequency_hz),
+                p("phase_deg", *phase_deg),
+            ],
         }
     }
 
@@ -379,6 +410,18 @@ impl Effect {
             EffectKind::PivotLength => Effect::PivotLength {
                 delta_mm: get(&["delta_mm", "delta", "value"])?,
             },
+            EffectKind::Vibration => {
+                let frequency_hz = get(&["frequency_hz", "frequency", "f"])?;
+                if frequency_hz <= 0.0 {
+                    return Err("vibration: the frequency must be positive".into());
+                }
+                Effect::Vibration {
+                    axis: one_axis()?,
+                    amplitude: get(&["amplitude_mm", "amplitude_deg", "amplitude", "value"])?,
+                    frequency_hz,
+                    phase_deg: opt(&["phase_deg", "phase"], 0.0)?,
+                }
+            }
         })
     }
 }
@@ -448,6 +491,7 @@ impl EffectSpec {
 /// zero_offset:Z=0.005           mm (or deg)
 /// rotary_center_offset:C=dx,dy,dz    mm
 /// pivot_length:0.01             mm
+/// vibration:X=0.002,f=7,phase=30     amplitude (mm or deg), Hz, phase deg
 /// ```
 ///
 /// Any of them may end in `@block=N` (or `@N`): the effect acts from block
@@ -551,6 +595,7 @@ fn example(kind: EffectKind) -> &'static str {
         EffectKind::ZeroOffset => "zero_offset:Z=0.005",
         EffectKind::RotaryCenterOffset => "rotary_center_offset:C=0.01,0.005,0",
         EffectKind::PivotLength => "pivot_length:0.01",
+        EffectKind::Vibration => "vibration:X=0.002,f=7,phase=0",
     }
 }
 
@@ -664,7 +709,8 @@ impl BoundEffect {
             | Effect::ServoLag { axis, .. }
             | Effect::Scale { axis, .. }
             | Effect::Cyclic { axis, .. }
-            | Effect::ZeroOffset { axis, .. } => (Some(find(axis)?), None),
+            | Effect::ZeroOffset { axis, .. }
+            | Effect::Vibration { axis, .. } => (Some(find(axis)?), None),
             Effect::ThermalDrift { axis, .. } => {
                 let j = find(axis)?;
                 if kind_of(j) != JointKind::Prismatic {
@@ -744,6 +790,15 @@ impl BoundEffect {
                 amplitude * (std::f64::consts::TAU * s.q[j] / period + phase_deg.to_radians()).sin()
             }
             Effect::ZeroOffset { value, .. } => *value,
+            Effect::Vibration {
+                amplitude,
+                frequency_hz,
+                phase_deg,
+                ..
+            } => {
+                amplitude
+                    * (std::f64::consts::TAU * frequency_hz * s.t + phase_deg.to_radians()).sin()
+            }
             Effect::RotaryCenterOffset { .. } | Effect::PivotLength { .. } => 0.0,
         }
     }

@@ -236,7 +236,7 @@ pub fn scale_effect(e: &mut kinpost::diagnose::Effect, k: f64) {
         ThermalDrift { amplitude_mm, .. } => *amplitude_mm *= k,
         Scale { ppm, .. } => *ppm *= k,
         Squareness { angle_urad, .. } => *angle_urad *= k,
-        Cyclic { amplitude, .. } => *amplitude *= k,
+        Cyclic { amplitude, .. } | Vibration { amplitude, .. } => *amplitude *= k,
         RotaryCenterOffset { offset_mm, .. } => offset_mm.iter_mut().for_each(|v| *v *= k),
         PivotLength { delta_mm } => *delta_mm *= k,
     }
