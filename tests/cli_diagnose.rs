@@ -273,3 +273,65 @@ fn a_recording_of_another_machine_is_a_clear_error() {
     assert!(err.contains("does not fit this machine"), "{err}");
     assert!(err.contains("trt.csv"), "{err}");
 }
+
+#[test]
+fn a_joint_feedback_trace_without_time_is_diagnosed_at_its_sample_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = dir.path().join("fb.csv");
+    kinpost(&[
+        "simulate",
+        "--machine",
+        "zhao2022-xzbc",
+        "--program",
+        &root("fixtures/programs/zhao2022-xzbc-exercise.nc"),
+        "--feedback",
+        "--sample-interval",
+        "0.01",
+        "--noise",
+        "0.0005",
+        "--inject",
+        "servo_lag:X=0.004",
+        "-o",
+        trace.to_str().unwrap(),
+    ]);
+    // As halsampler writes it: no time column (the rate is known).
+    let text = std::fs::read_to_string(&trace).unwrap();
+    let no_t: String = text
+        .lines()
+        .map(|l| l.split_once(',').map_or(l, |(_, rest)| rest).to_string() + "\n")
+        .collect();
+    let bare = dir.path().join("bare.csv");
+    std::fs::write(&bare, no_t).unwrap();
+    let out = Command::new(BIN)
+        .args(["diagnose", "--machine", "zhao2022-xzbc", "--recording"])
+        .arg(&bare)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("bare.csv:1:1") && err.contains("--sample-rate"),
+        "{err}"
+    );
+    let v: serde_json::Value = serde_json::from_str(&kinpost(&[
+        "diagnose",
+        "--machine",
+        "zhao2022-xzbc",
+        "--recording",
+        bare.to_str().unwrap(),
+        "--sample-rate",
+        "100",
+        "--json",
+    ]))
+    .unwrap();
+    assert_eq!(v["recording"], "joint_feedback");
+    for key in FORMATS_FIELDS {
+        assert!(v.get(key).is_some(), "missing {key}: {v}");
+    }
+    let f = &v["findings"][0];
+    assert_eq!(f["effect"], "servo_lag");
+    assert_eq!(f["axis"], "X");
+    let tau = f["parameters"]["tau_s"].as_f64().unwrap();
+    assert!((tau - 0.004).abs() < 0.001, "{tau}");
+    assert_eq!(v["findings"].as_array().unwrap().len(), 1, "{v}");
+}

@@ -65,6 +65,11 @@ pub struct SimulateArgs {
     /// in mm or deg, as an export with few decimals does). 0: no rounding.
     #[arg(long, value_name = "STEP", default_value_t = 0.0)]
     pub round: f64,
+    /// Write a joint-feedback trace (formats.md §2b: `t,block,<axes>,fb_<axes>`)
+    /// instead of a tool-tip recording: each axis's feedback is its command
+    /// plus the injected joint-level effects and `--noise` (mm or deg).
+    #[arg(long)]
+    pub feedback: bool,
     /// Feed of rapid moves and of moves without a programmed feed, in mm/min.
     #[arg(long, value_name = "MM/MIN", default_value_t = 3000.0)]
     pub rapid_feed: f64,
@@ -238,6 +243,31 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         outlier_fraction: a.outliers,
         quantum: a.round,
     };
+    if a.feedback {
+        let fopts = crate::diagnose::feedback::FeedbackSimOptions {
+            noise: a.noise,
+            seed: a.seed,
+            sample_interval_s: a.sample_interval,
+            accel_mm_s2: opts.accel_mm_s2,
+            time_offset_s: a.time_offset,
+            outlier_fraction: a.outliers,
+            quantum: a.round,
+        };
+        let rec =
+            crate::diagnose::feedback::simulate_feedback(&machine.chain, &wps, &effects, &fopts)?;
+        let n = rec.len();
+        write_atomically(a.output.as_deref(), |w| {
+            rec.write_csv(&mut *w).map_err(|e| Error::io("<output>", e))
+        })?;
+        eprintln!(
+            "kinpost simulate: joint-feedback trace of {n} samples from {} blocks of {}, noise σ = {} (mm or deg), {} effect(s) injected",
+            wps.len(),
+            a.program.display(),
+            a.noise,
+            effects.len()
+        );
+        return Ok(());
+    }
     let rec = run_simulate(&machine.chain, model.as_ref(), &wps, &effects, &opts)?;
     let n = rec.samples.len();
     write_atomically(a.output.as_deref(), |w| {
@@ -280,6 +310,11 @@ pub struct DiagnoseArgs {
     /// Noise floor per measured coordinate, in mm (default: estimated robustly).
     #[arg(long, value_name = "MM")]
     pub noise_floor: Option<f64>,
+    /// Sample rate of a joint-feedback trace without a `t` column, in Hz
+    /// (formats.md §2b; e.g. 1000 for a LinuxCNC halsampler trace of a
+    /// 1 ms servo thread).
+    #[arg(long, value_name = "HZ")]
+    pub sample_rate: Option<f64>,
 }
 
 /// Runs `kinpost diagnose`.
@@ -307,8 +342,18 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
         .iter()
         .map(|j| j.name.clone())
         .collect();
-    let rec = Recording::load(&a.recording, &axes)?;
+    if a.sample_rate
+        .is_some_and(|r| !(r.is_finite() && r > 0.0 && r <= 1e7))
+    {
+        return Err(Error::Usage(
+            "--sample-rate must be above 0 and at most 1e7 Hz".into(),
+        ));
+    }
     let rec_name = a.recording.display().to_string();
+    if is_feedback_file(&a.recording)? {
+        return diagnose_feedback_file(&a, &machine, model.as_ref(), &axes);
+    }
+    let rec = Recording::load(&a.recording, &axes)?;
     // Problems found after reading name the recording, not a placeholder.
     let named = |e: Error| match e {
         Error::Input {
@@ -340,6 +385,86 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
     }
     if let Some(out) = &a.write_model {
         let improved = report.improved_model(model.as_ref());
+        let text = serde_json::to_string_pretty(&improved.to_json()).unwrap_or_default();
+        write_atomically(Some(out), |w| {
+            w.write_all(text.as_bytes())
+                .and_then(|_| w.write_all(b"\n"))
+                .map_err(|e| Error::io(out.display().to_string(), e))
+        })?;
+    }
+    let mut o = std::io::stdout().lock();
+    let text = if a.json {
+        report.to_json_string()
+    } else {
+        report.to_text()
+    };
+    writeln!(o, "{}", text.trim_end()).map_err(|e| Error::io("<stdout>", e))
+}
+
+/// Whether the recording at `path` is a joint-feedback trace (formats.md
+/// §2b): its header has an `fb_` column and no `meas_x`.
+fn is_feedback_file(path: &std::path::Path) -> Result<bool> {
+    use std::io::BufRead;
+    let name = path.display().to_string();
+    let f = std::fs::File::open(path).map_err(|e| Error::io(name.clone(), e))?;
+    for line in std::io::BufReader::new(f).split(b'\n') {
+        let line = line.map_err(|e| Error::io(name.clone(), e))?;
+        let text = String::from_utf8_lossy(&line);
+        if let Some(h) = crate::diagnose::feedback::first_header(&text) {
+            return Ok(crate::diagnose::feedback::is_feedback_header(h));
+        }
+    }
+    Ok(false)
+}
+
+/// `kinpost diagnose` on a joint-feedback trace.
+fn diagnose_feedback_file(
+    a: &DiagnoseArgs,
+    machine: &crate::machine::Machine,
+    model: Option<&crate::geometric::ErrorModel>,
+    axes: &[String],
+) -> Result<()> {
+    use crate::diagnose::feedback::{FeedbackRecording, diagnose_feedback};
+    let name = a.recording.display().to_string();
+    let rotary: Vec<bool> = machine
+        .chain
+        .joints
+        .iter()
+        .map(|j| j.kind == crate::machine::chain::JointKind::Revolute)
+        .collect();
+    let f = std::fs::File::open(&a.recording).map_err(|e| Error::io(name.clone(), e))?;
+    let rec = FeedbackRecording::read(
+        std::io::BufReader::new(f),
+        &name,
+        axes,
+        &rotary,
+        a.sample_rate,
+    )?;
+    let opts = DiagOptions {
+        max_effects: a.max_effects,
+        noise_floor_mm: a.noise_floor,
+        ..DiagOptions::default()
+    };
+    let report = diagnose_feedback(&rec, &opts).map_err(|e| match e {
+        Error::Input {
+            mut loc,
+            message,
+            snippet,
+        } if loc.file == "<recording>" => {
+            loc.file = name.clone();
+            Error::Input {
+                loc,
+                message,
+                snippet,
+            }
+        }
+        e => e,
+    })?;
+    if a.svg.is_some() {
+        eprintln!("kinpost diagnose: no plot for a joint-feedback trace yet; --svg ignored");
+    }
+    if let Some(out) = &a.write_model {
+        let improved = report.improved_model(model);
         let text = serde_json::to_string_pretty(&improved.to_json()).unwrap_or_default();
         write_atomically(Some(out), |w| {
             w.write_all(text.as_bytes())

@@ -8,6 +8,8 @@
 //! * [`simulate`](mod@simulate): simulated recordings ([`simulate()`]).
 //! * [`untidy`]: what is not machine physics (resolution, outliers, clock
 //!   offset), found and removed first.
+//! * [`feedback`]: joint-feedback recordings (`formats.md` §2b), diagnosed
+//!   on `fb − command` without the chain.
 //! * [`fit`]: linearised effect fits, onset profiles, cross-validation.
 //! * [`report`]: the report ([`Report`]): JSON, text, SVG.
 //!
@@ -16,6 +18,7 @@
 // Numerical code: several parallel arrays are indexed by one counter.
 #![allow(clippy::needless_range_loop)]
 
+pub mod feedback;
 pub mod fit;
 pub mod plausible;
 pub mod prepare;

@@ -80,7 +80,7 @@ pub struct RecordingReader<R: BufRead> {
 }
 
 /// Splits a CSV line into trimmed fields with their 1-based byte columns.
-fn fields(line: &str) -> Vec<(usize, &str)> {
+pub(crate) fn fields(line: &str) -> Vec<(usize, &str)> {
     let mut out = Vec::new();
     let mut start = 0;
     for (i, c) in line.char_indices() {
@@ -98,12 +98,12 @@ fn fields(line: &str) -> Vec<(usize, &str)> {
         .collect()
 }
 
-fn is_skippable(line: &str) -> bool {
+pub(crate) fn is_skippable(line: &str) -> bool {
     let t = line.trim();
     t.is_empty() || t.starts_with('#') || t.starts_with("//")
 }
 
-fn strip_eol(line: &mut String) {
+pub(crate) fn strip_eol(line: &mut String) {
     while line.ends_with(['\n', '\r']) {
         line.pop();
     }

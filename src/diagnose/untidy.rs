@@ -145,39 +145,46 @@ const MEDIAN_HALF: usize = 3;
 /// signal the running median cannot follow: none is called an outlier.
 const MAX_OUTLIER_FRACTION: f64 = 0.05;
 
-/// Gross outliers of a residual: samples whose residual departs from the
-/// running median of its 7 neighbours by more than [`OUTLIER_SIGMAS`]
-/// noise floors in some coordinate. A smooth effect, a step at a reversal
-/// or an onset follows the running median, so it is never flagged. When
+/// Gross outliers of a residual: samples whose residual departs from its
+/// neighbours ([`departure`]) by more than [`OUTLIER_SIGMAS`] noise floors
+/// in some coordinate (samples `skip` marks are not looked at). A smooth
+/// effect, a kink, a step at a reversal or an onset is never flagged. When
 /// most flagged samples sit within two samples of a reversal (more than
 /// chance would put there), those are a following error at reversals,
 /// machine physics, and stay in. More than 5 % flagged is not a fault
 /// but a signal the running median cannot follow: then none is flagged.
 /// Returns the flagged sample indices and each one's departure (mm).
-pub fn gross_outliers(prep: &Prepared, sigma_xyz: [f64; 3]) -> Vec<(usize, [f64; 3])> {
+pub fn gross_outliers(
+    prep: &Prepared,
+    sigma_xyz: [f64; 3],
+    skip: &[bool],
+) -> Vec<(usize, [f64; 3])> {
     let n = prep.n;
     if n < 2 * MEDIAN_HALF + 1 {
         return Vec::new();
     }
-    let mut window = Vec::with_capacity(2 * MEDIAN_HALF + 1);
     let mut out = Vec::new();
-    for i in 0..n {
-        let a = i.saturating_sub(MEDIAN_HALF);
-        let b = (i + MEDIAN_HALF + 1).min(n);
-        let mut dev = [0.0; 3];
-        let mut far = false;
-        for c in 0..3 {
-            window.clear();
-            window.extend((a..b).map(|k| prep.r[k][c]));
-            let mid = window.len() / 2;
-            window.select_nth_unstable_by(mid, f64::total_cmp);
-            dev[c] = prep.r[i][c] - window[mid];
-            if dev[c].abs() > OUTLIER_SIGMAS * sigma_xyz[c].max(1e-9) {
-                far = true;
+    let mut column = vec![0.0; n];
+    let mut dev = vec![[0.0; 3]; n];
+    let mut far = vec![false; n];
+    for c in 0..3 {
+        for i in 0..n {
+            column[i] = prep.r[i][c];
+        }
+        for i in 0..n {
+            if skip.get(i).copied().unwrap_or(false) {
+                continue;
+            }
+            let d = departure(&column, i);
+            dev[i][c] = d;
+            if d.abs() > OUTLIER_SIGMAS * sigma_xyz[c].max(1e-9) {
+                far[i] = true;
             }
         }
-        if far {
-            out.push((i, dev));
+    }
+    for i in 0..n {
+        if far[i] {
+            out.push((i, dev[i]));
         }
     }
     // Spikes that come with reversals are a following error, machine
@@ -192,6 +199,42 @@ pub fn gross_outliers(prep: &Prepared, sigma_xyz: [f64; 3]) -> Vec<(usize, [f64;
         return Vec::new();
     }
     out
+}
+
+/// How far sample `i` of a series departs from its neighbours: the
+/// smaller of its departures from the running median of the 7 samples
+/// around it (which follows a step) and from the median of three straight-
+/// line predictions from its neighbours (from the left pair, the right
+/// pair, and the two beside it; which follow a kink). A gross fault departs
+/// from both; a step, a kink or a slope from at most one.
+pub fn departure(e: &[f64], i: usize) -> f64 {
+    let n = e.len();
+    let a = i.saturating_sub(MEDIAN_HALF);
+    let b = (i + MEDIAN_HALF + 1).min(n);
+    let mut w: arrayvec::ArrayVec<f64, 7> = e[a..b].iter().copied().collect();
+    let mid = w.len() / 2;
+    w.select_nth_unstable_by(mid, f64::total_cmp);
+    let from_median = e[i] - w[mid];
+    let mut p: arrayvec::ArrayVec<f64, 3> = arrayvec::ArrayVec::new();
+    if i >= 2 {
+        p.push(2.0 * e[i - 1] - e[i - 2]);
+    }
+    if i + 2 < n {
+        p.push(2.0 * e[i + 1] - e[i + 2]);
+    }
+    if i >= 1 && i + 1 < n {
+        p.push(0.5 * (e[i - 1] + e[i + 1]));
+    }
+    if p.is_empty() {
+        return from_median;
+    }
+    p.sort_by(f64::total_cmp);
+    let from_line = e[i] - p[p.len() / 2];
+    if from_median.abs() < from_line.abs() {
+        from_median
+    } else {
+        from_line
+    }
 }
 
 /// Whether some axis reverses within two samples of sample `i`.
@@ -414,24 +457,28 @@ pub fn align(rec: &Recording, offset_s: f64) -> Aligned {
         };
     }
     // Third difference of the commands over samples k − 1 … k + 2.
+    // Rounded commands carry a third difference of their own (its
+    // standard deviation is √(20/12)·q for a step q); three of those are
+    // not a change of acceleration.
+    let rounding: Vec<f64> = (0..dof)
+        .map(|j| {
+            let col: Vec<f64> = s.iter().map(|x| x.q[j]).collect();
+            quantum(&col).map_or(0.0, |q| 3.0 * (20.0f64 / 12.0).sqrt() * q)
+        })
+        .collect();
     // Near the ends the tangents are one-sided and nothing bounds the
     // error: such samples count as doubtful (a bound of 1 m).
     let d3 = |k: usize, j: usize| {
         if k == 0 || k + 2 >= n {
             return 4e3;
         }
-        (s[k + 2].q[j] - 3.0 * s[k + 1].q[j] + 3.0 * s[k].q[j] - s[k - 1].q[j]).abs()
+        let d = (s[k + 2].q[j] - 3.0 * s[k + 1].q[j] + 3.0 * s[k].q[j] - s[k - 1].q[j]).abs();
+        (d - rounding[j]).max(0.0)
     };
-    let tangent = |k: usize, j: usize| {
-        let (a, b) = if k == 0 {
-            (0, 1)
-        } else if k == n - 1 {
-            (n - 2, n - 1)
-        } else {
-            (k - 1, k + 1)
-        };
-        (s[b].q[j] - s[a].q[j]) / (s[b].t - s[a].t)
-    };
+    let times: Vec<f64> = s.iter().map(|x| x.t).collect();
+    let columns: Vec<Vec<f64>> = (0..dof)
+        .map(|j| s.iter().map(|x| x.q[j]).collect())
+        .collect();
     let mut k = 0usize;
     for (i, smp) in s.iter().enumerate() {
         let tt = smp.t - offset_s;
@@ -447,18 +494,9 @@ pub fn align(rec: &Recording, offset_s: f64) -> Aligned {
         let (t0, t1) = (s[k].t, s[k + 1].t);
         let dt = t1 - t0;
         let u = ((tt - t0) / dt).clamp(0.0, 1.0);
-        let (u2, u3) = (u * u, u * u * u);
-        let h00 = 2.0 * u3 - 3.0 * u2 + 1.0;
-        let h10 = u3 - 2.0 * u2 + u;
-        let h01 = -2.0 * u3 + 3.0 * u2;
-        let h11 = u3 - u2;
-        let q: Vec<f64> = (0..rec.axes.len())
-            .map(|j| {
-                h00 * s[k].q[j]
-                    + h10 * dt * tangent(k, j)
-                    + h01 * s[k + 1].q[j]
-                    + h11 * dt * tangent(k + 1, j)
-            })
+        let q: Vec<f64> = columns
+            .iter()
+            .map(|y| monotone_hermite(&times, y, k, tt))
             .collect();
         let block = if u < 0.5 { s[k].block } else { s[k + 1].block };
         let shift = (offset_s.abs() / dt).min(1.0);
@@ -480,6 +518,45 @@ pub fn align(rec: &Recording, offset_s: f64) -> Aligned {
         kept,
         blur,
     }
+}
+
+/// The value at `tt` (within interval `k` of the increasing times `t`) of
+/// the cubic Hermite spline through `y` with central-difference tangents,
+/// limited so that it never overshoots (Fritsch–Carlson): a tangent is 0
+/// where the data turns or stands still, and at most three times the
+/// smaller neighbouring slope. Exact for a constant feed and a constant
+/// acceleration away from stops; a command that stands still stays still
+/// (an overshoot there would fake a reversal).
+pub fn monotone_hermite(t: &[f64], y: &[f64], k: usize, tt: f64) -> f64 {
+    let n = t.len();
+    let slope = |i: usize| (y[i + 1] - y[i]) / (t[i + 1] - t[i]);
+    let tangent = |i: usize| -> f64 {
+        if i == 0 {
+            return slope(0);
+        }
+        if i == n - 1 {
+            return slope(n - 2);
+        }
+        let (a, b) = (slope(i - 1), slope(i));
+        if a * b <= 0.0 {
+            return 0.0;
+        }
+        let m = (y[i + 1] - y[i - 1]) / (t[i + 1] - t[i - 1]);
+        let cap = 3.0 * a.abs().min(b.abs());
+        m.clamp(-cap, cap)
+    };
+    let h = t[k + 1] - t[k];
+    let (m0, m1) = if y[k + 1] == y[k] {
+        (0.0, 0.0)
+    } else {
+        (tangent(k), tangent(k + 1))
+    };
+    let u = ((tt - t[k]) / h).clamp(0.0, 1.0);
+    let (u2, u3) = (u * u, u * u * u);
+    (2.0 * u3 - 3.0 * u2 + 1.0) * y[k]
+        + (u3 - 2.0 * u2 + u) * h * m0
+        + (-2.0 * u3 + 3.0 * u2) * y[k + 1]
+        + (u3 - u2) * h * m1
 }
 
 /// A recording moved to the machine's clock ([`align`]).
@@ -607,7 +684,7 @@ pub fn tidy(
     let resolution = Resolution::of(rec);
     let rounding_xyz = resolution.floor_xyz(&prep0);
     let (per0, sigma0) = floor_of(&prep0, rounding_xyz, fixed_floor);
-    let out0: Vec<usize> = gross_outliers(&prep0, per0)
+    let out0: Vec<usize> = gross_outliers(&prep0, per0, &[])
         .into_iter()
         .map(|(i, _)| i)
         .collect();
@@ -650,10 +727,7 @@ pub fn tidy(
     if let Some(o) = offset.as_mut() {
         o.doubtful = doubtful.iter().filter(|d| **d).count();
     }
-    let out1: Vec<(usize, [f64; 3])> = gross_outliers(&prep1, per1)
-        .into_iter()
-        .filter(|(i, _)| !doubtful[*i])
-        .collect();
+    let out1: Vec<(usize, [f64; 3])> = gross_outliers(&prep1, per1, &doubtful);
     let mut drop: Vec<usize> = out1.iter().map(|(i, _)| *i).collect();
     drop.extend((0..prep1.n).filter(|&i| doubtful[i]));
     drop.sort_unstable();
@@ -753,7 +827,7 @@ fn refine_offset(
             .zip(&doubtful)
             .map(|(&i, &dbt)| keep0[i] && !dbt)
             .collect();
-        for (i, _) in gross_outliers(pa, per) {
+        for (i, _) in gross_outliers(pa, per, &doubtful) {
             keep[i] = false;
         }
         (keep, sigma)

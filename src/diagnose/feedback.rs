@@ -1,0 +1,1196 @@
+//! Joint-feedback recordings (`formats.md` §2b): each traced axis's command
+//! and the position its own encoder or linear scale reported. Joint-level
+//! effects are diagnosed on the joint residual `fb − command` directly,
+//! without the chain: a clock offset common to the axes, gross outliers,
+//! then per axis backlash, servo lag, zero offset and scale, with the same
+//! rules as the tool-tip diagnosis (BIC against a noise floor that respects
+//! the values' rounding, held-out folds, physical signs). See
+//! `docs/diagnose.md`, "Joint-feedback traces".
+
+// Numerical code: several parallel arrays are indexed by one counter.
+#![allow(clippy::needless_range_loop)]
+
+use std::collections::BTreeMap;
+use std::io::{BufRead, Write};
+
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+use super::fit::pinv_sym;
+use super::recording::{fields, is_skippable, strip_eol};
+use super::report::{FlaggedSample, MeasurementFinding, Where};
+use super::rng::Rng;
+use super::simulate::{TrajPoint, TrajectoryWalker, Waypoint, sample_waypoints};
+use super::untidy::{OUTLIER_SIGMAS, departure, monotone_hermite, quantum};
+use super::{DiagOptions, central_velocities};
+use crate::error::{Error, Location, Result};
+use crate::geometric::effects::{
+    BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, Effect, EffectSpec,
+};
+use crate::machine::chain::{Chain, JointKind};
+
+/// A joint-feedback recording: per traced axis, command and feedback.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FeedbackRecording {
+    /// Traced axes (those with an `fb_` column), machine order.
+    pub axes: Vec<String>,
+    /// Whether each traced axis is rotary (values in degrees).
+    pub rotary: Vec<bool>,
+    /// Time of each sample, s.
+    pub t: Vec<f64>,
+    /// Block of each sample, when recorded.
+    pub block: Vec<Option<u64>>,
+    /// Commanded position per axis, per sample (mm or deg).
+    pub cmd: Vec<Vec<f64>>,
+    /// Fed-back position per axis, per sample (mm or deg).
+    pub fb: Vec<Vec<f64>>,
+    /// Time was made from `--sample-rate` (no `t` column).
+    pub time_from_rate: bool,
+}
+
+/// Whether a header line is that of a joint-feedback recording: it has an
+/// `fb_` column and no `meas_x`.
+pub fn is_feedback_header(header: &str) -> bool {
+    let names: Vec<String> = fields(header)
+        .iter()
+        .map(|(_, f)| f.to_ascii_lowercase())
+        .collect();
+    names.iter().any(|n| n.starts_with("fb_")) && !names.iter().any(|n| n == "meas_x")
+}
+
+/// The first line that is not blank or a comment, BOM removed.
+pub fn first_header(text: &str) -> Option<&str> {
+    text.lines()
+        .map(|l| l.trim_start_matches('\u{feff}'))
+        .find(|l| !is_skippable(l))
+}
+
+impl FeedbackRecording {
+    /// Reads a joint-feedback recording for a machine with joints `axes`
+    /// (`rotary` tells which are rotary). Without a `t` column the time is
+    /// `i / sample_rate_hz`.
+    pub fn read<R: BufRead>(
+        input: R,
+        file: &str,
+        axes: &[String],
+        rotary: &[bool],
+        sample_rate_hz: Option<f64>,
+    ) -> Result<FeedbackRecording> {
+        let mut lines = input.split(b'\n');
+        let mut line_no = 0usize;
+        let mut header = String::new();
+        for raw in lines.by_ref() {
+            let raw = raw.map_err(|e| Error::io(file.to_string(), e))?;
+            line_no += 1;
+            header = crate::text::line_utf8(&raw, file, line_no)?.to_string();
+            strip_eol(&mut header);
+            if line_no == 1 && header.starts_with('\u{feff}') {
+                header.drain(..3);
+            }
+            if !is_skippable(&header) {
+                break;
+            }
+            header.clear();
+        }
+        if header.is_empty() {
+            return Err(Error::input(
+                Location::new(file, line_no.max(1), 0),
+                "empty recording: expected a header line `t,block,<axes>,fb_<axis>,…`",
+            ));
+        }
+        let hf = fields(&header);
+        let names: Vec<String> = hf.iter().map(|(_, f)| f.to_ascii_lowercase()).collect();
+        let hloc = |col: usize| Location::new(file, line_no, col);
+        let find = |n: &str| names.iter().position(|c| c == n);
+        let mut traced: Vec<(usize, usize, usize)> = Vec::new(); // (joint, cmd col, fb col)
+        for (k, n) in names.iter().enumerate() {
+            let Some(a) = n.strip_prefix("fb_") else {
+                continue;
+            };
+            let Some(j) = axes.iter().position(|x| x.eq_ignore_ascii_case(a)) else {
+                return Err(Error::input_with(
+                    hloc(hf[k].0),
+                    format!(
+                        "`{}`: {} is not an axis of the machine (its axes: {})",
+                        hf[k].1,
+                        a.to_ascii_uppercase(),
+                        axes.join(", ")
+                    ),
+                    header.clone(),
+                ));
+            };
+            let c = find(a).ok_or_else(|| {
+                Error::input_with(
+                    hloc(hf[k].0),
+                    format!(
+                        "`{}` has no commanded column `{}` beside it",
+                        hf[k].1, axes[j]
+                    ),
+                    header.clone(),
+                )
+            })?;
+            if traced.iter().any(|x| x.0 == j) {
+                return Err(Error::input_with(
+                    hloc(hf[k].0),
+                    format!("`{}` appears twice in the header", hf[k].1),
+                    header.clone(),
+                ));
+            }
+            traced.push((j, c, k));
+        }
+        if traced.is_empty() {
+            return Err(Error::input_with(
+                hloc(1),
+                "a joint-feedback recording needs at least one `fb_<axis>` column",
+                header.clone(),
+            ));
+        }
+        traced.sort_by_key(|x| x.0);
+        let t_col = find("t");
+        let rate = match (t_col, sample_rate_hz) {
+            (Some(_), _) => None,
+            (None, Some(r)) if r.is_finite() && r > 0.0 => Some(r),
+            (None, Some(r)) => {
+                return Err(Error::Usage(format!(
+                    "--sample-rate {r}: expected a rate above 0 Hz"
+                )));
+            }
+            (None, None) => {
+                return Err(Error::input_with(
+                    hloc(1),
+                    "the trace has no `t` column: give its sample rate with --sample-rate HZ",
+                    header.clone(),
+                ));
+            }
+        };
+        let block_col = find("block");
+        let n_ax = traced.len();
+        let mut rec = FeedbackRecording {
+            axes: traced.iter().map(|x| axes[x.0].clone()).collect(),
+            rotary: traced
+                .iter()
+                .map(|x| rotary.get(x.0).copied().unwrap_or(false))
+                .collect(),
+            cmd: vec![Vec::new(); n_ax],
+            fb: vec![Vec::new(); n_ax],
+            time_from_rate: rate.is_some(),
+            ..Default::default()
+        };
+        for raw in lines {
+            let raw = raw.map_err(|e| Error::io(file.to_string(), e))?;
+            line_no += 1;
+            let mut line = crate::text::line_utf8(&raw, file, line_no)?.to_string();
+            strip_eol(&mut line);
+            if is_skippable(&line) {
+                continue;
+            }
+            let fs = fields(&line);
+            let loc = |col: usize| Location::new(file, line_no, col);
+            if fs.len() < hf.len() {
+                return Err(Error::input_with(
+                    loc(line.len() + 1),
+                    format!(
+                        "expected {} fields as in the header, found {}",
+                        hf.len(),
+                        fs.len()
+                    ),
+                    line.clone(),
+                ));
+            }
+            let num = |idx: usize, what: &str| -> Result<f64> {
+                let (col, f) = fs[idx];
+                match f.parse::<f64>() {
+                    Ok(v) if v.is_finite() => Ok(v),
+                    _ => Err(Error::input_with(
+                        loc(col),
+                        format!("{what}: `{f}` is not a finite number"),
+                        line.clone(),
+                    )),
+                }
+            };
+            let t = match (t_col, rate) {
+                (Some(c), _) => num(c, "time t (s)")?,
+                (None, Some(r)) => rec.t.len() as f64 / r,
+                (None, None) => unreachable!("checked above"),
+            };
+            if let Some(&prev) = rec.t.last()
+                && t <= prev
+            {
+                return Err(Error::input_with(
+                    loc(t_col.map_or(1, |c| fs[c].0)),
+                    format!(
+                        "time must increase: t = {t} s after t = {prev} s (repeated or out-of-order samples)"
+                    ),
+                    line.clone(),
+                ));
+            }
+            let block = match block_col {
+                Some(c) if !fs[c].1.is_empty() => {
+                    let f = fs[c].1;
+                    let digits = f.strip_prefix(['N', 'n']).unwrap_or(f);
+                    Some(digits.parse::<u64>().map_err(|_| {
+                        Error::input_with(
+                            loc(fs[c].0),
+                            format!("block: `{f}` is not a block number"),
+                            line.clone(),
+                        )
+                    })?)
+                }
+                _ => None,
+            };
+            for (k, &(j, c, f)) in traced.iter().enumerate() {
+                rec.cmd[k].push(num(c, &format!("axis {}", axes[j]))?);
+                rec.fb[k].push(num(f, &format!("fb_{}", axes[j]))?);
+            }
+            rec.t.push(t);
+            rec.block.push(block);
+        }
+        Ok(rec)
+    }
+
+    /// Number of samples.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    /// Whether it has no samples.
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Writes the CSV of `formats.md` §2b: `t,block,<axes>,fb_<axes>`.
+    pub fn write_csv<W: Write>(&self, mut w: W) -> std::io::Result<()> {
+        let mut head = vec!["t".to_string(), "block".to_string()];
+        head.extend(self.axes.iter().cloned());
+        head.extend(self.axes.iter().map(|a| format!("fb_{a}")));
+        writeln!(w, "{}", head.join(","))?;
+        for i in 0..self.len() {
+            let mut line = format!("{:.6},", self.t[i]);
+            if let Some(b) = self.block[i] {
+                line.push_str(&b.to_string());
+            }
+            for k in 0..self.axes.len() {
+                line.push_str(&format!(",{:.7}", self.cmd[k][i]));
+            }
+            for k in 0..self.axes.len() {
+                line.push_str(&format!(",{:.7}", self.fb[k][i]));
+            }
+            writeln!(w, "{line}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Options of [`simulate_feedback`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct FeedbackSimOptions {
+    /// Encoder / scale noise of each axis, mm (deg on rotary axes).
+    pub noise: f64,
+    /// Seed.
+    pub seed: u64,
+    /// Time between samples, s.
+    pub sample_interval_s: f64,
+    /// Acceleration limit along the path, mm/s².
+    pub accel_mm_s2: Option<f64>,
+    /// Clock offset, s: the sample stamped t shows the axes at t − offset.
+    pub time_offset_s: f64,
+    /// Fraction of samples with a gross fault (0.01 … 0.1 mm or deg) on
+    /// one axis.
+    pub outlier_fraction: f64,
+    /// Rounding step of every written value (0: none).
+    pub quantum: f64,
+}
+
+impl Default for FeedbackSimOptions {
+    fn default() -> Self {
+        FeedbackSimOptions {
+            noise: 0.0005,
+            seed: 1,
+            sample_interval_s: 0.01,
+            accel_mm_s2: Some(300.0),
+            time_offset_s: 0.0,
+            outlier_fraction: 0.0,
+            quantum: 0.0,
+        }
+    }
+}
+
+/// Simulates a joint-feedback trace of every joint of `chain` along
+/// `waypoints`: the command sampled, each joint's feedback the command
+/// plus the joint-level `effects` (backlash, servo lag, thermal drift,
+/// scale, cyclic, zero offset, vibration of that joint), noise, faults and
+/// rounding. Deterministic for a seed.
+pub fn simulate_feedback(
+    chain: &Chain,
+    waypoints: &[Waypoint],
+    effects: &[EffectSpec],
+    opts: &FeedbackSimOptions,
+) -> Result<FeedbackRecording> {
+    let n = chain.dof();
+    let traj = sample_waypoints(chain, waypoints, opts.sample_interval_s, opts.accel_mm_s2)?;
+    let machine: Vec<TrajPoint> = if opts.time_offset_s != 0.0 {
+        let times: Vec<f64> = traj.iter().map(|p| p.t - opts.time_offset_s).collect();
+        let mut m = sample_at(chain, waypoints, opts, &times)?;
+        central_velocities(&mut m);
+        m
+    } else {
+        traj.clone()
+    };
+    let mut bound: Vec<BoundEffect> = effects
+        .iter()
+        .map(|e| BoundEffect::new(e, chain))
+        .collect::<Result<_>>()?;
+    let mut walker = TrajectoryWalker::new(n, bound.len());
+    let mut rng = Rng::new(opts.seed);
+    let mut faults = Rng::new(opts.seed ^ 0x0fee_dbac);
+    let round = |v: f64| {
+        if opts.quantum > 0.0 {
+            (v / opts.quantum).round() * opts.quantum
+        } else {
+            v
+        }
+    };
+    let mut rec = FeedbackRecording {
+        axes: chain.joints.iter().map(|j| j.name.clone()).collect(),
+        rotary: chain
+            .joints
+            .iter()
+            .map(|j| j.kind == JointKind::Revolute)
+            .collect(),
+        cmd: vec![Vec::with_capacity(traj.len()); n],
+        fb: vec![Vec::with_capacity(traj.len()); n],
+        ..Default::default()
+    };
+    for (p, mp) in traj.iter().zip(&machine) {
+        let (state, active) = walker.step(mp, &mut bound)?;
+        let mut fb: Vec<f64> = mp.q.clone();
+        for (e, _) in bound.iter().zip(active).filter(|(_, a)| **a) {
+            if let Some(j) = e.joint
+                && !e.modifies_chain()
+            {
+                fb[j] += e.delta_q(&state);
+            }
+        }
+        let fault = opts.outlier_fraction > 0.0 && faults.uniform() < opts.outlier_fraction;
+        let fault_axis = (faults.uniform() * n as f64) as usize;
+        for j in 0..n {
+            let mut v = fb[j] + opts.noise * rng.normal();
+            if fault && j == fault_axis.min(n - 1) {
+                v += (0.01 + 0.09 * faults.uniform())
+                    * if faults.uniform() < 0.5 { -1.0 } else { 1.0 };
+            }
+            rec.fb[j].push(round(v));
+            rec.cmd[j].push(round(p.q[j]));
+        }
+        rec.t.push(p.t);
+        rec.block.push(Some(p.block));
+    }
+    Ok(rec)
+}
+
+/// The commanded trajectory at arbitrary times (for a clock offset).
+fn sample_at(
+    chain: &Chain,
+    waypoints: &[Waypoint],
+    opts: &FeedbackSimOptions,
+    times: &[f64],
+) -> Result<Vec<TrajPoint>> {
+    // A fine sampling, interpolated linearly: 1 ms against the offsets and
+    // sample intervals used (≥ 1 ms), exact at constant speed.
+    let fine = sample_waypoints(chain, waypoints, 1e-4, opts.accel_mm_s2)?;
+    let n = chain.dof();
+    Ok(times
+        .iter()
+        .map(|&t| {
+            let x = (t / 1e-4).clamp(0.0, (fine.len() - 1) as f64);
+            let k = (x.floor() as usize).min(fine.len().saturating_sub(2));
+            let u = x - k as f64;
+            let (a, b) = (&fine[k], &fine[(k + 1).min(fine.len() - 1)]);
+            TrajPoint {
+                t,
+                block: a.block,
+                q: (0..n).map(|j| a.q[j] + u * (b.q[j] - a.q[j])).collect(),
+                v: vec![0.0; n],
+            }
+        })
+        .collect())
+}
+
+/// One axis's data for the fits.
+struct AxisData {
+    t: Vec<f64>,
+    q: Vec<f64>,
+    v: Vec<f64>,
+    dir: Vec<f64>,
+    e: Vec<f64>,
+    keep: Vec<bool>,
+}
+
+fn axis_data(t: &[f64], cmd: &[f64], fb: &[f64]) -> AxisData {
+    let n = t.len();
+    let mut v = vec![0.0; n];
+    for i in 0..n {
+        let (a, b) = super::simulate::central_pair(i, n);
+        v[i] = (cmd[b] - cmd[a]) / (t[b] - t[a]);
+    }
+    let mut tr = DirectionTracker::new(DIRECTION_DEAD_BAND);
+    let dir = cmd.iter().map(|q| tr.update(*q)).collect();
+    AxisData {
+        t: t.to_vec(),
+        q: cmd.to_vec(),
+        v,
+        dir,
+        e: fb.iter().zip(cmd).map(|(f, c)| f - c).collect(),
+        keep: vec![true; n],
+    }
+}
+
+/// Robust noise floor of a 1-D residual: MAD of first differences.
+fn floor_1d(e: &[f64]) -> f64 {
+    let mut d: Vec<f64> = e.windows(2).map(|w| (w[1] - w[0]).abs()).collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    let mid = d.len() / 2;
+    d.select_nth_unstable_by(mid, f64::total_cmp);
+    d[mid] / (0.674_489_75 * std::f64::consts::SQRT_2)
+}
+
+/// Gross outliers of a 1-D residual (as [`super::untidy::gross_outliers`]).
+fn outliers_1d(e: &[f64], dir: &[f64], sigma: f64) -> Vec<usize> {
+    let n = e.len();
+    let mut out = Vec::new();
+    if n < 7 {
+        return out;
+    }
+    for i in 0..n {
+        // A spike at a reversal of the axis is its following error,
+        // machine physics.
+        let reversal = (i.saturating_sub(2)..(i + 2).min(n - 1)).any(|k| dir[k] * dir[k + 1] < 0.0);
+        if departure(e, i).abs() > OUTLIER_SIGMAS * sigma.max(1e-12) && !reversal {
+            out.push(i);
+        }
+    }
+    if out.len() * 20 > n { Vec::new() } else { out }
+}
+
+/// A joint-level effect family.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Fam {
+    Backlash,
+    ServoLag,
+    ZeroOffset,
+    Scale,
+}
+
+const FAMS: [Fam; 4] = [Fam::Backlash, Fam::ServoLag, Fam::ZeroOffset, Fam::Scale];
+
+fn column(d: &AxisData, f: Fam, i: usize) -> f64 {
+    match f {
+        Fam::Backlash => -0.5 * d.dir[i],
+        Fam::ServoLag => -d.v[i],
+        Fam::ZeroOffset => 1.0,
+        Fam::Scale => 1e-6 * d.q[i],
+    }
+}
+
+/// Least squares of `d.e` on the families' columns over the samples
+/// `train` allows: (coefficients, normal matrix pseudo-inverse, RSS).
+fn lsq(d: &AxisData, fams: &[Fam], train: &dyn Fn(usize) -> bool) -> (Vec<f64>, DMatrix<f64>, f64) {
+    let k = fams.len();
+    let mut g = DMatrix::zeros(k, k);
+    let mut h = DVector::zeros(k);
+    let mut ee = 0.0;
+    for i in 0..d.t.len() {
+        if !d.keep[i] || !train(i) {
+            continue;
+        }
+        ee += d.e[i] * d.e[i];
+        for a in 0..k {
+            let ca = column(d, fams[a], i);
+            h[a] += ca * d.e[i];
+            for b in 0..k {
+                g[(a, b)] += ca * column(d, fams[b], i);
+            }
+        }
+    }
+    let inv = pinv_sym(&g);
+    let beta = &inv * &h;
+    let rss = ee - beta.dot(&h);
+    (beta.iter().copied().collect(), inv, rss.max(0.0))
+}
+
+/// Held-out RSS over 5 contiguous time folds.
+fn holdout(d: &AxisData, fams: &[Fam]) -> f64 {
+    let n = d.t.len();
+    let fold = |i: usize| (i * 5 / n.max(1)).min(4);
+    let mut rss = 0.0;
+    for f in 0..5 {
+        let (beta, _, _) = lsq(d, fams, &|i| fold(i) != f);
+        for i in 0..n {
+            if fold(i) == f && d.keep[i] {
+                let pred: f64 = fams
+                    .iter()
+                    .zip(&beta)
+                    .map(|(fa, b)| column(d, *fa, i) * b)
+                    .sum();
+                rss += (d.e[i] - pred).powi(2);
+            }
+        }
+    }
+    rss
+}
+
+fn effect_of(f: Fam, axis: &str, b: f64) -> Effect {
+    let axis = axis.to_string();
+    match f {
+        Fam::Backlash => Effect::Backlash { axis, value: b },
+        Fam::ServoLag => Effect::ServoLag { axis, tau_s: b },
+        Fam::ZeroOffset => Effect::ZeroOffset { axis, value: b },
+        Fam::Scale => Effect::Scale { axis, ppm: b },
+    }
+}
+
+/// Why a fitted joint-level coefficient is not physics.
+fn implausible(f: Fam, b: f64, d: &AxisData) -> Option<String> {
+    match f {
+        Fam::Backlash if b <= 0.0 => {
+            Some("a negative backlash: the axis would lead its command after a reversal".into())
+        }
+        Fam::Backlash if !d.dir.windows(2).any(|w| w[0] * w[1] < 0.0) => {
+            Some("the axis never reverses, so a backlash cannot show".into())
+        }
+        Fam::ServoLag if b <= 0.0 => {
+            Some("a negative lag: the axis would move before its command".into())
+        }
+        Fam::ServoLag if b > super::plausible::MAX_LAG_S => {
+            Some("a lag beyond any servo loop".into())
+        }
+        Fam::Scale if b.abs() > super::plausible::MAX_SCALE_PPM => {
+            Some("a scale error above 1 %".into())
+        }
+        Fam::ZeroOffset if b.abs() > super::plausible::MAX_OFFSET => {
+            Some("a zero offset beyond a reference error".into())
+        }
+        _ => None,
+    }
+}
+
+/// One axis's figures in the report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AxisSummary {
+    /// Axis letter.
+    pub axis: String,
+    /// `mm` or `deg`: the unit of this axis's figures.
+    pub unit: String,
+    /// Noise floor of `fb − command`.
+    pub noise_floor: f64,
+    /// RMS of `fb − command` before the fit.
+    pub rms_before: f64,
+    /// RMS after the fit.
+    pub rms_after: f64,
+    /// Held-out RMS before and after.
+    pub holdout_rms: [f64; 2],
+    /// Resolution of the feedback values, when rounded.
+    pub resolution: Option<f64>,
+}
+
+/// A joint-level finding (`formats.md` §3 shape).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JointFinding {
+    /// Effect name.
+    pub effect: String,
+    /// Axis letter.
+    pub axis: Option<String>,
+    /// Parameters with unit suffixes.
+    pub parameters: BTreeMap<String, f64>,
+    /// One standard deviation each.
+    pub uncertainty: BTreeMap<String, f64>,
+    /// Where it acts.
+    #[serde(rename = "where")]
+    pub where_: Where,
+    /// RMS of the axis displacement it causes: mm on a linear axis
+    /// (`rms_explained_mm`), deg on a rotary one (`rms_explained_deg`).
+    #[serde(flatten)]
+    pub rms_explained: BTreeMap<String, f64>,
+    /// Always true.
+    pub machine_physics: bool,
+    /// The effect in model-file form.
+    #[serde(skip)]
+    pub spec: EffectSpec,
+}
+
+/// The report of a joint-feedback diagnosis.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FeedbackReport {
+    /// Always `joint_feedback`.
+    pub recording: String,
+    /// Samples read.
+    pub samples: usize,
+    /// Samples the effects were fitted on.
+    pub samples_used: usize,
+    /// Quadratic mean of the linear axes' noise floors, mm (0 without a
+    /// traced linear axis).
+    pub noise_floor_mm: f64,
+    /// RMS of `fb − command` over the linear axes before the fit, mm.
+    pub rms_before_mm: f64,
+    /// The same after.
+    pub rms_after_mm: f64,
+    /// Held-out RMS over the linear axes, before, mm.
+    pub holdout_rms_before_mm: f64,
+    /// The same after.
+    pub holdout_rms_after_mm: f64,
+    /// Measurement findings (`time_offset`, `outliers`) first, then the
+    /// machine effects by importance.
+    #[serde(skip)]
+    pub measurement: Vec<MeasurementFinding>,
+    /// Machine effects found.
+    pub findings: Vec<JointFinding>,
+    /// Per-axis figures (in each axis's unit).
+    pub axes: Vec<AxisSummary>,
+    /// Candidates that fitted the data but not physics.
+    pub rejected: Vec<super::report::Rejected>,
+    /// Verdict in words.
+    pub verdict: String,
+}
+
+impl FeedbackReport {
+    /// JSON: `findings` lists the measurement findings first.
+    pub fn to_json(&self) -> serde_json::Value {
+        let mut v = serde_json::to_value(self).unwrap_or(serde_json::Value::Null);
+        let mut all: Vec<serde_json::Value> = self
+            .measurement
+            .iter()
+            .filter_map(|m| serde_json::to_value(m).ok())
+            .collect();
+        all.extend(
+            self.findings
+                .iter()
+                .filter_map(|f| serde_json::to_value(f).ok()),
+        );
+        if let Some(o) = v.as_object_mut() {
+            o.insert("findings".into(), serde_json::Value::Array(all));
+        }
+        v
+    }
+
+    /// Pretty JSON text.
+    pub fn to_json_string(&self) -> String {
+        serde_json::to_string_pretty(&self.to_json()).unwrap_or_default()
+    }
+
+    /// A readable report; every number with its unit.
+    pub fn to_text(&self) -> String {
+        let mut s =
+            String::from("Diagnosis: joint feedback versus command (fb − command, no chain)\n");
+        s.push_str(&format!(
+            "  {} samples ({} used)\n",
+            self.samples, self.samples_used
+        ));
+        for a in &self.axes {
+            let (k, u) = if a.unit == "deg" {
+                (1.0, "deg")
+            } else {
+                (1000.0, "µm")
+            };
+            s.push_str(&format!(
+                "  {}: noise floor {:.4} {u}, RMS before {:.4} {u}, after {:.4} {u}; held-out {:.4} → {:.4} {u}{}\n",
+                a.axis,
+                a.noise_floor * k,
+                a.rms_before * k,
+                a.rms_after * k,
+                a.holdout_rms[0] * k,
+                a.holdout_rms[1] * k,
+                a.resolution
+                    .map_or(String::new(), |q| format!("; values rounded to {q} {}", a.unit))
+            ));
+        }
+        for m in &self.measurement {
+            s.push_str(&format!(
+                "  measurement fault, not machine physics: {} {:?}: {}\n",
+                m.effect, m.parameters, m.where_.condition
+            ));
+        }
+        for (k, f) in self.findings.iter().enumerate() {
+            let ps: Vec<String> = f
+                .parameters
+                .iter()
+                .map(|(n, v)| {
+                    format!(
+                        "{n} = {v:.6} ± {:.6}",
+                        f.uncertainty.get(n).copied().unwrap_or(0.0)
+                    )
+                })
+                .collect();
+            s.push_str(&format!(
+                "  {}. {} {}: {}\n     {}\n",
+                k + 1,
+                f.effect,
+                f.axis.as_deref().unwrap_or(""),
+                ps.join(", "),
+                f.where_.condition
+            ));
+        }
+        for r in &self.rejected {
+            s.push_str(&format!(
+                "  not a finding: {} {}: {}\n",
+                r.effect,
+                r.axis.as_deref().unwrap_or(""),
+                r.reason
+            ));
+        }
+        s.push_str(&format!("  verdict: {}\n", self.verdict));
+        s
+    }
+
+    /// The improved model: `base` plus the effects found.
+    pub fn improved_model(
+        &self,
+        base: Option<&crate::geometric::ErrorModel>,
+    ) -> crate::geometric::ErrorModel {
+        let mut m = base.cloned().unwrap_or_default();
+        for f in &self.findings {
+            m.effects.push(f.spec.clone());
+        }
+        m
+    }
+}
+
+/// Diagnoses a joint-feedback recording.
+pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<FeedbackReport> {
+    let n = rec.len();
+    if n < 20 {
+        return Err(Error::input(
+            Location::new("<recording>", 0, 0),
+            format!("the recording has {n} samples; a diagnosis needs at least 20"),
+        ));
+    }
+    let n_ax = rec.axes.len();
+    let ln_n = (n as f64).ln();
+    let mut data: Vec<AxisData> = (0..n_ax)
+        .map(|k| axis_data(&rec.t, &rec.cmd[k], &rec.fb[k]))
+        .collect();
+    // Noise floors: the robust estimate, never below the feedback's
+    // rounding, plus the command's rounding.
+    let res_fb: Vec<Option<f64>> = rec.fb.iter().map(|v| quantum(v)).collect();
+    let res_cmd: Vec<Option<f64>> = rec.cmd.iter().map(|v| quantum(v)).collect();
+    let sigma: Vec<f64> = (0..n_ax)
+        .map(|k| {
+            if let Some(f) = opts.noise_floor_mm.filter(|f| *f > 0.0) {
+                return f;
+            }
+            let est = floor_1d(&data[k].e);
+            let qf = res_fb[k].map_or(0.0, |q| q / 12f64.sqrt());
+            let qc = res_cmd[k].map_or(0.0, |q| q / 12f64.sqrt());
+            est.max(qf).hypot(qc).max(1e-9)
+        })
+        .collect();
+    // Outliers of the raw residual, set aside for the clock offset only
+    // (a large offset makes the raw residual bend at every change of
+    // acceleration, which a running median does not follow).
+    let mut bad = vec![false; n];
+    for k in 0..n_ax {
+        for i in outliers_1d(&data[k].e, &data[k].dir, sigma[k]) {
+            bad[i] = true;
+        }
+    }
+    // Clock offset: the lag common to the axes.
+    let lag = |d: &AxisData, s: f64| {
+        let (mut ev, mut vv) = (0.0, 0.0);
+        for i in 0..n {
+            if !bad[i] {
+                ev += d.e[i] * d.v[i];
+                vv += d.v[i] * d.v[i];
+            }
+        }
+        if vv > 0.0 {
+            Some((-ev / vv, s / vv.sqrt()))
+        } else {
+            None
+        }
+    };
+    let lags: Vec<Option<(f64, f64)>> = (0..n_ax).map(|k| lag(&data[k], sigma[k])).collect();
+    let informative: Vec<usize> = (0..n_ax)
+        .filter(|&k| lags[k].is_some_and(|(_, sd)| sd < 1e-3))
+        .collect();
+    let mut offset: Option<(f64, f64)> = None;
+    if informative.len() >= 2 {
+        let mut ls: Vec<f64> = informative
+            .iter()
+            .filter_map(|&k| lags[k].map(|l| l.0))
+            .collect();
+        ls.sort_by(f64::total_cmp);
+        let m = ls.len();
+        let median = if m % 2 == 1 {
+            ls[m / 2]
+        } else {
+            0.5 * (ls[m / 2 - 1] + ls[m / 2])
+        };
+        let shared: Vec<usize> = informative
+            .iter()
+            .copied()
+            .filter(|&k| {
+                let (l, sd) = lags[k].unwrap_or_default();
+                (l - median).abs() <= 4.0 * sd + 0.05 * median.abs() + 1e-4
+            })
+            .collect();
+        if shared.len() >= 2 && 2 * shared.len() > informative.len() {
+            let (mut num, mut den) = (0.0, 0.0);
+            for &k in &shared {
+                let (l, sd) = lags[k].unwrap_or_default();
+                num += l / (sd * sd);
+                den += 1.0 / (sd * sd);
+            }
+            let d = num / den;
+            let sd = den.sqrt().recip();
+            let dt = (rec.t[n - 1] - rec.t[0]) / (n - 1) as f64;
+            if (d / sd).powi(2) > ln_n + opts.bic_margin && d.abs() >= 0.01 * dt {
+                offset = Some((d, sd));
+            }
+        }
+    }
+    let mut dropped_ends = 0usize;
+    let mut doubtful = 0usize;
+    // Index in the recording of each sample of `data`.
+    let mut index: Vec<usize> = (0..n).collect();
+    if let Some((d, _)) = offset {
+        // Move every command to the axes' clock and start again.
+        let mut cmd_al: Vec<Vec<f64>> = vec![Vec::with_capacity(n); n_ax];
+        let mut keep_idx = Vec::with_capacity(n);
+        for i in 0..n {
+            let tt = rec.t[i] - d;
+            if tt < rec.t[0] || tt > rec.t[n - 1] {
+                continue;
+            }
+            keep_idx.push(i);
+            for k in 0..n_ax {
+                cmd_al[k].push(hermite(&rec.t, &rec.cmd[k], tt));
+            }
+        }
+        dropped_ends = n - keep_idx.len();
+        let t_al: Vec<f64> = keep_idx.iter().map(|&i| rec.t[i]).collect();
+        // Where the command changes its acceleration between samples the
+        // aligned command is uncertain (as in `untidy::align`): such
+        // samples are left out when that may exceed half the noise floor.
+        let m = keep_idx.len();
+        let mut unsure = vec![false; m];
+        for k in 0..n_ax {
+            let c = &rec.cmd[k];
+            let d3 = |i: usize| {
+                if i == 0 || i + 2 >= n {
+                    f64::INFINITY
+                } else {
+                    (c[i + 2] - 3.0 * c[i + 1] + 3.0 * c[i] - c[i - 1]).abs()
+                }
+            };
+            for (p, &i) in keep_idx.iter().enumerate() {
+                let tt = rec.t[i] - d;
+                let j = rec.t.partition_point(|x| *x <= tt).clamp(1, n - 1) - 1;
+                let dt = rec.t[j + 1] - rec.t[j];
+                let worst = (j.saturating_sub(1)..=j + 1).map(d3).fold(0.0, f64::max);
+                if 0.25 * worst * (d.abs() / dt).min(1.0) > 0.5 * sigma[k] {
+                    unsure[p] = true;
+                }
+            }
+            let fb: Vec<f64> = keep_idx.iter().map(|&i| rec.fb[k][i]).collect();
+            data[k] = axis_data(&t_al, &cmd_al[k], &fb);
+        }
+        doubtful = unsure.iter().filter(|u| **u).count();
+        for k in 0..n_ax {
+            data[k].keep = unsure.iter().map(|u| !u).collect();
+        }
+        index = keep_idx;
+    }
+    // Outliers of the (aligned) residual: excluded from every fit.
+    let mut flagged: Vec<(usize, usize, f64)> = Vec::new();
+    for k in 0..n_ax {
+        for p in outliers_1d(&data[k].e, &data[k].dir, sigma[k]) {
+            if data[k].keep[p] {
+                flagged.push((index[p], k, data[k].e[p]));
+            }
+        }
+    }
+    flagged.sort_by_key(|f| f.0);
+    let out_set: std::collections::BTreeSet<usize> = flagged.iter().map(|f| f.0).collect();
+    for k in 0..n_ax {
+        for p in 0..index.len() {
+            if out_set.contains(&index[p]) {
+                data[k].keep[p] = false;
+            }
+        }
+    }
+    let used = data
+        .first()
+        .map_or(0, |d| d.keep.iter().filter(|k| **k).count());
+    // What the rounding of the commands (and of the feedback, where it
+    // is coarser than half the noise) and the alignment leave as structure.
+    let unresolved: Vec<f64> = (0..n_ax)
+        .map(|k| {
+            let qc = res_cmd[k].map_or(0.0, |q| q / 12f64.sqrt());
+            let qf = res_fb[k].map_or(0.0, |q| q / 12f64.sqrt());
+            let qf = if qf > 0.5 * floor_1d(&data[k].e) {
+                qf
+            } else {
+                0.0
+            };
+            // Samples kept after an alignment may be off by up to half the
+            // noise floor; what that leaves is up to about a fifth of it.
+            let al = if offset.is_some() {
+                0.2 * sigma[k]
+            } else {
+                0.0
+            };
+            qc.hypot(qf).max(al)
+        })
+        .collect();
+    // Per axis: forward selection.
+    let mut findings = Vec::new();
+    let mut rejected = Vec::new();
+    let mut axes = Vec::new();
+    let (mut lin_before, mut lin_after, mut lin_hb, mut lin_ha, mut lin_floor, mut lin_n) =
+        (0.0, 0.0, 0.0, 0.0, 0.0, 0usize);
+    for k in 0..n_ax {
+        let d = &data[k];
+        let s2 = sigma[k] * sigma[k];
+        let m = d.keep.iter().filter(|x| **x).count().max(1) as f64;
+        let mut terms: Vec<Fam> = Vec::new();
+        let (_, _, rss0) = lsq(d, &[], &|_| true);
+        let mut rss_prev = rss0;
+        let hold0 = holdout(d, &[]);
+        let mut hold_prev = hold0;
+        while terms.len() < opts.max_effects {
+            let mut best: Option<(Fam, f64)> = None;
+            for f in FAMS {
+                if terms.contains(&f) {
+                    continue;
+                }
+                let mut trial = terms.clone();
+                trial.push(f);
+                let (beta, _, rss) = lsq(d, &trial, &|_| true);
+                let score = (rss_prev - rss) / s2 - ln_n;
+                if score <= opts.bic_margin {
+                    continue;
+                }
+                if let Some(reason) = implausible(f, beta[trial.len() - 1], d) {
+                    let e = effect_of(f, &rec.axes[k], beta[trial.len() - 1]);
+                    rejected.push(super::report::Rejected {
+                        effect: e.kind().name().to_string(),
+                        axis: Some(rec.axes[k].clone()),
+                        parameters: e.parameters(rec.rotary[k]).into_iter().collect(),
+                        reason,
+                    });
+                    continue;
+                }
+                // An effect smaller than what the rounding of the command
+                // (or, after a clock offset, the alignment) leaves is not
+                // resolved.
+                let b = beta[trial.len() - 1];
+                let size = ((0..d.t.len())
+                    .filter(|&i| d.keep[i])
+                    .map(|i| (column(d, f, i) * b).powi(2))
+                    .sum::<f64>()
+                    / m)
+                    .sqrt();
+                if size < unresolved[k] {
+                    let e = effect_of(f, &rec.axes[k], b);
+                    rejected.push(super::report::Rejected {
+                        effect: e.kind().name().to_string(),
+                        axis: Some(rec.axes[k].clone()),
+                        parameters: e.parameters(rec.rotary[k]).into_iter().collect(),
+                        reason: format!(
+                            "it moves the axis by {size:.3e} RMS, less than the {:.3e} the rounding of the values or the clock alignment leaves",
+                            unresolved[k]
+                        ),
+                    });
+                    continue;
+                }
+                if best.is_none_or(|(_, s)| score > s) {
+                    best = Some((f, score));
+                }
+            }
+            let Some((f, _)) = best else { break };
+            let mut trial = terms.clone();
+            trial.push(f);
+            let hold = holdout(d, &trial);
+            if hold_prev - hold < ln_n * s2 {
+                break;
+            }
+            terms.push(f);
+            rss_prev = lsq(d, &terms, &|_| true).2;
+            hold_prev = hold;
+        }
+        let (beta, inv, rss) = lsq(d, &terms, &|_| true);
+        let (t0, t1) = (d.t[0], d.t[d.t.len() - 1]);
+        let blocks = [
+            rec.block.first().copied().flatten(),
+            rec.block.last().copied().flatten(),
+        ];
+        for (p, f) in terms.iter().enumerate() {
+            let effect = effect_of(*f, &rec.axes[k], beta[p]);
+            let params = effect.parameters(rec.rotary[k]);
+            let sd = inv[(p, p)].max(0.0).sqrt() * sigma[k];
+            let contrib: f64 = (0..d.t.len())
+                .filter(|&i| d.keep[i])
+                .map(|i| (column(d, *f, i) * beta[p]).powi(2))
+                .sum::<f64>()
+                / m;
+            let unit = if rec.rotary[k] { "deg" } else { "mm" };
+            findings.push(JointFinding {
+                effect: effect.kind().name().to_string(),
+                axis: Some(rec.axes[k].clone()),
+                uncertainty: params.iter().map(|(n, _)| (n.clone(), sd)).collect(),
+                parameters: params.into_iter().collect(),
+                where_: Where {
+                    blocks,
+                    t_s: [t0, t1],
+                    condition: super::report::condition_text(&effect, rec.rotary[k])
+                        + " (seen by the axis's own feedback)",
+                },
+                rms_explained: [(format!("rms_explained_{unit}"), contrib.sqrt())].into(),
+                machine_physics: true,
+                spec: EffectSpec::from(effect),
+            });
+        }
+        let hb = (hold0 / m).sqrt();
+        let ha = (hold_prev / m).sqrt();
+        let rb = (rss0 / m).sqrt();
+        let ra = (rss / m).sqrt();
+        if !rec.rotary[k] {
+            lin_before += rb * rb;
+            lin_after += ra * ra;
+            lin_hb += hb * hb;
+            lin_ha += ha * ha;
+            lin_floor += s2;
+            lin_n += 1;
+        }
+        axes.push(AxisSummary {
+            axis: rec.axes[k].clone(),
+            unit: if rec.rotary[k] { "deg" } else { "mm" }.into(),
+            noise_floor: sigma[k],
+            rms_before: rb,
+            rms_after: ra,
+            holdout_rms: [hb, ha],
+            resolution: res_fb[k],
+        });
+    }
+    findings.sort_by(|a, b| {
+        let x = |f: &JointFinding| f.rms_explained.values().next().copied().unwrap_or(0.0);
+        x(b).total_cmp(&x(a))
+    });
+    let pooled = |x: f64| {
+        if lin_n > 0 {
+            (x / lin_n as f64).sqrt()
+        } else {
+            0.0
+        }
+    };
+    // Measurement findings.
+    let mut measurement = Vec::new();
+    let span = [rec.t[0], rec.t[n - 1]];
+    let blocks = [rec.block[0], rec.block[n - 1]];
+    if let Some((d, sd)) = offset {
+        measurement.push(MeasurementFinding {
+            effect: "time_offset".into(),
+            axis: None,
+            parameters: [("offset_s".to_string(), d)].into(),
+            uncertainty: [("offset_s".to_string(), sd)].into(),
+            where_: Where {
+                blocks,
+                t_s: span,
+                condition: format!(
+                    "everywhere: every traced axis lags its command by the same {:.3} ms, which is the trace's clock, not the drives; removed before the axes were fitted ({dropped_ends} sample(s) at the ends left out; {doubtful} where the command changes its acceleration between samples cannot be aligned within half the noise floor and are left out of the fits)",
+                    d * 1e3
+                ),
+            },
+            rms_explained_mm: 0.0,
+            machine_physics: false,
+            samples: Vec::new(),
+        });
+    }
+    if !flagged.is_empty() {
+        let c = flagged.len();
+        measurement.push(MeasurementFinding {
+            effect: "outliers".into(),
+            axis: None,
+            parameters: [
+                ("count".to_string(), c as f64),
+                ("fraction".to_string(), c as f64 / n as f64),
+            ]
+            .into(),
+            uncertainty: BTreeMap::new(),
+            where_: Where {
+                blocks: [rec.block[flagged[0].0], rec.block[flagged[c - 1].0]],
+                t_s: [rec.t[flagged[0].0], rec.t[flagged[c - 1].0]],
+                condition: format!(
+                    "{c} isolated sample(s) depart from their neighbours by more than {OUTLIER_SIGMAS} noise floors: gross faults of the trace, excluded from every fit"
+                ),
+            },
+            rms_explained_mm: 0.0,
+            machine_physics: false,
+            samples: flagged
+                .iter()
+                .take(50)
+                .map(|&(i, _, e)| FlaggedSample {
+                    index: i,
+                    t_s: rec.t[i],
+                    block: rec.block[i],
+                    departure_mm: [e, 0.0, 0.0],
+                })
+                .collect(),
+        });
+    }
+    let above: Vec<String> = axes
+        .iter()
+        .filter(|a| {
+            let chi = (a.rms_after / a.noise_floor).powi(2);
+            chi > 1.1 && (chi - 1.0) * (used as f64 / 2.0).sqrt() > 4.0
+        })
+        .map(|a| a.axis.clone())
+        .collect();
+    let verdict = if findings.is_empty() {
+        if above.is_empty() {
+            "consistent with measurement noise: every axis follows its command to within its noise floor; no missing physics found".to_string()
+        } else {
+            format!(
+                "unexplained mismatch on {}: above the noise floor, and no joint-level effect (backlash, servo lag, zero offset, scale) explains it on held-out data",
+                above.join(", ")
+            )
+        }
+    } else {
+        let names: Vec<String> = findings
+            .iter()
+            .map(|f| format!("{} of {}", f.effect, f.axis.as_deref().unwrap_or("")))
+            .collect();
+        let rest = if above.is_empty() {
+            "; what remains is consistent with measurement noise".to_string()
+        } else {
+            format!(
+                "; a mismatch above the noise remains on {}",
+                above.join(", ")
+            )
+        };
+        format!("missing physics found: {}{rest}", names.join(", "))
+    };
+    Ok(FeedbackReport {
+        recording: "joint_feedback".into(),
+        samples: n,
+        samples_used: used,
+        noise_floor_mm: pooled(lin_floor),
+        rms_before_mm: pooled(lin_before),
+        rms_after_mm: pooled(lin_after),
+        holdout_rms_before_mm: pooled(lin_hb),
+        holdout_rms_after_mm: pooled(lin_ha),
+        measurement,
+        findings,
+        axes,
+        rejected,
+        verdict,
+    })
+}
+
+/// The command `y(t)` at `tt` (within `t`): [`monotone_hermite`].
+fn hermite(t: &[f64], y: &[f64], tt: f64) -> f64 {
+    let n = t.len();
+    let k = t.partition_point(|x| *x <= tt).clamp(1, n - 1) - 1;
+    monotone_hermite(t, y, k, tt)
+}
