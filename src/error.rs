@@ -74,11 +74,40 @@ pub enum Error {
     Usage(String),
 }
 
+/// Longest quoted line, in characters.
+const SNIPPET_MAX: usize = 200;
+
 fn snippet_suffix(s: &Option<String>) -> String {
     match s {
-        Some(t) if !t.is_empty() => format!("\n  | {}", t.trim_end_matches(['\r', '\n'])),
+        Some(t) if !t.is_empty() => {
+            let shown = visible(t.trim_end_matches(['\r', '\n']));
+            if shown.chars().count() > SNIPPET_MAX {
+                let head: String = shown.chars().take(SNIPPET_MAX).collect();
+                format!("\n  | {head}…")
+            } else {
+                format!("\n  | {shown}")
+            }
+        }
         _ => String::new(),
     }
+}
+
+/// `text` with control characters shown: NUL as `\0`, a carriage return
+/// as `\r`, other controls as `\xNN` (tabs stay). A quoted line must show
+/// what is in it, and a raw control character would be invisible or move
+/// the terminal's cursor.
+pub fn visible(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '\0' => out.push_str("\\0"),
+            '\r' => out.push_str("\\r"),
+            '\t' => out.push('\t'),
+            c if c.is_control() => out.push_str(&format!("\\x{:02X}", c as u32)),
+            c => out.push(c),
+        }
+    }
+    out
 }
 
 impl Error {

@@ -337,6 +337,28 @@ impl<'a> GcodeConverter<'a> {
             let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);
             Location::new(&opts.file_name, line.number, col)
         };
+        // Only the last line of a file can lack its line end. In pose mode
+        // the rest of it may have been a pose (`X12.3` of `X12.345`): a
+        // truncated file is refused.
+        if self.modal.pose_mode
+            && !line.bytes.ends_with(b"\n")
+            && !line.bytes.iter().all(|b| b.is_ascii_whitespace())
+        {
+            return Err(Error::input_with(
+                Location::new(&opts.file_name, line.number, line.bytes.len() + 1),
+                "the file ends without a line end while in pose mode: a truncated file? The rest of the block may have been a pose; if the program is complete, end it with a line break (and M30)",
+                String::from_utf8_lossy(&line.bytes),
+            ));
+        }
+        // A text NC program never holds a NUL byte: a damaged or binary
+        // file is refused, not passed on.
+        if let Some(at) = line.bytes.iter().position(|b| *b == 0) {
+            return Err(Error::input_with(
+                Location::new(&opts.file_name, line.number, at + 1),
+                "a NUL byte: the file is damaged or not a text NC program",
+                String::from_utf8_lossy(&line.bytes),
+            ));
+        }
         let mut words = recycle(std::mem::take(&mut self.words));
         let mut keywords = Vec::new();
         for (i, item) in line.items.iter().enumerate() {
@@ -393,6 +415,16 @@ impl<'a> GcodeConverter<'a> {
             return Err(opaque_error(i));
         }
         let Some((tip, axis)) = meaning.pose else {
+            let text = String::from_utf8_lossy(&line.bytes);
+            let unended =
+                !line.bytes.ends_with(b"\n") && !text.trim().is_empty() && text.trim() != "%";
+            if unended {
+                self.stats.warnings.push(format!(
+                    "{}: the file ends without a line end after `{}`: a truncated file? (passed on unchanged)",
+                    Location::new(&opts.file_name, line.number, 1),
+                    crate::error::visible(text.trim())
+                ));
+            }
             if !self.modal.pose_mode {
                 self.follow_machine_words(line, &meaning);
             }
@@ -410,6 +442,15 @@ impl<'a> GcodeConverter<'a> {
             }
             return Ok(None);
         };
+        // Only the last line of a file can lack its line end. A pose block
+        // there may have been cut mid-number (`X12.3` of `X12.345`).
+        if !line.bytes.ends_with(b"\n") {
+            return Err(Error::input_with(
+                Location::new(&opts.file_name, line.number, line.bytes.len() + 1),
+                "the file ends inside this pose block, without a line end: a truncated file? A block cut short would put the tool elsewhere; if the program is complete, end it with a line break (and M30)",
+                String::from_utf8_lossy(&line.bytes),
+            ));
+        }
         Ok(Some(PendingPose {
             pose: Pose::new(tip, axis),
             meaning,
@@ -480,7 +521,12 @@ impl<'a> GcodeConverter<'a> {
         );
         if matches!(meaning.motion, Motion::Linear | Motion::Rapid)
             && let Some(prev) = &self.previous
-            && let Some(w) = branch_change_warning(self.machine, prev, &solved.q, &pending.pose)
+            && let Some(w) = crate::machine::midblock::branch_change_warning(
+                self.machine,
+                prev,
+                &solved.q,
+                &pending.pose,
+            )
         {
             self.stats
                 .warnings
@@ -491,67 +537,6 @@ impl<'a> GcodeConverter<'a> {
         self.previous = Some(solved.q.clone());
         Ok(())
     }
-}
-
-/// A rotary axis turning more than this within one block (deg) is looked
-/// at mid-block.
-pub const BIG_TURN_DEG: f64 = 90.0;
-
-/// Mid-block departure from the programmed line above which a big turn is
-/// warned of, mm.
-pub const BIG_TURN_DEPARTURE_MM: f64 = 1.0;
-
-/// The warning for a block in which a rotary axis turns by more than
-/// [`BIG_TURN_DEG`] (a change of branch at a tilt limit, or an unwinding)
-/// and the tool, moved by the controller along the straight line in joint
-/// space, leaves the programmed line by more than
-/// [`BIG_TURN_DEPARTURE_MM`] mid-block; `None` otherwise.
-pub fn branch_change_warning(
-    machine: &Machine,
-    prev: &[f64],
-    q: &[f64],
-    pose: &Pose,
-) -> Option<String> {
-    let joints = &machine.chain.joints;
-    if prev.len() != q.len() || q.len() != joints.len() {
-        return None;
-    }
-    // The move the controller makes: a modulo axis takes the short way.
-    let step: Vec<f64> = (0..q.len())
-        .map(|j| {
-            let d = q[j] - prev[j];
-            let modulo = machine
-                .axes
-                .iter()
-                .any(|a| a.joint == j && a.rotary == crate::machine::RotaryMode::Modulo);
-            if modulo {
-                let tau = std::f64::consts::TAU;
-                d - tau * (d / tau).round()
-            } else {
-                d
-            }
-        })
-        .collect();
-    let (j, turn) = joints
-        .iter()
-        .enumerate()
-        .filter(|(_, jt)| jt.kind == crate::machine::JointKind::Revolute)
-        .map(|(j, _)| (j, step[j].abs().to_degrees()))
-        .max_by(|a, b| a.1.total_cmp(&b.1))?;
-    if turn <= BIG_TURN_DEG {
-        return None;
-    }
-    let none = crate::machine::NoErrors;
-    let start = machine.chain.pose(prev, &none).tip;
-    let mid_q: Vec<f64> = prev.iter().zip(&step).map(|(a, d)| a + 0.5 * d).collect();
-    let mid = machine.chain.pose(&mid_q, &none).tip;
-    let departure = (mid - 0.5 * (start + pose.tip)).norm();
-    (departure > BIG_TURN_DEPARTURE_MM).then(|| {
-        format!(
-            "{} turns {turn:.1}° within this block (the pose is reached on another branch of the kinematics); moved along a straight line in joint space the tool is {departure:.3} mm off the programmed line mid-block: check the clearance, or let `kinpost linkage` insert points",
-            joints[j].name
-        )
-    })
 }
 
 impl GcodeConverter<'_> {
@@ -865,7 +850,9 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                 stats.max_axis_miss_rad = stats.max_axis_miss_rad.max(solved.axis_miss_rad);
                 stats.poses += 1;
                 if let Some(prev) = &previous
-                    && let Some(w) = branch_change_warning(machine, prev, &solved.q, &pose)
+                    && let Some(w) = crate::machine::midblock::branch_change_warning(
+                        machine, prev, &solved.q, &pose,
+                    )
                 {
                     stats.warnings.push(format!("{loc}: {w}"));
                 }

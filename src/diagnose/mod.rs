@@ -32,7 +32,8 @@ pub mod untidy;
 
 use std::collections::BTreeMap;
 
-pub use crate::geometric::effects::{self, Effect, EffectKind, EffectSpec, parse_effect_spec};
+pub use crate::geometric::effect_spec::parse_effect_spec;
+pub use crate::geometric::effects::{self, Effect, EffectKind, EffectSpec};
 pub use recording::{Recording, RecordingReader, Sample};
 pub use report::{Finding, Report, RunnerUp, Where};
 pub use simulate::{

@@ -4,6 +4,7 @@
 //! - [`mod@file`]: machine files (JSON) and the [`Machine`] type.
 //! - [`ik`]: analytic inverse kinematics per family, branch choice, limits.
 //! - [`linuxcnc`]: machine files from LinuxCNC configurations.
+//! - [`midblock`]: how far the tool leaves the programmed line within a block.
 //! - [`newton_ik`]: the damped-Newton fallback for other chains.
 //! - [`rotary`]: limited, continuous and modulo rotary axes; unwinding.
 //! - [`template`]: starting machine files per family; the list of embedded machines.
@@ -15,6 +16,7 @@ pub mod ik;
 pub mod ik_error;
 pub(crate) mod jsonpos;
 pub mod linuxcnc;
+pub mod midblock;
 pub mod newton_ik;
 pub mod rotary;
 pub mod template;

@@ -359,6 +359,46 @@ impl ModalState {
             });
         }
 
+        // A word given twice (X1 … X5, or I with A3 for the same component)
+        // is refused, as LinuxCNC and Fanuc refuse it: which one a
+        // controller would take is not for kinpost to guess.
+        let slot_of = |a: &str| match a {
+            "X" => Some(0),
+            "Y" => Some(1),
+            "Z" => Some(2),
+            "I" | "A3" => Some(3),
+            "J" | "B3" => Some(4),
+            "K" | "C3" => Some(5),
+            "F" => Some(6),
+            _ => None,
+        };
+        let mut seen: [Option<&WordRef<'_>>; 7] = [None; 7];
+        for w in words {
+            if let Some(k) = slot_of(w.address) {
+                if let Some(first) = seen[k] {
+                    return Err(BlockError {
+                        item: Some(w.item),
+                        message: format!(
+                            "{} is given twice in this block ({}{} and {}{}): the block is ambiguous (LinuxCNC and Fanuc refuse it too)",
+                            if first.address == w.address {
+                                format!("word {}", w.address)
+                            } else {
+                                format!(
+                                    "the same tool-axis component ({} and {})",
+                                    first.address, w.address
+                                )
+                            },
+                            first.address,
+                            first.value,
+                            w.address,
+                            w.value
+                        ),
+                    });
+                }
+                seen[k] = Some(w);
+            }
+        }
+
         // Update the modal tip and axis.
         let scale = self.units.mm_per_unit();
         for w in words {

@@ -12,6 +12,21 @@ const QUOTE_MAX: usize = 48;
 pub fn describe_opaque(bytes: &[u8]) -> String {
     let text = String::from_utf8_lossy(bytes);
     let text = text.trim_end_matches(['\r', '\n']);
+    if text.contains('\r') {
+        return "a carriage return (CR) inside the line: the file seems to use CR-only (old Mac) line endings, which are not line breaks here; convert them to LF or CR LF (e.g. `tr '\\r' '\\n'`)".into();
+    }
+    if text.contains('\0') {
+        return format!(
+            "a NUL byte inside the block (`{}`): the file is damaged or not a text NC program",
+            quote(&crate::error::visible(text))
+        );
+    }
+    if text.trim_start().starts_with('(') && !text.contains(')') {
+        return format!(
+            "unclosed comment `{}`: a `(` without its `)`; in a block that must be converted it would hide the words after it",
+            quote(text.trim_start())
+        );
+    }
     let token: &str = token(text);
     let quoted = quote(token);
     let letters = token
@@ -95,6 +110,7 @@ fn sign_only(t: &str) -> bool {
 
 /// `s`, shortened to [`QUOTE_MAX`] characters with an ellipsis.
 fn quote(s: &str) -> String {
+    let s = &crate::error::visible(s);
     if s.chars().count() <= QUOTE_MAX {
         s.to_string()
     } else {

@@ -1,0 +1,238 @@
+//! Moving a recording's commands to the machine's clock, and dropping
+//! samples.
+
+// Numerical code: several parallel arrays are indexed by one counter.
+#![allow(clippy::needless_range_loop)]
+
+use super::super::prepare::Prepared;
+use super::super::recording::{Recording, Sample};
+use super::resolution::quantum;
+
+/// `rec` with its command columns moved to the machine's clock: each
+/// sample stamped t gets the command of t − `offset_s`, interpolated by a
+/// cubic Hermite spline through the recorded commands (tangents from
+/// central differences; exact for a constant feed and for a constant
+/// acceleration within a block). Samples whose t − offset falls outside
+/// the recording are dropped.
+///
+/// Where a command changes its acceleration between two samples no
+/// interpolant knows where, and the aligned command may be off by up to
+/// about a quarter of the largest third difference nearby times the shift
+/// in samples: that bound is returned per sample and axis (`blur`, mm or
+/// deg), so that samples the alignment cannot place within the noise are
+/// left out of the fits.
+pub fn align(rec: &Recording, offset_s: f64) -> Aligned {
+    let s = &rec.samples;
+    let n = s.len();
+    let mut out = Recording {
+        axes: rec.axes.clone(),
+        temp_names: rec.temp_names.clone(),
+        samples: Vec::with_capacity(n),
+    };
+    let mut kept = Vec::with_capacity(n);
+    let dof = rec.axes.len();
+    let mut blur = Vec::with_capacity(n * dof);
+    if n < 2 {
+        return Aligned {
+            rec: out,
+            kept,
+            blur,
+        };
+    }
+    // Third difference of the commands over samples k − 1 … k + 2.
+    // Rounded commands carry a third difference of their own (its
+    // standard deviation is √(20/12)·q for a step q); three of those are
+    // not a change of acceleration.
+    let rounding: Vec<f64> = (0..dof)
+        .map(|j| {
+            let col: Vec<f64> = s.iter().map(|x| x.q[j]).collect();
+            quantum(&col).map_or(0.0, |q| 3.0 * (20.0f64 / 12.0).sqrt() * q)
+        })
+        .collect();
+    // Near the ends the tangents are one-sided and nothing bounds the
+    // error: such samples count as doubtful (a bound of 1 m).
+    let d3 = |k: usize, j: usize| {
+        if k == 0 || k + 2 >= n {
+            return 4e3;
+        }
+        let d = (s[k + 2].q[j] - 3.0 * s[k + 1].q[j] + 3.0 * s[k].q[j] - s[k - 1].q[j]).abs();
+        (d - rounding[j]).max(0.0)
+    };
+    let times: Vec<f64> = s.iter().map(|x| x.t).collect();
+    let columns: Vec<Vec<f64>> = (0..dof)
+        .map(|j| s.iter().map(|x| x.q[j]).collect())
+        .collect();
+    let mut k = 0usize;
+    for (i, smp) in s.iter().enumerate() {
+        let tt = smp.t - offset_s;
+        if tt < s[0].t || tt > s[n - 1].t {
+            continue;
+        }
+        while k + 2 < n && s[k + 1].t <= tt {
+            k += 1;
+        }
+        while k > 0 && s[k].t > tt {
+            k -= 1;
+        }
+        let (t0, t1) = (s[k].t, s[k + 1].t);
+        let dt = t1 - t0;
+        let u = ((tt - t0) / dt).clamp(0.0, 1.0);
+        let q: Vec<f64> = columns
+            .iter()
+            .map(|y| monotone_hermite(&times, y, k, tt))
+            .collect();
+        let block = if u < 0.5 { s[k].block } else { s[k + 1].block };
+        let shift = (offset_s.abs() / dt).min(1.0);
+        for j in 0..dof {
+            let worst = (k.saturating_sub(1)..=k + 1)
+                .map(|m| d3(m, j))
+                .fold(0.0, f64::max);
+            blur.push(0.25 * worst * shift);
+        }
+        out.samples.push(Sample {
+            q,
+            block,
+            ..smp.clone()
+        });
+        kept.push(i);
+    }
+    Aligned {
+        rec: out,
+        kept,
+        blur,
+    }
+}
+
+/// The value at `tt` (within interval `k` of the increasing times `t`) of
+/// the cubic Hermite spline through `y` with central-difference tangents,
+/// limited so that it never overshoots (Fritsch–Carlson): a tangent is 0
+/// where the data turns or stands still, and at most three times the
+/// smaller neighbouring slope. Exact for a constant feed and a constant
+/// acceleration away from stops; a command that stands still stays still
+/// (an overshoot there would fake a reversal).
+pub fn monotone_hermite(t: &[f64], y: &[f64], k: usize, tt: f64) -> f64 {
+    let n = t.len();
+    let slope = |i: usize| (y[i + 1] - y[i]) / (t[i + 1] - t[i]);
+    let tangent = |i: usize| -> f64 {
+        if i == 0 {
+            return slope(0);
+        }
+        if i == n - 1 {
+            return slope(n - 2);
+        }
+        let (a, b) = (slope(i - 1), slope(i));
+        if a * b <= 0.0 {
+            return 0.0;
+        }
+        let m = (y[i + 1] - y[i - 1]) / (t[i + 1] - t[i - 1]);
+        let cap = 3.0 * a.abs().min(b.abs());
+        m.clamp(-cap, cap)
+    };
+    let h = t[k + 1] - t[k];
+    let (m0, m1) = if y[k + 1] == y[k] {
+        (0.0, 0.0)
+    } else {
+        (tangent(k), tangent(k + 1))
+    };
+    let u = ((tt - t[k]) / h).clamp(0.0, 1.0);
+    let (u2, u3) = (u * u, u * u * u);
+    (2.0 * u3 - 3.0 * u2 + 1.0) * y[k]
+        + (u3 - 2.0 * u2 + u) * h * m0
+        + (-2.0 * u3 + 3.0 * u2) * y[k + 1]
+        + (u3 - u2) * h * m1
+}
+
+/// A recording moved to the machine's clock ([`align`]).
+#[derive(Debug, Clone)]
+pub struct Aligned {
+    /// The aligned recording.
+    pub rec: Recording,
+    /// Per sample, its index in the original recording.
+    pub kept: Vec<usize>,
+    /// Per sample and axis (`kept.len() × dof`), a bound of the
+    /// interpolation error of the aligned command (mm or deg).
+    pub blur: Vec<f64>,
+}
+
+impl Aligned {
+    /// Samples whose interpolation error, carried to the tip by the
+    /// Jacobian of `prep` (prepared from this recording), may exceed
+    /// `limit_mm`.
+    pub fn doubtful(&self, prep: &Prepared, limit_mm: f64) -> Vec<bool> {
+        let dof = prep.dof;
+        (0..prep.n)
+            .map(|i| {
+                let e: f64 = (0..dof)
+                    .map(|j| {
+                        let jj = prep.jj(i, j);
+                        (jj[0] * jj[0] + jj[1] * jj[1] + jj[2] * jj[2]).sqrt()
+                            * self.blur[i * dof + j]
+                    })
+                    .sum();
+                e > limit_mm
+            })
+            .collect()
+    }
+}
+
+/// `rec` without the samples at `drop` (sorted indices); with the indices
+/// of the samples kept.
+pub fn without(rec: &Recording, drop: &[usize]) -> (Recording, Vec<usize>) {
+    let mut out = Recording {
+        axes: rec.axes.clone(),
+        temp_names: rec.temp_names.clone(),
+        samples: Vec::with_capacity(rec.samples.len()),
+    };
+    let mut kept = Vec::with_capacity(rec.samples.len());
+    let mut d = drop.iter().peekable();
+    for (i, s) in rec.samples.iter().enumerate() {
+        if d.peek() == Some(&&i) {
+            d.next();
+            continue;
+        }
+        out.samples.push(s.clone());
+        kept.push(i);
+    }
+    (out, kept)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn alignment_reproduces_a_quadratic_command() {
+        // q(t) = 3 + 2t + 0.5t²: the Hermite spline with central tangents
+        // is exact for it away from the ends.
+        let q = |t: f64| 3.0 + 2.0 * t + 0.5 * t * t;
+        let samples: Vec<Sample> = (0..40)
+            .map(|i| {
+                let t = i as f64 * 0.1;
+                Sample {
+                    t,
+                    block: Some(1),
+                    q: vec![q(t)],
+                    meas: [0.0; 3],
+                    meas_axis: None,
+                    temps: Vec::new(),
+                }
+            })
+            .collect();
+        let rec = Recording {
+            axes: vec!["X".into()],
+            temp_names: Vec::new(),
+            samples,
+        };
+        let al = align(&rec, 0.015);
+        let (a, kept) = (&al.rec, &al.kept);
+        assert_eq!(
+            kept.first(),
+            Some(&1),
+            "the first sample has no command 15 ms before"
+        );
+        for (s, &i) in a.samples.iter().zip(kept).skip(1).take(30) {
+            let want = q(rec.samples[i].t - 0.015);
+            assert!((s.q[0] - want).abs() < 1e-12, "{} vs {want}", s.q[0]);
+        }
+    }
+}

@@ -1,0 +1,191 @@
+//! A clock offset between the recording and the program: the delay every
+//! moving axis shares, told apart from an axis's own servo lag.
+
+// Numerical code: several parallel arrays are indexed by one counter.
+#![allow(clippy::needless_range_loop)]
+
+use nalgebra::{DMatrix, DVector};
+
+use super::super::fit::pinv_sym;
+use super::super::prepare::Prepared;
+
+/// The lag of each axis as the residual shows it: the least-squares fit of
+/// `r ≈ −Σⱼ Lⱼ · Jⱼ · q̇ⱼ` over the samples `keep` allows. Returns each
+/// axis's lag (s) and its standard deviation for a noise floor of 1 mm
+/// (scale by σ), and the normal matrix with the right-hand side.
+struct AxisLags {
+    lag: Vec<f64>,
+    sd_unit: Vec<f64>,
+    g: DMatrix<f64>,
+    h: DVector<f64>,
+}
+
+fn axis_lags(prep: &Prepared, keep: &[bool]) -> AxisLags {
+    let dof = prep.dof;
+    let mut g = DMatrix::zeros(dof, dof);
+    let mut h = DVector::zeros(dof);
+    let mut col = vec![[0.0; 3]; dof];
+    for i in 0..prep.n {
+        if !keep[i] {
+            continue;
+        }
+        for j in 0..dof {
+            let jj = prep.jj(i, j);
+            let v = prep.vj(i, j);
+            col[j] = [-jj[0] * v, -jj[1] * v, -jj[2] * v];
+        }
+        for a in 0..dof {
+            h[a] += (0..3).map(|c| col[a][c] * prep.r[i][c]).sum::<f64>();
+            for b in 0..dof {
+                g[(a, b)] += (0..3).map(|c| col[a][c] * col[b][c]).sum::<f64>();
+            }
+        }
+    }
+    let inv = pinv_sym(&g);
+    let lag = (&inv * &h).iter().copied().collect();
+    let sd_unit = (0..dof).map(|j| inv[(j, j)].max(0.0).sqrt()).collect();
+    AxisLags { lag, sd_unit, g, h }
+}
+
+/// An axis informs the clock offset when its lag is known to this (s).
+const INFORMATIVE_SD_S: f64 = 1e-3;
+
+/// How far an axis's lag may be from the common one and still share it,
+/// beyond 4 of its standard deviations.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tolerance {
+    /// A fraction of the common lag.
+    pub relative: f64,
+    /// An absolute margin, s.
+    pub absolute_s: f64,
+}
+
+/// Loose: the first look, on unaligned data, where the second-order
+/// terms of a large offset differ between axes.
+pub const LOOSE: Tolerance = Tolerance {
+    relative: 0.05,
+    absolute_s: 1e-4,
+};
+
+/// Strict: after a first alignment, where what an axis lags beyond the
+/// others is its own servo lag.
+pub const STRICT: Tolerance = Tolerance {
+    relative: 0.0,
+    absolute_s: 1e-6,
+};
+
+/// A clock offset seen in a residual.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OffsetEstimate {
+    /// The offset (s): the sample stamped t shows the machine at t − offset.
+    pub offset_s: f64,
+    /// Its standard deviation, s.
+    pub sd_s: f64,
+    /// The axes that share it (chain indices).
+    pub shared: Vec<usize>,
+    /// Each axis's apparent lag and its standard deviation, s.
+    pub lags: Vec<(f64, f64)>,
+    /// Decrease of χ² when the common lag enters (the other axes' own lags
+    /// already in).
+    pub delta_chi2: f64,
+}
+
+/// The clock offset of a residual, if it shows one.
+///
+/// A clock offset delays every axis by the same time; a servo lag delays
+/// one axis by its own. So each axis's apparent lag is fitted, their
+/// median taken as the common value, and the axes whose lag agrees with
+/// it (within 4 standard deviations plus `tolerance`) share the offset. It is a
+/// clock offset when at least two axes, and more than half of those whose
+/// lag the recording determines, share it, and the common lag lowers χ²
+/// by more than `min_delta_chi2`. What an axis lags beyond the common
+/// value is left for its servo lag. When `shared` is given, those axes are
+/// taken as sharing it (for the refinement after a first alignment).
+pub fn clock_offset(
+    prep: &Prepared,
+    keep: &[bool],
+    sigma: f64,
+    min_delta_chi2: f64,
+    shared: Option<&[usize]>,
+    tolerance: Tolerance,
+) -> Option<OffsetEstimate> {
+    let dof = prep.dof;
+    let al = axis_lags(prep, keep);
+    let lags: Vec<(f64, f64)> = (0..dof)
+        .map(|j| (al.lag[j], al.sd_unit[j] * sigma))
+        .collect();
+    let set: Vec<usize> = match shared {
+        Some(s) => s.to_vec(),
+        None => {
+            let informative: Vec<usize> = (0..dof)
+                .filter(|&j| al.g[(j, j)] > 0.0 && lags[j].1 < INFORMATIVE_SD_S)
+                .collect();
+            if informative.len() < 2 {
+                return None;
+            }
+            let mut ls: Vec<f64> = informative.iter().map(|&j| lags[j].0).collect();
+            ls.sort_by(f64::total_cmp);
+            let m = ls.len();
+            let median = if m % 2 == 1 {
+                ls[m / 2]
+            } else {
+                0.5 * (ls[m / 2 - 1] + ls[m / 2])
+            };
+            let set: Vec<usize> = informative
+                .iter()
+                .copied()
+                .filter(|&j| {
+                    (lags[j].0 - median).abs()
+                        <= 4.0 * lags[j].1
+                            + tolerance.relative * median.abs()
+                            + tolerance.absolute_s
+                })
+                .collect();
+            if set.len() < 2 || 2 * set.len() <= informative.len() {
+                return None;
+            }
+            set
+        }
+    };
+    // Reduced fit: one common lag for the set, an own lag for every other
+    // axis.
+    let others: Vec<usize> = (0..dof).filter(|j| !set.contains(j)).collect();
+    let k = 1 + others.len();
+    let idx = |p: usize| -> Vec<usize> {
+        if p == 0 {
+            set.clone()
+        } else {
+            vec![others[p - 1]]
+        }
+    };
+    let mut g = DMatrix::zeros(k, k);
+    let mut h = DVector::zeros(k);
+    for a in 0..k {
+        let ia = idx(a);
+        h[a] = ia.iter().map(|&j| al.h[j]).sum();
+        for b in 0..k {
+            let ib = idx(b);
+            g[(a, b)] = ia
+                .iter()
+                .flat_map(|&x| ib.iter().map(move |&y| (x, y)))
+                .map(|(x, y)| al.g[(x, y)])
+                .sum();
+        }
+    }
+    let inv = pinv_sym(&g);
+    let beta = &inv * &h;
+    let d = beta[0];
+    let sd = inv[(0, 0)].max(0.0).sqrt() * sigma;
+    // χ² decrease of the common lag given the others: d² / var(d).
+    let delta_chi2 = if sd > 0.0 { (d / sd).powi(2) } else { 0.0 };
+    if shared.is_none() && delta_chi2 < min_delta_chi2 {
+        return None;
+    }
+    Some(OffsetEstimate {
+        offset_s: d,
+        sd_s: sd,
+        shared: set,
+        lags,
+        delta_chi2,
+    })
+}
