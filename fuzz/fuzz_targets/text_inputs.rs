@@ -3,7 +3,7 @@
 //! every failure is an input error (exit 1) naming the file.
 #![no_main]
 
-use kinpost::diagnose::effects::parse_effect_spec;
+use kinpost::diagnose::parse_effect_spec;
 use kinpost::diagnose::recording::Recording;
 use kinpost::error::Error;
 use kinpost::geometric::model::ErrorModel;

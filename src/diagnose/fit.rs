@@ -41,6 +41,9 @@ pub enum Family {
     PivotLength,
     /// Vibration of a linear joint (non-linear parameter: frequency, Hz).
     Vibration(usize),
+    /// Error motion of a revolute joint: its translations x, y, z (joint
+    /// frame) once and twice per turn.
+    ErrorMotion(usize),
 }
 
 impl Family {
@@ -57,6 +60,7 @@ impl Family {
             Family::RotaryCenterOffset(_) => EffectKind::RotaryCenterOffset,
             Family::PivotLength => EffectKind::PivotLength,
             Family::Vibration(_) => EffectKind::Vibration,
+            Family::ErrorMotion(_) => EffectKind::ErrorMotion,
         }
     }
 
@@ -70,7 +74,8 @@ impl Family {
             | Family::Cyclic(j)
             | Family::ZeroOffset(j)
             | Family::RotaryCenterOffset(j)
-            | Family::Vibration(j) => Some(j),
+            | Family::Vibration(j)
+            | Family::ErrorMotion(j) => Some(j),
             Family::Squareness(_, b) => Some(b),
             Family::PivotLength => None,
         }
@@ -89,6 +94,7 @@ impl Family {
     pub fn linear_params(self) -> usize {
         match self {
             Family::Cyclic(_) | Family::RotaryCenterOffset(_) | Family::Vibration(_) => 2,
+            Family::ErrorMotion(_) => 3 * 2 * MOTION_HARMONICS as usize,
             _ => 1,
         }
     }
@@ -119,6 +125,7 @@ impl Family {
             v.push(Family::ZeroOffset(j));
             if prep.kinds[j] == JointKind::Revolute {
                 v.push(Family::RotaryCenterOffset(j));
+                v.push(Family::ErrorMotion(j));
             }
         }
         for &a in &lin {
@@ -238,6 +245,21 @@ pub fn base_columns(prep: &Prepared, fam: Family, nl: f64) -> Cols {
                 }
             }
             Family::PivotLength => put(0, prep.tool_axis[i]),
+            Family::ErrorMotion(j) => {
+                let Some(m) = prep.motion.get(j).and_then(|m| m.as_ref()) else {
+                    continue;
+                };
+                let q = prep.qj(i, j).to_radians();
+                for c in 0..3 {
+                    for k in 1..=MOTION_HARMONICS {
+                        let (s, co) = (k as f64 * q).sin_cos();
+                        let base = (c * MOTION_HARMONICS as usize + (k as usize - 1)) * 2;
+                        let col = m[i][c];
+                        put(base, [col[0] * co, col[1] * co, col[2] * co]);
+                        put(base + 1, [col[0] * s, col[1] * s, col[2] * s]);
+                    }
+                }
+            }
             Family::Vibration(j) => {
                 let x = std::f64::consts::TAU * nl * prep.t[i];
                 let (s, co) = x.sin_cos();
@@ -756,6 +778,9 @@ pub fn search_family(
     }
 }
 
+/// Harmonics per turn of a fitted error motion (once and twice per turn).
+pub const MOTION_HARMONICS: u32 = 2;
+
 /// Lowest frequency searched for a vibration, Hz.
 pub const MIN_VIBRATION_HZ: f64 = 0.2;
 
@@ -996,6 +1021,19 @@ pub fn term_effect(prep: &Prepared, term: &Term, beta: &[f64]) -> Effect {
             }
         }
         Family::PivotLength => Effect::PivotLength { delta_mm: beta[0] },
+        Family::ErrorMotion(j) => {
+            let mut terms = Vec::new();
+            for c in 0..3 {
+                for k in 1..=MOTION_HARMONICS {
+                    let base = (c * MOTION_HARMONICS as usize + (k as usize - 1)) * 2;
+                    terms.push((c, k, beta[base], beta[base + 1]));
+                }
+            }
+            Effect::ErrorMotion {
+                axis: name(j),
+                terms,
+            }
+        }
         Family::Vibration(j) => {
             let (c, s) = (beta[0], beta[1]);
             Effect::Vibration {
@@ -1042,6 +1080,13 @@ pub fn parameter_sd(prep: &Prepared, term: &Term, beta: &[f64], cov: &DMatrix<f6
                         .sqrt()
                 })
                 .collect()
+        }
+        Family::ErrorMotion(_) => {
+            // The peak's uncertainty: the largest coefficient's.
+            let n = beta.len();
+            let mut v = vec![(0..n).map(sd).fold(0.0, f64::max)];
+            v.extend((0..n).map(sd));
+            v
         }
         _ => vec![sd(0)],
     }

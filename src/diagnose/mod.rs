@@ -467,6 +467,7 @@ pub fn diagnose(
                         .collect(),
                     delta_bic: *d,
                 }),
+                components: report::shown_components(&f.spec.effect),
                 spec: f.spec.clone(),
             }
         })

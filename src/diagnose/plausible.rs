@@ -20,6 +20,8 @@ pub const MAX_OFFSET: f64 = 10.0;
 pub const MAX_PIVOT_MM: f64 = 100.0;
 /// Largest thermal drift, mm.
 pub const MAX_DRIFT_MM: f64 = 1.0;
+/// Least turn of a rotary axis over which its error motion is fitted, deg.
+pub const MIN_TURN_FOR_MOTION_DEG: f64 = 90.0;
 /// Least turn of a rotary axis that reveals where its axis line is, deg.
 pub const MIN_TURN_DEG: f64 = 2.0;
 
@@ -179,6 +181,18 @@ pub fn implausible(effect: &Effect, prep: &Prepared) -> Option<String> {
                     unit(j)
                 )
             })
+        }
+        Effect::ErrorMotion { axis, terms } => {
+            let j = joint(axis)?;
+            let (peak, _) = crate::geometric::effects::error_motion_peaks(terms);
+            if range(j) < MIN_TURN_FOR_MOTION_DEG {
+                return Some(format!(
+                    "{axis} turns only {:.1}° in the recording: an error motion over a turn does not show",
+                    range(j)
+                ));
+            }
+            (peak > MAX_OFFSET)
+                .then(|| format!("an error motion of {peak:.3} mm is not a bearing's"))
         }
         Effect::PivotLength { delta_mm } => (delta_mm.abs() > MAX_PIVOT_MM)
             .then(|| format!("a pivot length {delta_mm:.3} mm off is another tool, not an error")),

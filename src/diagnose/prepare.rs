@@ -100,6 +100,10 @@ pub struct Prepared {
     /// Sample indices where a new block (or pseudo-block) starts: the
     /// candidate onsets.
     pub onsets: Vec<usize>,
+    /// For each revolute joint: the tip change per mm of a translation
+    /// error motion of the joint along x, y, z of its own frame, per sample
+    /// (the columns of its `error_motion`).
+    pub motion: Vec<Option<Vec<[[f64; 3]; 3]>>>,
 }
 
 /// Rotary-centre-offset basis of one revolute joint.
@@ -293,6 +297,10 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
         })
         .collect();
     let mut rco_cols = vec![[[0.0; 3]; 2]; dof];
+    let mut motion: Vec<Option<Vec<[[f64; 3]; 3]>>> = kinds
+        .iter()
+        .map(|k| (*k == JointKind::Revolute).then(|| Vec::with_capacity(n)))
+        .collect();
     let mut jac = Vec::with_capacity(n * dof);
     let mut tool_axis = Vec::with_capacity(n);
     let mut r = Vec::with_capacity(n);
@@ -342,6 +350,25 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
         let m = rec.samples[i].meas;
         r.push([m[0] - pose.tip.x, m[1] - pose.tip.y, m[2] - pose.tip.z]);
         model_tip.push([pose.tip.x, pose.tip.y, pose.tip.z]);
+        for (j, cols) in motion.iter_mut().enumerate() {
+            let Some(cols) = cols else { continue };
+            let mut c3 = [[0.0; 3]; 3];
+            for (c, col) in c3.iter_mut().enumerate() {
+                let poked = Poke {
+                    base: errors,
+                    joint: j,
+                    comp: c,
+                    eps: MOTION_STEP_MM,
+                };
+                let t = chain.pose(&qi, &poked).tip;
+                *col = [
+                    (t.x - pose.tip.x) / MOTION_STEP_MM,
+                    (t.y - pose.tip.y) / MOTION_STEP_MM,
+                    (t.z - pose.tip.z) / MOTION_STEP_MM,
+                ];
+            }
+            cols.push(c3);
+        }
         if rco_dirs.iter().any(Option::is_some) {
             rco_columns(chain, &qi, errors, &rco_dirs, &mut rco_cols);
             for j in 0..dof {
@@ -393,7 +420,32 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
         r,
         model_tip,
         onsets,
+        motion,
     })
+}
+
+/// Step of the translation error motion by which its tip change is taken
+/// (the change is linear in it), mm.
+const MOTION_STEP_MM: f64 = 1e-3;
+
+/// An error source with one component of one joint's error motion raised.
+struct Poke<'a> {
+    base: &'a dyn JointErrors,
+    joint: usize,
+    comp: usize,
+    eps: f64,
+}
+
+impl JointErrors for Poke<'_> {
+    fn error(&self, joint: usize, q: f64) -> Option<crate::machine::chain::ErrorMotion> {
+        let e = self.base.error(joint, q);
+        if joint != self.joint {
+            return e;
+        }
+        let mut e = e.unwrap_or_else(crate::machine::chain::ErrorMotion::zeros);
+        e[self.comp] += self.eps;
+        Some(e)
+    }
 }
 
 /// Robust noise floor of the residual: for each coordinate, the median

@@ -67,9 +67,40 @@ pub struct Finding {
     pub holdout_rms_mm: [f64; 2],
     /// The best other explanation (a different effect or axis).
     pub runner_up: Option<RunnerUp>,
+    /// For an `error_motion`: the components the data show (ISO 230-1
+    /// names) with their peaks over one turn.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub components: Vec<ComponentPeak>,
     /// The effect in model-file form.
     #[serde(skip)]
     pub spec: EffectSpec,
+}
+
+/// One component of an error motion.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ComponentPeak {
+    /// ISO 230-1 name (`EXC`, `EYC`, …).
+    pub name: String,
+    /// Its peak over one turn, mm.
+    pub peak_mm: f64,
+}
+
+/// The components of an error motion worth naming: those whose peak is at
+/// least a quarter of the largest one's.
+pub fn shown_components(effect: &Effect) -> Vec<ComponentPeak> {
+    let Effect::ErrorMotion { axis, terms } = effect else {
+        return Vec::new();
+    };
+    let comps = crate::geometric::effects::error_motion_components(terms);
+    let top = comps.iter().map(|c| c.1).fold(0.0, f64::max);
+    comps
+        .into_iter()
+        .filter(|c| c.1 >= 0.25 * top)
+        .map(|(c, peak)| ComponentPeak {
+            name: crate::geometric::effects::component_name(c, axis),
+            peak_mm: peak,
+        })
+        .collect()
 }
 
 /// A finding that is not machine physics (`formats.md` §2c): the
@@ -598,6 +629,23 @@ pub fn condition_text(effect: &Effect, rotary: bool) -> String {
             format!("varies with the {axis} angle: {axis} turns about a displaced line")
         }
         Effect::PivotLength { .. } => "along the tool axis, showing as the tool tilts".to_string(),
+        Effect::ErrorMotion { axis, terms } => {
+            let names: Vec<String> = shown_components(effect)
+                .into_iter()
+                .map(|c| format!("{} peak {:.3} µm", c.name, c.peak_mm * 1e3))
+                .collect();
+            let mut ks: Vec<u32> = terms.iter().map(|t| t.1).collect();
+            ks.sort_unstable();
+            ks.dedup();
+            format!(
+                "varies with the {axis} angle: an error motion of {axis} ({}) at {} per turn",
+                names.join(", "),
+                ks.iter()
+                    .map(|k| format!("{k}×"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        }
         Effect::Vibration {
             axis, frequency_hz, ..
         } => format!(

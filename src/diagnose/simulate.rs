@@ -23,7 +23,8 @@ use super::rng::Rng;
 use crate::error::{Error, Location, Result};
 use crate::geometric::ErrorModel;
 use crate::geometric::effects::{
-    BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionState, chain_with_effects,
+    BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionState, MotionTerm,
+    chain_with_effects,
 };
 use crate::machine::chain::{Chain, JointErrors, JointKind, NoErrors};
 
@@ -261,11 +262,16 @@ impl<'a> TrueMachine<'a> {
         let n = self.chain.dof();
         let mut q = state.q.to_vec();
         let mut chain_mask = 0u64;
+        let mut motions: Vec<(usize, &[MotionTerm])> = Vec::new();
         for (k, e) in self.effects.iter().enumerate() {
             if active & (1 << k) == 0 {
                 continue;
             }
-            if e.modifies_chain() {
+            if let (crate::geometric::effects::Effect::ErrorMotion { terms, .. }, Some(j)) =
+                (&e.spec.effect, e.joint)
+            {
+                motions.push((j, terms));
+            } else if e.modifies_chain() {
                 chain_mask |= 1 << k;
             } else if let Some(j) = e.joint {
                 q[j] += e.delta_q(state);
@@ -276,8 +282,16 @@ impl<'a> TrueMachine<'a> {
                 *v = v.to_radians();
             }
         }
+        // An injected error motion acts through the chain's error source.
         if chain_mask == 0 {
-            return self.chain.pose(&q, self.errors()).tip;
+            if motions.is_empty() {
+                return self.chain.pose(&q, self.errors()).tip;
+            }
+            let with = WithMotions {
+                base: self.errors(),
+                motions,
+            };
+            return self.chain.pose(&q, &with).tip;
         }
         if !self.variants.contains_key(&chain_mask) {
             let sel: Vec<&BoundEffect> = self
@@ -295,7 +309,37 @@ impl<'a> TrueMachine<'a> {
             Some(e) => e,
             None => &NoErrors,
         };
-        c.pose(&q, errors).tip
+        if motions.is_empty() {
+            c.pose(&q, errors).tip
+        } else {
+            c.pose(
+                &q,
+                &WithMotions {
+                    base: errors,
+                    motions,
+                },
+            )
+            .tip
+        }
+    }
+}
+
+/// An error source plus injected error motions of some joints.
+struct WithMotions<'b> {
+    base: &'b dyn JointErrors,
+    motions: Vec<(usize, &'b [MotionTerm])>,
+}
+
+impl JointErrors for WithMotions<'_> {
+    fn error(&self, joint: usize, q: f64) -> Option<crate::machine::chain::ErrorMotion> {
+        let mut e = self.base.error(joint, q);
+        for (j, terms) in &self.motions {
+            if *j == joint {
+                let add = crate::geometric::effects::error_motion_at(terms, q);
+                e = Some(e.unwrap_or_else(crate::machine::chain::ErrorMotion::zeros) + add);
+            }
+        }
+        e
     }
 }
 

@@ -19,6 +19,8 @@ use crate::error::{Error, Location, Result};
 /// zero_offset:Z=0.005           mm (or deg)
 /// rotary_center_offset:C=dx,dy,dz    mm
 /// pivot_length:0.01             mm
+/// error_motion:C,EXC_cos1=0.0012,EYC_sin2=0.0005   Fourier terms over one
+///                               turn: translations mm, tilts (EAC, EBC) µrad
 /// vibration:X=0.002,f=7,phase=30     amplitude (mm or deg), Hz, phase deg
 /// ```
 ///
@@ -70,6 +72,19 @@ pub fn parse_effect_spec(s: &str) -> Result<EffectSpec> {
     let mut params = BTreeMap::new();
     let mut axis = None;
     match kind {
+        EffectKind::ErrorMotion => {
+            let mut parts = rest.split(',');
+            axis = Some(parts.next().unwrap_or("").trim().to_string());
+            for p in parts {
+                let (k, v) = p.split_once('=').ok_or_else(|| {
+                    bad(format!(
+                        "expected `term=value` such as EXC_cos1=0.001, found `{}`",
+                        p.trim()
+                    ))
+                })?;
+                params.insert(k.trim().to_string(), num(v)?);
+            }
+        }
         EffectKind::PivotLength => {
             let v = rest.trim();
             let v = v.split_once('=').map_or(v, |(_, x)| x);
@@ -124,6 +139,7 @@ fn example(kind: EffectKind) -> &'static str {
         EffectKind::RotaryCenterOffset => "rotary_center_offset:C=0.01,0.005,0",
         EffectKind::PivotLength => "pivot_length:0.01",
         EffectKind::Vibration => "vibration:X=0.002,f=7,phase=0",
+        EffectKind::ErrorMotion => "error_motion:C,EXC_cos1=0.0012,EYC_sin1=0.0012",
     }
 }
 
@@ -144,6 +160,7 @@ mod tests {
             "rotary_center_offset:C=0.01,0.02,0",
             "pivot_length:0.01",
             "vibration:X=0.002,f=7,phase=30",
+            "error_motion:C,EXC_cos1=0.0012,EYC_sin2=0.0005,EAC_cos1=3",
             "backlash:X=0.003@block=120",
         ];
         for c in cases {

@@ -14,6 +14,7 @@
 //! | `rotary_center_offset` | `dx_mm`, `dy_mm`, `dz_mm` | the joint turns about an axis line displaced by d (frame before the joint) |
 //! | `pivot_length` | `delta_mm` | the tip sits δ further along the tool axis (i, j, k) |
 //! | `vibration` | `amplitude_mm`, `frequency_hz`, `phase_deg` | Δq = a · sin(2π f t + φ), t the recording's time |
+//! | `error_motion` | `peak_mm`, terms `EXC_cos1_mm`, … | a rotary axis's error motion over one turn: component c = Σₖ aₖ cos kq + bₖ sin kq |
 //!
 //! Rotary axes use `_deg` where a linear axis uses `_mm` (`value_deg`,
 //! `amplitude_deg`, `period_deg`). The command-line syntax is parsed by
@@ -24,6 +25,10 @@ use std::fmt;
 
 use nalgebra::{Matrix4, Vector3};
 
+use super::error_motion::parse_term_key;
+pub use super::error_motion::{
+    MotionTerm, component_name, error_motion_at, error_motion_components, error_motion_peaks,
+};
 use crate::error::{Error, Location, Result};
 use crate::machine::chain::{Chain, ErrorMotion, JointKind, translation};
 
@@ -50,11 +55,13 @@ pub enum EffectKind {
     PivotLength,
     /// A time-periodic motion at a fixed frequency.
     Vibration,
+    /// A position-dependent error motion of a rotary axis.
+    ErrorMotion,
 }
 
 impl EffectKind {
     /// Every kind, in catalogue order.
-    pub const ALL: [EffectKind; 10] = [
+    pub const ALL: [EffectKind; 11] = [
         EffectKind::Backlash,
         EffectKind::ServoLag,
         EffectKind::ThermalDrift,
@@ -65,6 +72,7 @@ impl EffectKind {
         EffectKind::RotaryCenterOffset,
         EffectKind::PivotLength,
         EffectKind::Vibration,
+        EffectKind::ErrorMotion,
     ];
 
     /// The catalogue name (`backlash`, `servo_lag`, …).
@@ -80,6 +88,7 @@ impl EffectKind {
             EffectKind::RotaryCenterOffset => "rotary_center_offset",
             EffectKind::PivotLength => "pivot_length",
             EffectKind::Vibration => "vibration",
+            EffectKind::ErrorMotion => "error_motion",
         }
     }
 
@@ -187,6 +196,16 @@ pub enum Effect {
         /// Displacement along the tool axis, mm.
         delta_mm: f64,
     },
+    /// The error motion of a rotary axis over one turn, as a Fourier series
+    /// of its components (ISO 230-1: `EXC`, `EYC`, `EZC` translations in mm,
+    /// `EAC`, `EBC` tilts in rad), in the joint's frame.
+    ErrorMotion {
+        /// Rotary axis letter.
+        axis: String,
+        /// `(component 0…5, harmonic k ≥ 1, cos coefficient, sin
+        /// coefficient)`: component c moves by a·cos(kq) + b·sin(kq).
+        terms: Vec<MotionTerm>,
+    },
     /// Δq = a · sin(2π f t + φ), t the recording's time.
     Vibration {
         /// Axis letter.
@@ -242,6 +261,7 @@ impl Effect {
             Effect::RotaryCenterOffset { .. } => EffectKind::RotaryCenterOffset,
             Effect::PivotLength { .. } => EffectKind::PivotLength,
             Effect::Vibration { .. } => EffectKind::Vibration,
+            Effect::ErrorMotion { .. } => EffectKind::ErrorMotion,
         }
     }
 
@@ -255,7 +275,8 @@ impl Effect {
             | Effect::Cyclic { axis, .. }
             | Effect::ZeroOffset { axis, .. }
             | Effect::RotaryCenterOffset { axis, .. }
-            | Effect::Vibration { axis, .. } => Some(axis.clone()),
+            | Effect::Vibration { axis, .. }
+            | Effect::ErrorMotion { axis, .. } => Some(axis.clone()),
             Effect::Squareness { axes, .. } => Some(format!("{}{}", axes[0], axes[1])),
             Effect::PivotLength { .. } => None,
         }
@@ -304,6 +325,20 @@ impl Effect {
                 p("frequency_hz", *frequency_hz),
                 p("phase_deg", *phase_deg),
             ],
+            Effect::ErrorMotion { axis, terms } => {
+                let (peak_mm, peak_rad) = error_motion_peaks(terms);
+                let mut v = vec![p("peak_mm", peak_mm)];
+                if terms.iter().any(|t| t.0 >= 3) {
+                    v.push(p("peak_urad", peak_rad * 1e6));
+                }
+                for &(c, k, a, b) in terms {
+                    let (unit, scale) = if c < 3 { ("mm", 1.0) } else { ("urad", 1e6) };
+                    let name = component_name(c, axis);
+                    v.push(p(&format!("{name}_cos{k}_{unit}"), a * scale));
+                    v.push(p(&format!("{name}_sin{k}_{unit}"), b * scale));
+                }
+                v
+            }
         }
     }
 
@@ -410,6 +445,41 @@ impl Effect {
             EffectKind::PivotLength => Effect::PivotLength {
                 delta_mm: get(&["delta_mm", "delta", "value"])?,
             },
+            EffectKind::ErrorMotion => {
+                let axis = one_axis()?;
+                let mut terms: Vec<MotionTerm> = Vec::new();
+                for (key, v) in params {
+                    if key.starts_with("peak") || key == "value" {
+                        continue;
+                    }
+                    let (c, k, is_sin, scale) = parse_term_key(key, &axis).ok_or_else(|| {
+                        format!(
+                            "error_motion: `{key}` is not a term such as E{}{axis}_cos1_mm",
+                            "X"
+                        )
+                    })?;
+                    if !v.is_finite() {
+                        return Err(format!("error_motion: `{key}` must be a finite number"));
+                    }
+                    let slot = match terms.iter().position(|t| t.0 == c && t.1 == k) {
+                        Some(i) => i,
+                        None => {
+                            terms.push((c, k, 0.0, 0.0));
+                            terms.len() - 1
+                        }
+                    };
+                    if is_sin {
+                        terms[slot].3 = v * scale;
+                    } else {
+                        terms[slot].2 = v * scale;
+                    }
+                }
+                if terms.is_empty() {
+                    return Err("error_motion needs at least one term such as EXC_cos1_mm".into());
+                }
+                terms.sort_by_key(|t| (t.0, t.1));
+                Effect::ErrorMotion { axis, terms }
+            }
             EffectKind::Vibration => {
                 let frequency_hz = get(&["frequency_hz", "frequency", "f"])?;
                 if frequency_hz <= 0.0 {
@@ -591,6 +661,18 @@ impl BoundEffect {
             | Effect::Cyclic { axis, .. }
             | Effect::ZeroOffset { axis, .. }
             | Effect::Vibration { axis, .. } => (Some(find(axis)?), None),
+            Effect::ErrorMotion { axis, .. } => {
+                let j = find(axis)?;
+                if kind_of(j) != JointKind::Revolute {
+                    return Err(effect_err(
+                        spec,
+                        format!(
+                            "axis {axis} is not a rotary axis (error motions of linear axes are not modelled yet)"
+                        ),
+                    ));
+                }
+                (Some(j), None)
+            }
             Effect::ThermalDrift { axis, .. } => {
                 let j = find(axis)?;
                 if kind_of(j) != JointKind::Prismatic {
@@ -679,7 +761,9 @@ impl BoundEffect {
                 amplitude
                     * (std::f64::consts::TAU * frequency_hz * s.t + phase_deg.to_radians()).sin()
             }
-            Effect::RotaryCenterOffset { .. } | Effect::PivotLength { .. } => 0.0,
+            Effect::RotaryCenterOffset { .. }
+            | Effect::PivotLength { .. }
+            | Effect::ErrorMotion { .. } => 0.0,
         }
     }
 
@@ -718,7 +802,8 @@ impl StaticTerm {
             Effect::Scale { .. }
             | Effect::ZeroOffset { .. }
             | Effect::Cyclic { .. }
-            | Effect::RotaryCenterOffset { .. } => (b.joint?, Vector3::zeros()),
+            | Effect::RotaryCenterOffset { .. }
+            | Effect::ErrorMotion { .. } => (b.joint?, Vector3::zeros()),
             Effect::Squareness { .. } => {
                 let a = b.source?;
                 (a, direction_in_frame_of(chain, a, b.joint?))
@@ -765,6 +850,7 @@ impl StaticTerm {
                 let d = angle_urad * 1e-6 * q * self.along;
                 ErrorMotion::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
             }
+            Effect::ErrorMotion { terms, .. } => error_motion_at(terms, q),
             Effect::RotaryCenterOffset { offset_mm, .. } => {
                 let d = Vector3::from_column_slice(offset_mm);
                 let r = crate::machine::chain::rotation3(&self.axis, q);

@@ -3,7 +3,8 @@
 //! * [`table`]: the error-table CSV of `formats.md` §1 ([`parse_tables`]).
 //! * [`bspline`]: least-squares cubic B-splines with cross-validated knots.
 //! * [`effects`]: the catalogue of effects (`formats.md` §4) that a model may
-//!   carry besides its tables; [`effect_spec`] their command-line syntax.
+//!   carry besides its tables; [`effect_spec`] their command-line syntax;
+//!   [`error_motion`] a rotary axis's error motion as a Fourier series.
 //! * [`iso230_2`]: ISO 230-2 positioning figures from bidirectional runs.
 //! * [`model`]: the fitted [`ErrorModel`], its JSON form, and
 //!   [`BoundErrors`], the chain evaluator's error source.
@@ -17,6 +18,7 @@ pub mod axis_errors;
 pub mod bspline;
 pub mod effect_spec;
 pub mod effects;
+pub mod error_motion;
 pub mod iso230_2;
 pub mod merged;
 pub mod model;
