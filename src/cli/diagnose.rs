@@ -57,8 +57,9 @@ pub struct SimulateArgs {
         allow_hyphen_values = true
     )]
     pub time_offset: f64,
-    /// Fraction (0 … 0.5) of samples with a gross measurement fault of
-    /// 0.1 … 1 mm (a broken laser beam; `diagnose` names them `outliers`).
+    /// Fraction of samples (a count per sample, no unit; 0 … 0.5) with a
+    /// gross measurement fault of 0.1 … 1 mm (a broken laser beam;
+    /// `diagnose` names them `outliers`).
     #[arg(long, value_name = "FRACTION", default_value_t = 0.0)]
     pub outliers: f64,
     /// Round every written value to a multiple of this step, in mm (axes
