@@ -61,8 +61,25 @@ fn case(m: Machine, seed: u64, extra: Option<&str>) -> Option<String> {
     if names.len() != 1 + usize::from(extra.is_some()) {
         return Some(format!("seed {seed}: {names:?}"));
     }
-    // The improved model closes the loop on the same recording.
+    // The improved model holds it as error-table columns of the axis and
+    // closes the loop on the same recording.
     let improved = r.improved_model(Some(&sc.errors));
+    let axis = match m {
+        Machine::Zhao => "C",
+        Machine::Wang => "A",
+    };
+    let cols = improved
+        .axis(axis)
+        .map(|a| a.columns.iter().map(|c| c.name.clone()).collect::<Vec<_>>())
+        .unwrap_or_default();
+    if cols.len() < 2
+        || improved
+            .effects
+            .iter()
+            .any(|e| e.effect.kind().name() == "error_motion")
+    {
+        return Some(format!("seed {seed}: not written as columns: {cols:?}"));
+    }
     let again = diagnose(&sc.chain, Some(&improved), &rec, &DiagOptions::default()).unwrap();
     if !again.findings.is_empty() {
         return Some(format!(

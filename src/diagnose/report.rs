@@ -574,9 +574,19 @@ impl Report {
     /// [`crate::diagnose::compensate_dynamic`]. The model describes the
     /// machine as it is at the end of the recording: an effect that started
     /// part-way is kept from then on (its `from_block` is dropped).
+    ///
+    /// An `error_motion` is written as error-table columns of its axis
+    /// (`formats.md` §4): its components tabulated every degree over a turn
+    /// (added to the axis's columns where it has them) and fitted like any
+    /// table, so the model reads as if the axis had been measured.
     pub fn improved_model(&self, base: Option<&ErrorModel>) -> ErrorModel {
         let mut m = base.cloned().unwrap_or_default();
         for f in &self.findings {
+            if let Effect::ErrorMotion { axis, terms } = &f.spec.effect
+                && add_motion_columns(&mut m, axis, terms)
+            {
+                continue;
+            }
             let mut spec = f.spec.clone();
             spec.from_block = None;
             m.effects.push(spec);
@@ -601,6 +611,74 @@ impl Report {
         m.meta.generator = Some(format!("kinpost {}", env!("CARGO_PKG_VERSION")));
         m
     }
+}
+
+/// Adds a rotary axis's error motion to the model as error-table columns:
+/// every component it moves, tabulated every degree from −180° to 180°
+/// (plus the axis's existing column there), fitted as a table is. `false`
+/// when the fit fails (the caller then keeps the effect instead).
+fn add_motion_columns(
+    m: &mut ErrorModel,
+    axis: &str,
+    terms: &[crate::geometric::effects::MotionTerm],
+) -> bool {
+    use crate::geometric::table::{Component, ErrorColumn, ErrorTable};
+    let positions: Vec<f64> = (-180..=180).map(f64::from).collect();
+    let existing = m
+        .axes
+        .iter()
+        .find(|a| a.axis.eq_ignore_ascii_case(axis))
+        .cloned();
+    let mut comps: Vec<usize> = terms.iter().map(|t| t.0).collect();
+    comps.sort_unstable();
+    comps.dedup();
+    let columns: Vec<ErrorColumn> = comps
+        .iter()
+        .map(|&c| ErrorColumn {
+            component: Component::ALL[c.min(5)],
+            name: crate::geometric::effects::component_name(c, axis),
+            values: positions
+                .iter()
+                .map(|&d| {
+                    let own = crate::geometric::effects::error_motion_at(terms, d.to_radians())[c];
+                    let old = existing.as_ref().map_or(0.0, |a| a.error_at(d).0[c]);
+                    own + old
+                })
+                .collect(),
+        })
+        .collect();
+    let n = positions.len();
+    let table = ErrorTable {
+        axis: axis.to_ascii_uppercase(),
+        rotary: true,
+        columns,
+        positions,
+        direction: None,
+        source_line: vec![0; n],
+        file: "kinpost diagnose (error_motion)".into(),
+        header_line: 0,
+        header_text: String::new(),
+    };
+    let Ok((fitted, _)) = ErrorModel::fit(&[table], &Default::default()) else {
+        return false;
+    };
+    let Some(new_axis) = fitted.axes.into_iter().next() else {
+        return false;
+    };
+    match m
+        .axes
+        .iter_mut()
+        .find(|a| a.axis.eq_ignore_ascii_case(axis))
+    {
+        Some(a) => {
+            for col in new_axis.columns {
+                a.columns.retain(|c| c.component != col.component);
+                a.columns.push(col);
+            }
+        }
+        None => m.axes.push(new_axis),
+    }
+    true
 }
 
 /// The condition text of an effect.
