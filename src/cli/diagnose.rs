@@ -407,6 +407,7 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
 fn is_feedback_file(path: &std::path::Path) -> Result<bool> {
     use std::io::BufRead;
     let name = path.display().to_string();
+    crate::text::check_not_dir(path)?;
     let f = std::fs::File::open(path).map_err(|e| Error::io(name.clone(), e))?;
     for line in std::io::BufReader::new(f).split(b'\n') {
         let line = line.map_err(|e| Error::io(name.clone(), e))?;
