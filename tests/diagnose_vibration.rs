@@ -91,25 +91,6 @@ fn case(
     None
 }
 
-fn sweep(
-    label: &str,
-    m: Machine,
-    seeds: std::ops::Range<u64>,
-    run: impl Fn(u64) -> Option<String> + Sync,
-) {
-    let seeds: Vec<u64> = seeds.collect();
-    let fails: Vec<String> = par_map(&seeds, |s| run(*s)).into_iter().flatten().collect();
-    println!(
-        "{label} on {m:?}: {} of {} failed {fails:?}",
-        fails.len(),
-        seeds.len()
-    );
-    assert!(
-        fails.len() as f64 <= 0.1 * seeds.len() as f64,
-        "{label} on {m:?}: {fails:?}"
-    );
-}
-
 fn axes(m: Machine) -> (&'static str, &'static str, usize) {
     match m {
         Machine::Zhao => ("X", "Z", 60),

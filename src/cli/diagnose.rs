@@ -162,6 +162,19 @@ fn shown(x: f64) -> String {
     }
 }
 
+/// A numeric option's range check: `ok`, or a usage error naming the
+/// option, its value as typed and what was expected.
+fn check(ok: bool, option: &str, value: f64, expected: &str) -> Result<()> {
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::Usage(format!(
+            "{option} {}: {expected}",
+            shown(value)
+        )))
+    }
+}
+
 /// Runs `kinpost simulate`.
 pub fn simulate(a: SimulateArgs) -> Result<()> {
     super::check_outputs(
@@ -171,48 +184,48 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
     let machine = a.machine.load()?;
     // Ranges a real machine and a real recorder can have: a value outside
     // them is a typo, and would give no samples or infinite values.
-    if !(1e-6..=3600.0).contains(&a.sample_interval) {
-        return Err(Error::Usage(format!(
-            "--sample-interval {}: expected 1e-6 … 3600 s (a recorder samples at most at 1 MHz)",
-            shown(a.sample_interval)
-        )));
-    }
-    if !(a.rapid_feed > 0.0 && a.rapid_feed <= 1e6) {
-        return Err(Error::Usage(format!(
-            "--rapid-feed {}: expected more than 0 and at most 1e6 mm/min",
-            shown(a.rapid_feed)
-        )));
-    }
-    if !(0.0..=10.0).contains(&a.noise) {
-        return Err(Error::Usage(format!(
-            "--noise {}: expected a standard deviation of 0 … 10 mm",
-            shown(a.noise)
-        )));
-    }
-    if !(0.0..=1e6).contains(&a.accel) {
-        return Err(Error::Usage(format!(
-            "--accel {}: expected an acceleration of 0 … 1e6 mm/s² (0: constant feed per block)",
-            shown(a.accel)
-        )));
-    }
-    if !(a.time_offset.is_finite() && a.time_offset.abs() <= 3600.0) {
-        return Err(Error::Usage(format!(
-            "--time-offset {}: expected −3600 … 3600 s",
-            shown(a.time_offset)
-        )));
-    }
-    if !(0.0..=0.5).contains(&a.outliers) {
-        return Err(Error::Usage(format!(
-            "--outliers {}: expected a fraction of 0 … 0.5",
-            shown(a.outliers)
-        )));
-    }
-    if !(0.0..=10.0).contains(&a.round) {
-        return Err(Error::Usage(format!(
-            "--round {}: expected a step of 0 … 10 mm",
-            shown(a.round)
-        )));
-    }
+    check(
+        (1e-6..=3600.0).contains(&a.sample_interval),
+        "--sample-interval",
+        a.sample_interval,
+        "expected 1e-6 … 3600 s (a recorder samples at most at 1 MHz)",
+    )?;
+    check(
+        a.rapid_feed > 0.0 && a.rapid_feed <= 1e6,
+        "--rapid-feed",
+        a.rapid_feed,
+        "expected more than 0 and at most 1e6 mm/min",
+    )?;
+    check(
+        (0.0..=10.0).contains(&a.noise),
+        "--noise",
+        a.noise,
+        "expected a standard deviation of 0 … 10 mm",
+    )?;
+    check(
+        (0.0..=1e6).contains(&a.accel),
+        "--accel",
+        a.accel,
+        "expected an acceleration of 0 … 1e6 mm/s² (0: constant feed per block)",
+    )?;
+    check(
+        a.time_offset.is_finite() && a.time_offset.abs() <= 3600.0,
+        "--time-offset",
+        a.time_offset,
+        "expected −3600 … 3600 s",
+    )?;
+    check(
+        (0.0..=0.5).contains(&a.outliers),
+        "--outliers",
+        a.outliers,
+        "expected a fraction of 0 … 0.5",
+    )?;
+    check(
+        (0.0..=10.0).contains(&a.round),
+        "--round",
+        a.round,
+        "expected a step of 0 … 10 mm",
+    )?;
     let model = match &a.errors {
         Some(p) => Some(super::errors::load_errors(p)?),
         None => None,

@@ -310,3 +310,24 @@ pub fn par_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec
     }
     out
 }
+
+/// Runs `run` for each seed in parallel and asserts that at most 10 % of
+/// them fail; prints the failures (a failure is `run`'s text).
+pub fn sweep(
+    label: &str,
+    m: Machine,
+    seeds: std::ops::Range<u64>,
+    run: impl Fn(u64) -> Option<String> + Sync,
+) {
+    let seeds: Vec<u64> = seeds.collect();
+    let fails: Vec<String> = par_map(&seeds, |s| run(*s)).into_iter().flatten().collect();
+    println!(
+        "{label} on {m:?}: {} of {} failed {fails:?}",
+        fails.len(),
+        seeds.len()
+    );
+    assert!(
+        fails.len() as f64 <= 0.1 * seeds.len() as f64,
+        "{label} on {m:?}: {fails:?}"
+    );
+}

@@ -29,7 +29,8 @@ pub use simulate::{FeedbackSimOptions, simulate_feedback};
 use super::DiagOptions;
 use super::fit::pinv_sym;
 use super::report::{FlaggedSample, MeasurementFinding, Where};
-use super::untidy::{OUTLIER_SIGMAS, departure, monotone_hermite, quantum};
+use super::untidy::offset::shared_axes;
+use super::untidy::{LOOSE, OUTLIER_SIGMAS, departure, monotone_hermite, quantum};
 use crate::error::{Error, Location, Result};
 use crate::geometric::effects::{DIRECTION_DEAD_BAND, DirectionTracker, Effect, EffectSpec};
 
@@ -252,26 +253,8 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
         .collect();
     let mut offset: Option<(f64, f64)> = None;
     if informative.len() >= 2 {
-        let mut ls: Vec<f64> = informative
-            .iter()
-            .filter_map(|&k| lags[k].map(|l| l.0))
-            .collect();
-        ls.sort_by(f64::total_cmp);
-        let m = ls.len();
-        let median = if m % 2 == 1 {
-            ls[m / 2]
-        } else {
-            0.5 * (ls[m / 2 - 1] + ls[m / 2])
-        };
-        let shared: Vec<usize> = informative
-            .iter()
-            .copied()
-            .filter(|&k| {
-                let (l, sd) = lags[k].unwrap_or_default();
-                (l - median).abs() <= 4.0 * sd + 0.05 * median.abs() + 1e-4
-            })
-            .collect();
-        if shared.len() >= 2 && 2 * shared.len() > informative.len() {
+        let flat: Vec<(f64, f64)> = lags.iter().map(|l| l.unwrap_or_default()).collect();
+        if let Some(shared) = shared_axes(&flat, &informative, LOOSE) {
             let (mut num, mut den) = (0.0, 0.0);
             for &k in &shared {
                 let (l, sd) = lags[k].unwrap_or_default();

@@ -74,6 +74,38 @@ pub const STRICT: Tolerance = Tolerance {
     absolute_s: 1e-6,
 };
 
+/// The axes that share a common lag: the median of the apparent lags
+/// `(lag, sd)` of the `informative` axes is the common value, and an axis
+/// shares it when its lag is within 4 standard deviations plus
+/// `tolerance`. `None` unless at least two axes, and more than half of the
+/// informative ones, share it.
+pub fn shared_axes(
+    lags: &[(f64, f64)],
+    informative: &[usize],
+    tolerance: Tolerance,
+) -> Option<Vec<usize>> {
+    let mut ls: Vec<f64> = informative.iter().map(|&j| lags[j].0).collect();
+    if ls.len() < 2 {
+        return None;
+    }
+    ls.sort_by(f64::total_cmp);
+    let m = ls.len();
+    let median = if m % 2 == 1 {
+        ls[m / 2]
+    } else {
+        0.5 * (ls[m / 2 - 1] + ls[m / 2])
+    };
+    let set: Vec<usize> = informative
+        .iter()
+        .copied()
+        .filter(|&j| {
+            (lags[j].0 - median).abs()
+                <= 4.0 * lags[j].1 + tolerance.relative * median.abs() + tolerance.absolute_s
+        })
+        .collect();
+    (set.len() >= 2 && 2 * set.len() > informative.len()).then_some(set)
+}
+
 /// A clock offset seen in a residual.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OffsetEstimate {
@@ -123,28 +155,7 @@ pub fn clock_offset(
             if informative.len() < 2 {
                 return None;
             }
-            let mut ls: Vec<f64> = informative.iter().map(|&j| lags[j].0).collect();
-            ls.sort_by(f64::total_cmp);
-            let m = ls.len();
-            let median = if m % 2 == 1 {
-                ls[m / 2]
-            } else {
-                0.5 * (ls[m / 2 - 1] + ls[m / 2])
-            };
-            let set: Vec<usize> = informative
-                .iter()
-                .copied()
-                .filter(|&j| {
-                    (lags[j].0 - median).abs()
-                        <= 4.0 * lags[j].1
-                            + tolerance.relative * median.abs()
-                            + tolerance.absolute_s
-                })
-                .collect();
-            if set.len() < 2 || 2 * set.len() <= informative.len() {
-                return None;
-            }
-            set
+            shared_axes(&lags, &informative, tolerance)?
         }
     };
     // Reduced fit: one common lag for the set, an own lag for every other
