@@ -27,19 +27,42 @@ fn motion(m: Machine) -> &'static str {
     }
 }
 
+fn truth_axis(spec: &str) -> String {
+    spec.split_once(':')
+        .and_then(|(_, r)| r.split(',').next())
+        .unwrap_or("")
+        .to_string()
+}
+
 fn peak(e: &Effect) -> Option<f64> {
     match e {
-        Effect::ErrorMotion { terms, .. } => {
-            Some(kinpost::geometric::effects::error_motion_peaks(terms).0)
+        Effect::ErrorMotion { terms, span, .. } => {
+            Some(kinpost::geometric::effects::error_motion_peaks(terms, span.as_ref()).0)
         }
         _ => None,
     }
 }
 
-/// One seed: failure text or None.
+/// A bow of a linear axis (straightness, neither linear nor periodic):
+/// zhao's X along Z, wang's Y along Z.
+fn bow(m: Machine) -> &'static str {
+    match m {
+        Machine::Zhao => "error_motion:X,from_mm=-80,to_mm=80,basis=6,EZX_b2=0.0025,EZX_b3=0.0025",
+        Machine::Wang => {
+            "error_motion:Y,from_mm=-150,to_mm=150,basis=6,EZY_b2=0.0025,EZY_b3=0.0025"
+        }
+    }
+}
+
+/// One seed of the rotary axis's motion: failure text or None.
 fn case(m: Machine, seed: u64, extra: Option<&str>) -> Option<String> {
+    case_of(m, seed, motion(m), extra)
+}
+
+/// One seed of `spec` (with `extra`): failure text or None.
+fn case_of(m: Machine, seed: u64, spec: &str, extra: Option<&str>) -> Option<String> {
     let sc = m.scenario(60, seed);
-    let truth = sc.calibrated(motion(m), 1.2 * SIGMA).spec;
+    let truth = sc.calibrated(spec, 1.2 * SIGMA).spec;
     let want = peak(&truth.effect).unwrap();
     let mut effects = vec![truth];
     if let Some(e) = extra {
@@ -64,12 +87,9 @@ fn case(m: Machine, seed: u64, extra: Option<&str>) -> Option<String> {
     // The improved model holds it as error-table columns of the axis and
     // closes the loop on the same recording.
     let improved = r.improved_model(Some(&sc.errors));
-    let axis = match m {
-        Machine::Zhao => "C",
-        Machine::Wang => "A",
-    };
+    let axis = truth_axis(spec);
     let cols = improved
-        .axis(axis)
+        .axis(&axis)
         .map(|a| a.columns.iter().map(|c| c.name.clone()).collect::<Vec<_>>())
         .unwrap_or_default();
     if cols.len() < 2
@@ -115,4 +135,26 @@ fn the_injection_syntax_round_trips_through_the_model_file() {
     let json = s.to_json(None);
     assert!(json["parameters"]["peak_mm"].as_f64().unwrap() > 0.0);
     assert!(json["parameters"]["EXC_cos1_mm"].as_f64().is_some());
+}
+
+#[test]
+fn a_bow_of_a_linear_axis_is_found_and_written_back() {
+    for m in [Machine::Zhao, Machine::Wang] {
+        sweep("linear-axis bow alone", m, 6200..6210, |s| {
+            case_of(m, s, bow(m), None)
+        });
+    }
+    sweep(
+        "linear-axis bow under a backlash of Z",
+        Machine::Zhao,
+        6300..6306,
+        |s| {
+            case_of(
+                Machine::Zhao,
+                s,
+                bow(Machine::Zhao),
+                Some("backlash:Z=0.002"),
+            )
+        },
+    );
 }

@@ -44,6 +44,9 @@ pub enum Family {
     /// Error motion of a revolute joint: its translations x, y, z (joint
     /// frame) once and twice per turn.
     ErrorMotion(usize),
+    /// Error motion of a prismatic joint: its translations x, y, z (joint
+    /// frame) as cubic B-splines over the recorded travel.
+    LinearMotion(usize),
 }
 
 impl Family {
@@ -60,7 +63,7 @@ impl Family {
             Family::RotaryCenterOffset(_) => EffectKind::RotaryCenterOffset,
             Family::PivotLength => EffectKind::PivotLength,
             Family::Vibration(_) => EffectKind::Vibration,
-            Family::ErrorMotion(_) => EffectKind::ErrorMotion,
+            Family::ErrorMotion(_) | Family::LinearMotion(_) => EffectKind::ErrorMotion,
         }
     }
 
@@ -75,7 +78,8 @@ impl Family {
             | Family::ZeroOffset(j)
             | Family::RotaryCenterOffset(j)
             | Family::Vibration(j)
-            | Family::ErrorMotion(j) => Some(j),
+            | Family::ErrorMotion(j)
+            | Family::LinearMotion(j) => Some(j),
             Family::Squareness(_, b) => Some(b),
             Family::PivotLength => None,
         }
@@ -95,6 +99,7 @@ impl Family {
         match self {
             Family::Cyclic(_) | Family::RotaryCenterOffset(_) | Family::Vibration(_) => 2,
             Family::ErrorMotion(_) => 3 * 2 * MOTION_HARMONICS as usize,
+            Family::LinearMotion(_) => 3 * MOTION_BASIS,
             _ => 1,
         }
     }
@@ -119,6 +124,7 @@ impl Family {
             if prep.kinds[j] == JointKind::Prismatic {
                 v.push(Family::ThermalDrift(j));
                 v.push(Family::Vibration(j));
+                v.push(Family::LinearMotion(j));
             }
             v.push(Family::Scale(j));
             v.push(Family::Cyclic(j));
@@ -212,6 +218,10 @@ pub fn base_columns(prep: &Prepared, fam: Family, nl: f64) -> Cols {
     };
     let mut c = Cols::zeros(rows, k);
     let t_ref = prep.t.first().copied().unwrap_or(0.0);
+    let span = match fam {
+        Family::LinearMotion(j) => motion_span(prep, j),
+        _ => None,
+    };
     for i in 0..prep.n {
         let mut put = |col: usize, v: [f64; 3]| {
             for (a, x) in v.iter().enumerate() {
@@ -257,6 +267,21 @@ pub fn base_columns(prep: &Prepared, fam: Family, nl: f64) -> Cols {
                         let col = m[i][c];
                         put(base, [col[0] * co, col[1] * co, col[2] * co]);
                         put(base + 1, [col[0] * s, col[1] * s, col[2] * s]);
+                    }
+                }
+            }
+            Family::LinearMotion(j) => {
+                let (Some(Some(m)), Some(sp)) = (prep.motion.get(j), span.as_ref()) else {
+                    continue;
+                };
+                let b = sp.values(prep.qj(i, j));
+                for c in 0..3 {
+                    let col = m[i][c];
+                    for (k, bk) in b.iter().enumerate() {
+                        put(
+                            c * MOTION_BASIS + k,
+                            [col[0] * bk, col[1] * bk, col[2] * bk],
+                        );
                     }
                 }
             }
@@ -778,6 +803,18 @@ pub fn search_family(
     }
 }
 
+/// Cubic B-spline functions of a linear axis's fitted error motion over
+/// its recorded travel.
+pub const MOTION_BASIS: usize = 6;
+
+/// The B-spline basis over the travel joint `j` covers in the recording.
+pub fn motion_span(prep: &Prepared, j: usize) -> Option<crate::geometric::effects::MotionSpan> {
+    let (lo, hi) = (0..prep.n).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), i| {
+        (a.min(prep.qj(i, j)), b.max(prep.qj(i, j)))
+    });
+    crate::geometric::effects::MotionSpan::new(lo, hi, MOTION_BASIS)
+}
+
 /// Harmonics per turn of a fitted error motion (once and twice per turn).
 pub const MOTION_HARMONICS: u32 = 2;
 
@@ -1032,6 +1069,20 @@ pub fn term_effect(prep: &Prepared, term: &Term, beta: &[f64]) -> Effect {
             Effect::ErrorMotion {
                 axis: name(j),
                 terms,
+                span: None,
+            }
+        }
+        Family::LinearMotion(j) => {
+            let mut terms = Vec::new();
+            for c in 0..3 {
+                for k in 0..MOTION_BASIS {
+                    terms.push((c, k as u32, beta[c * MOTION_BASIS + k], 0.0));
+                }
+            }
+            Effect::ErrorMotion {
+                axis: name(j),
+                terms,
+                span: motion_span(prep, j),
             }
         }
         Family::Vibration(j) => {
@@ -1081,10 +1132,14 @@ pub fn parameter_sd(prep: &Prepared, term: &Term, beta: &[f64], cov: &DMatrix<f6
                 })
                 .collect()
         }
-        Family::ErrorMotion(_) => {
-            // The peak's uncertainty: the largest coefficient's.
+        Family::ErrorMotion(_) | Family::LinearMotion(_) => {
+            // The peak's uncertainty: the largest coefficient's; a spline's
+            // span (from, to, basis count) is chosen, not fitted.
             let n = beta.len();
             let mut v = vec![(0..n).map(sd).fold(0.0, f64::max)];
+            if matches!(term.family, Family::LinearMotion(_)) {
+                v.extend([0.0; 3]);
+            }
             v.extend((0..n).map(sd));
             v
         }

@@ -182,9 +182,13 @@ pub fn implausible(effect: &Effect, prep: &Prepared) -> Option<String> {
                 )
             })
         }
-        Effect::ErrorMotion { axis, terms } => {
+        Effect::ErrorMotion { axis, terms, span } => {
             let j = joint(axis)?;
-            let (peak, _) = crate::geometric::effects::error_motion_peaks(terms);
+            let (peak, _) = crate::geometric::effects::error_motion_peaks(terms, span.as_ref());
+            if span.is_some() {
+                return (peak > MAX_OFFSET)
+                    .then(|| format!("an error motion of {peak:.3} mm is not a guideway's"));
+            }
             if range(j) < MIN_TURN_FOR_MOTION_DEG {
                 return Some(format!(
                     "{axis} turns only {:.1}° in the recording: an error motion over a turn does not show",

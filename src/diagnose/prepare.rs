@@ -100,9 +100,9 @@ pub struct Prepared {
     /// Sample indices where a new block (or pseudo-block) starts: the
     /// candidate onsets.
     pub onsets: Vec<usize>,
-    /// For each revolute joint: the tip change per mm of a translation
-    /// error motion of the joint along x, y, z of its own frame, per sample
-    /// (the columns of its `error_motion`).
+    /// For each joint: the tip change per mm of a translation error motion
+    /// of the joint along x, y, z of its own frame, per sample (the columns
+    /// of its `error_motion`).
     pub motion: Vec<Option<Vec<[[f64; 3]; 3]>>>,
 }
 
@@ -297,10 +297,8 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
         })
         .collect();
     let mut rco_cols = vec![[[0.0; 3]; 2]; dof];
-    let mut motion: Vec<Option<Vec<[[f64; 3]; 3]>>> = kinds
-        .iter()
-        .map(|k| (*k == JointKind::Revolute).then(|| Vec::with_capacity(n)))
-        .collect();
+    let mut motion: Vec<Option<Vec<[[f64; 3]; 3]>>> =
+        kinds.iter().map(|_| Some(Vec::with_capacity(n))).collect();
     let mut jac = Vec::with_capacity(n * dof);
     let mut tool_axis = Vec::with_capacity(n);
     let mut r = Vec::with_capacity(n);

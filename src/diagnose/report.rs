@@ -88,10 +88,10 @@ pub struct ComponentPeak {
 /// The components of an error motion worth naming: those whose peak is at
 /// least a quarter of the largest one's.
 pub fn shown_components(effect: &Effect) -> Vec<ComponentPeak> {
-    let Effect::ErrorMotion { axis, terms } = effect else {
+    let Effect::ErrorMotion { axis, terms, span } = effect else {
         return Vec::new();
     };
-    let comps = crate::geometric::effects::error_motion_components(terms);
+    let comps = crate::geometric::effects::error_motion_components(terms, span.as_ref());
     let top = comps.iter().map(|c| c.1).fold(0.0, f64::max);
     comps
         .into_iter()
@@ -582,8 +582,8 @@ impl Report {
     pub fn improved_model(&self, base: Option<&ErrorModel>) -> ErrorModel {
         let mut m = base.cloned().unwrap_or_default();
         for f in &self.findings {
-            if let Effect::ErrorMotion { axis, terms } = &f.spec.effect
-                && add_motion_columns(&mut m, axis, terms)
+            if let Effect::ErrorMotion { axis, terms, span } = &f.spec.effect
+                && add_motion_columns(&mut m, axis, terms, span.as_ref())
             {
                 continue;
             }
@@ -621,9 +621,17 @@ fn add_motion_columns(
     m: &mut ErrorModel,
     axis: &str,
     terms: &[crate::geometric::effects::MotionTerm],
+    span: Option<&crate::geometric::effects::MotionSpan>,
 ) -> bool {
     use crate::geometric::table::{Component, ErrorColumn, ErrorTable};
-    let positions: Vec<f64> = (-180..=180).map(f64::from).collect();
+    // A turn every degree, or the travel in 200 steps.
+    let positions: Vec<f64> = match span {
+        None => (-180..=180).map(f64::from).collect(),
+        Some(sp) => (0..=200)
+            .map(|i| sp.lo + (sp.hi - sp.lo) * i as f64 / 200.0)
+            .collect(),
+    };
+    let internal = |p: f64| if span.is_some() { p } else { p.to_radians() };
     let existing = m
         .axes
         .iter()
@@ -640,7 +648,8 @@ fn add_motion_columns(
             values: positions
                 .iter()
                 .map(|&d| {
-                    let own = crate::geometric::effects::error_motion_at(terms, d.to_radians())[c];
+                    let own =
+                        crate::geometric::effects::error_motion_at(terms, span, internal(d))[c];
                     let old = existing.as_ref().map_or(0.0, |a| a.error_at(d).0[c]);
                     own + old
                 })
@@ -650,7 +659,7 @@ fn add_motion_columns(
     let n = positions.len();
     let table = ErrorTable {
         axis: axis.to_ascii_uppercase(),
-        rotary: true,
+        rotary: span.is_none(),
         columns,
         positions,
         direction: None,
@@ -707,11 +716,19 @@ pub fn condition_text(effect: &Effect, rotary: bool) -> String {
             format!("varies with the {axis} angle: {axis} turns about a displaced line")
         }
         Effect::PivotLength { .. } => "along the tool axis, showing as the tool tilts".to_string(),
-        Effect::ErrorMotion { axis, terms } => {
+        Effect::ErrorMotion { axis, terms, span } => {
             let names: Vec<String> = shown_components(effect)
                 .into_iter()
                 .map(|c| format!("{} peak {:.3} µm", c.name, c.peak_mm * 1e3))
                 .collect();
+            if let Some(sp) = span {
+                return format!(
+                    "varies with the {axis} position: an error motion of {axis} ({}) over {:.1} … {:.1} mm, neither linear nor periodic",
+                    names.join(", "),
+                    sp.lo,
+                    sp.hi
+                );
+            }
             let mut ks: Vec<u32> = terms.iter().map(|t| t.1).collect();
             ks.sort_unstable();
             ks.dedup();

@@ -23,8 +23,8 @@ use super::rng::Rng;
 use crate::error::{Error, Location, Result};
 use crate::geometric::ErrorModel;
 use crate::geometric::effects::{
-    BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionState, MotionTerm,
-    chain_with_effects,
+    BoundEffect, DIRECTION_DEAD_BAND, DirectionTracker, EffectSpec, MotionSpan, MotionState,
+    MotionTerm, chain_with_effects,
 };
 use crate::machine::chain::{Chain, JointErrors, JointKind, NoErrors};
 
@@ -262,15 +262,15 @@ impl<'a> TrueMachine<'a> {
         let n = self.chain.dof();
         let mut q = state.q.to_vec();
         let mut chain_mask = 0u64;
-        let mut motions: Vec<(usize, &[MotionTerm])> = Vec::new();
+        let mut motions: Vec<Motion<'_>> = Vec::new();
         for (k, e) in self.effects.iter().enumerate() {
             if active & (1 << k) == 0 {
                 continue;
             }
-            if let (crate::geometric::effects::Effect::ErrorMotion { terms, .. }, Some(j)) =
+            if let (crate::geometric::effects::Effect::ErrorMotion { terms, span, .. }, Some(j)) =
                 (&e.spec.effect, e.joint)
             {
-                motions.push((j, terms));
+                motions.push((j, terms, span.as_ref()));
             } else if e.modifies_chain() {
                 chain_mask |= 1 << k;
             } else if let Some(j) = e.joint {
@@ -327,15 +327,18 @@ impl<'a> TrueMachine<'a> {
 /// An error source plus injected error motions of some joints.
 struct WithMotions<'b> {
     base: &'b dyn JointErrors,
-    motions: Vec<(usize, &'b [MotionTerm])>,
+    motions: Vec<Motion<'b>>,
 }
+
+/// An injected error motion: joint, terms, spline basis.
+type Motion<'b> = (usize, &'b [MotionTerm], Option<&'b MotionSpan>);
 
 impl JointErrors for WithMotions<'_> {
     fn error(&self, joint: usize, q: f64) -> Option<crate::machine::chain::ErrorMotion> {
         let mut e = self.base.error(joint, q);
-        for (j, terms) in &self.motions {
+        for (j, terms, span) in &self.motions {
             if *j == joint {
-                let add = crate::geometric::effects::error_motion_at(terms, q);
+                let add = crate::geometric::effects::error_motion_at(terms, *span, q);
                 e = Some(e.unwrap_or_else(crate::machine::chain::ErrorMotion::zeros) + add);
             }
         }

@@ -21,6 +21,8 @@ use crate::error::{Error, Location, Result};
 /// pivot_length:0.01             mm
 /// error_motion:C,EXC_cos1=0.0012,EYC_sin2=0.0005   Fourier terms over one
 ///                               turn: translations mm, tilts (EAC, EBC) µrad
+/// error_motion:X,from_mm=-80,to_mm=80,basis=6,EZX_b2=0.0025   a linear axis:
+///                               B-spline coefficients over from … to (mm)
 /// vibration:X=0.002,f=7,phase=30     amplitude (mm or deg), Hz, phase deg
 /// ```
 ///
@@ -161,6 +163,7 @@ mod tests {
             "pivot_length:0.01",
             "vibration:X=0.002,f=7,phase=30",
             "error_motion:C,EXC_cos1=0.0012,EYC_sin2=0.0005,EAC_cos1=3",
+            "error_motion:X,from_mm=-80,to_mm=80,basis=6,EZX_b2=0.0025",
             "backlash:X=0.003@block=120",
         ];
         for c in cases {

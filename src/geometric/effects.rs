@@ -27,7 +27,8 @@ use nalgebra::{Matrix4, Vector3};
 
 use super::error_motion::parse_term_key;
 pub use super::error_motion::{
-    MotionTerm, component_name, error_motion_at, error_motion_components, error_motion_peaks,
+    MotionSpan, MotionTerm, component_name, error_motion_at, error_motion_components,
+    error_motion_peaks,
 };
 use crate::error::{Error, Location, Result};
 use crate::machine::chain::{Chain, ErrorMotion, JointKind, translation};
@@ -203,8 +204,11 @@ pub enum Effect {
         /// Rotary axis letter.
         axis: String,
         /// `(component 0…5, harmonic k ≥ 1, cos coefficient, sin
-        /// coefficient)`: component c moves by a·cos(kq) + b·sin(kq).
+        /// coefficient)`: component c moves by a·cos(kq) + b·sin(kq); with a
+        /// `span`, `(component, basis index, coefficient, 0)`.
         terms: Vec<MotionTerm>,
+        /// For a linear axis: the B-spline basis over its travel.
+        span: Option<MotionSpan>,
     },
     /// Δq = a · sin(2π f t + φ), t the recording's time.
     Vibration {
@@ -325,17 +329,26 @@ impl Effect {
                 p("frequency_hz", *frequency_hz),
                 p("phase_deg", *phase_deg),
             ],
-            Effect::ErrorMotion { axis, terms } => {
-                let (peak_mm, peak_rad) = error_motion_peaks(terms);
+            Effect::ErrorMotion { axis, terms, span } => {
+                let (peak_mm, peak_rad) = error_motion_peaks(terms, span.as_ref());
                 let mut v = vec![p("peak_mm", peak_mm)];
                 if terms.iter().any(|t| t.0 >= 3) {
                     v.push(p("peak_urad", peak_rad * 1e6));
                 }
+                if let Some(sp) = span {
+                    v.push(p("from_mm", sp.lo));
+                    v.push(p("to_mm", sp.hi));
+                    v.push(p("basis", sp.basis.len() as f64));
+                }
                 for &(c, k, a, b) in terms {
                     let (unit, scale) = if c < 3 { ("mm", 1.0) } else { ("urad", 1e6) };
                     let name = component_name(c, axis);
-                    v.push(p(&format!("{name}_cos{k}_{unit}"), a * scale));
-                    v.push(p(&format!("{name}_sin{k}_{unit}"), b * scale));
+                    if span.is_some() {
+                        v.push(p(&format!("{name}_b{k}_{unit}"), a * scale));
+                    } else {
+                        v.push(p(&format!("{name}_cos{k}_{unit}"), a * scale));
+                        v.push(p(&format!("{name}_sin{k}_{unit}"), b * scale));
+                    }
                 }
                 v
             }
@@ -448,18 +461,35 @@ impl Effect {
             EffectKind::ErrorMotion => {
                 let axis = one_axis()?;
                 let mut terms: Vec<MotionTerm> = Vec::new();
+                let span = match (params.get("from_mm"), params.get("to_mm"), params.get("basis")) {
+                    (Some(&lo), Some(&hi), Some(&n)) => Some(
+                        MotionSpan::new(lo, hi, n as usize).ok_or(
+                            "error_motion: from_mm < to_mm and at least 4 basis functions are needed",
+                        )?,
+                    ),
+                    (None, None, None) => None,
+                    _ => return Err("error_motion: a spline needs from_mm, to_mm and basis".into()),
+                };
                 for (key, v) in params {
-                    if key.starts_with("peak") || key == "value" {
+                    if key.starts_with("peak")
+                        || matches!(key.as_str(), "value" | "from_mm" | "to_mm" | "basis")
+                    {
                         continue;
                     }
-                    let (c, k, is_sin, scale) = parse_term_key(key, &axis).ok_or_else(|| {
-                        format!(
-                            "error_motion: `{key}` is not a term such as E{}{axis}_cos1_mm",
-                            "X"
-                        )
-                    })?;
+                    let (c, k, is_sin, scale, spline) =
+                        parse_term_key(key, &axis).ok_or_else(|| {
+                            format!(
+                                "error_motion: `{key}` is not a term such as E{}{axis}_cos1_mm",
+                                "X"
+                            )
+                        })?;
                     if !v.is_finite() {
                         return Err(format!("error_motion: `{key}` must be a finite number"));
+                    }
+                    if spline != span.is_some() {
+                        return Err(format!(
+                            "error_motion: `{key}` does not fit the other terms (cosK/sinK terms for a rotary axis; bM terms with from_mm, to_mm and basis for a linear one)"
+                        ));
                     }
                     let slot = match terms.iter().position(|t| t.0 == c && t.1 == k) {
                         Some(i) => i,
@@ -478,7 +508,7 @@ impl Effect {
                     return Err("error_motion needs at least one term such as EXC_cos1_mm".into());
                 }
                 terms.sort_by_key(|t| (t.0, t.1));
-                Effect::ErrorMotion { axis, terms }
+                Effect::ErrorMotion { axis, terms, span }
             }
             EffectKind::Vibration => {
                 let frequency_hz = get(&["frequency_hz", "frequency", "f"])?;
@@ -661,13 +691,13 @@ impl BoundEffect {
             | Effect::Cyclic { axis, .. }
             | Effect::ZeroOffset { axis, .. }
             | Effect::Vibration { axis, .. } => (Some(find(axis)?), None),
-            Effect::ErrorMotion { axis, .. } => {
+            Effect::ErrorMotion { axis, span, .. } => {
                 let j = find(axis)?;
-                if kind_of(j) != JointKind::Revolute {
+                if (kind_of(j) == JointKind::Revolute) == span.is_some() {
                     return Err(effect_err(
                         spec,
                         format!(
-                            "axis {axis} is not a rotary axis (error motions of linear axes are not modelled yet)"
+                            "axis {axis}: a rotary axis's error motion is a Fourier series (EXC_cos1 …), a linear axis's a spline over its travel (from_mm, to_mm, basis, EYX_b0 …)"
                         ),
                     ));
                 }
@@ -850,7 +880,7 @@ impl StaticTerm {
                 let d = angle_urad * 1e-6 * q * self.along;
                 ErrorMotion::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
             }
-            Effect::ErrorMotion { terms, .. } => error_motion_at(terms, q),
+            Effect::ErrorMotion { terms, span, .. } => error_motion_at(terms, span.as_ref(), q),
             Effect::RotaryCenterOffset { offset_mm, .. } => {
                 let d = Vector3::from_column_slice(offset_mm);
                 let r = crate::machine::chain::rotation3(&self.axis, q);
