@@ -161,3 +161,71 @@ fn a_trace_without_time_needs_its_sample_rate() {
         "{err}"
     );
 }
+
+#[test]
+fn a_following_error_at_reversals_is_found_as_a_reversal_spike() {
+    // 5 µm (5 mdeg) after each reversal of X (wang: Y), decaying with
+    // τ = 20 ms, added to a simulated trace.
+    for m in [Machine::Zhao, Machine::Wang] {
+        let axis = match m {
+            Machine::Zhao => "X",
+            Machine::Wang => "Y",
+        };
+        let seeds: Vec<u64> = (5200..5200 + SEEDS).collect();
+        let res = par_map(&seeds, |&seed| {
+            let o = FeedbackSimOptions {
+                seed,
+                ..FeedbackSimOptions::default()
+            };
+            let mut rec = simulate_feedback(&m.chain(), &m.program(40, seed), &[], &o).unwrap();
+            let k = rec.axes.iter().position(|a| a == axis).unwrap();
+            // Independent of the library: direction and reversal times
+            // from the command with the same 0.1 µm dead band.
+            let (mut dir, mut ext, mut last) = (0.0f64, rec.cmd[k][0], None::<f64>);
+            for i in 0..rec.len() {
+                let q = rec.cmd[k][i];
+                let before = dir;
+                if dir > 0.0 {
+                    if q > ext {
+                        ext = q;
+                    } else if q < ext - 1e-4 {
+                        dir = -1.0;
+                        ext = q;
+                    }
+                } else if dir < 0.0 {
+                    if q < ext {
+                        ext = q;
+                    } else if q > ext + 1e-4 {
+                        dir = 1.0;
+                        ext = q;
+                    }
+                } else if (q - ext).abs() > 1e-4 {
+                    dir = (q - ext).signum();
+                    ext = q;
+                }
+                if before * dir < 0.0 {
+                    last = Some(rec.t[i]);
+                }
+                if let Some(l) = last {
+                    rec.fb[k][i] -= dir * 0.005 * (-(rec.t[i] - l) / 0.02).exp();
+                }
+            }
+            let r = diagnose_feedback(&rec, &DiagOptions::default()).unwrap();
+            (
+                param(&r, "reversal_spike", "peak_mm"),
+                param(&r, "reversal_spike", "tau_s"),
+                names(&r),
+            )
+        });
+        println!("{m:?}: reversal spike {res:?}");
+        for (peak, tau, found) in &res {
+            let p = peak.unwrap_or_else(|| panic!("{m:?}: not found: {found:?}"));
+            assert!((p - 0.005).abs() <= 0.25 * 0.005, "{m:?}: peak {p}");
+            assert!(
+                tau.is_some_and(|t| (t - 0.02).abs() <= 0.25 * 0.02),
+                "{m:?}: τ {tau:?}"
+            );
+            assert_eq!(found.len(), 1, "{m:?}: {found:?}");
+        }
+    }
+}

@@ -42,6 +42,10 @@ struct AxisData {
     dir: Vec<f64>,
     e: Vec<f64>,
     keep: Vec<bool>,
+    /// Time since the axis last reversed, s (infinite before its first).
+    since: Vec<f64>,
+    /// Decay time of the reversal-spike column being tried, s.
+    spike_tau: std::cell::Cell<f64>,
 }
 
 fn axis_data(t: &[f64], cmd: &[f64], fb: &[f64]) -> AxisData {
@@ -52,7 +56,17 @@ fn axis_data(t: &[f64], cmd: &[f64], fb: &[f64]) -> AxisData {
         v[i] = (cmd[b] - cmd[a]) / (t[b] - t[a]);
     }
     let mut tr = DirectionTracker::new(DIRECTION_DEAD_BAND);
-    let dir = cmd.iter().map(|q| tr.update(*q)).collect();
+    let dir: Vec<f64> = cmd.iter().map(|q| tr.update(*q)).collect();
+    let mut since = vec![f64::INFINITY; n];
+    let mut last: Option<f64> = None;
+    for i in 0..n {
+        if i > 0 && dir[i] * dir[i - 1] < 0.0 {
+            last = Some(t[i]);
+        }
+        if let Some(l) = last {
+            since[i] = t[i] - l;
+        }
+    }
     AxisData {
         t: t.to_vec(),
         q: cmd.to_vec(),
@@ -60,6 +74,8 @@ fn axis_data(t: &[f64], cmd: &[f64], fb: &[f64]) -> AxisData {
         dir,
         e: fb.iter().zip(cmd).map(|(f, c)| f - c).collect(),
         keep: vec![true; n],
+        since,
+        spike_tau: std::cell::Cell::new(0.02),
     }
 }
 
@@ -97,16 +113,29 @@ fn outliers_1d(e: &[f64], dir: &[f64], sigma: f64) -> Vec<usize> {
 enum Fam {
     Backlash,
     ServoLag,
+    /// A following error after each reversal, decaying: Δq = −p·d·e^(−s/τ),
+    /// d the new direction, s the time since the reversal.
+    ReversalSpike,
     ZeroOffset,
     Scale,
 }
 
-const FAMS: [Fam; 4] = [Fam::Backlash, Fam::ServoLag, Fam::ZeroOffset, Fam::Scale];
+const FAMS: [Fam; 5] = [
+    Fam::Backlash,
+    Fam::ServoLag,
+    Fam::ReversalSpike,
+    Fam::ZeroOffset,
+    Fam::Scale,
+];
+
+/// Decay times tried for a reversal spike, s.
+const SPIKE_TAUS: [f64; 7] = [0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2];
 
 fn column(d: &AxisData, f: Fam, i: usize) -> f64 {
     match f {
         Fam::Backlash => -0.5 * d.dir[i],
         Fam::ServoLag => -d.v[i],
+        Fam::ReversalSpike => -d.dir[i] * (-d.since[i] / d.spike_tau.get()).exp(),
         Fam::ZeroOffset => 1.0,
         Fam::Scale => 1e-6 * d.q[i],
     }
@@ -159,9 +188,34 @@ fn holdout(d: &AxisData, fams: &[Fam]) -> f64 {
     rss
 }
 
+/// A fitted family as the report names it: effect name, parameters with
+/// units, and the catalogue effect where there is one.
+fn describe(
+    f: Fam,
+    d: &AxisData,
+    axis: &str,
+    b: f64,
+    rotary: bool,
+) -> (String, Vec<(String, f64)>, Option<Effect>) {
+    if f == Fam::ReversalSpike {
+        let u = if rotary { "deg" } else { "mm" };
+        return (
+            "reversal_spike".into(),
+            vec![
+                (format!("peak_{u}"), b),
+                ("tau_s".into(), d.spike_tau.get()),
+            ],
+            None,
+        );
+    }
+    let e = effect_of(f, axis, b);
+    (e.kind().name().to_string(), e.parameters(rotary), Some(e))
+}
+
 fn effect_of(f: Fam, axis: &str, b: f64) -> Effect {
     let axis = axis.to_string();
     match f {
+        Fam::ReversalSpike => Effect::ZeroOffset { axis, value: b },
         Fam::Backlash => Effect::Backlash { axis, value: b },
         Fam::ServoLag => Effect::ServoLag { axis, tau_s: b },
         Fam::ZeroOffset => Effect::ZeroOffset { axis, value: b },
@@ -177,6 +231,9 @@ fn implausible(f: Fam, b: f64, d: &AxisData) -> Option<String> {
         }
         Fam::Backlash if !d.dir.windows(2).any(|w| w[0] * w[1] < 0.0) => {
             Some("the axis never reverses, so a backlash cannot show".into())
+        }
+        Fam::ReversalSpike if b <= 0.0 => {
+            Some("a spike that leads the motion after a reversal: not a following error".into())
         }
         Fam::ServoLag if b <= 0.0 => {
             Some("a negative lag: the axis would move before its command".into())
@@ -386,17 +443,32 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
                 }
                 let mut trial = terms.clone();
                 trial.push(f);
+                let mut search = 0.0;
+                if f == Fam::ReversalSpike {
+                    // Its decay time: the best of a few, paid in the score.
+                    let best_tau = SPIKE_TAUS
+                        .iter()
+                        .map(|&tau| {
+                            d.spike_tau.set(tau);
+                            (tau, lsq(d, &trial, &|_| true).2)
+                        })
+                        .min_by(|a, b| a.1.total_cmp(&b.1))
+                        .map_or(0.02, |x| x.0);
+                    d.spike_tau.set(best_tau);
+                    search = 2.0 * (SPIKE_TAUS.len() as f64).ln();
+                }
                 let (beta, _, rss) = lsq(d, &trial, &|_| true);
-                let score = (rss_prev - rss) / s2 - ln_n;
+                let score = (rss_prev - rss) / s2 - ln_n - search;
                 if score <= opts.bic_margin {
                     continue;
                 }
                 if let Some(reason) = implausible(f, beta[trial.len() - 1], d) {
-                    let e = effect_of(f, &rec.axes[k], beta[trial.len() - 1]);
+                    let (name, params, _) =
+                        describe(f, d, &rec.axes[k], beta[trial.len() - 1], rec.rotary[k]);
                     rejected.push(super::report::Rejected {
-                        effect: e.kind().name().to_string(),
+                        effect: name,
                         axis: Some(rec.axes[k].clone()),
-                        parameters: e.parameters(rec.rotary[k]).into_iter().collect(),
+                        parameters: params.into_iter().collect(),
                         reason,
                     });
                     continue;
@@ -412,11 +484,11 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
                     / m)
                     .sqrt();
                 if size < unresolved[k] {
-                    let e = effect_of(f, &rec.axes[k], b);
+                    let (name, params, _) = describe(f, d, &rec.axes[k], b, rec.rotary[k]);
                     rejected.push(super::report::Rejected {
-                        effect: e.kind().name().to_string(),
+                        effect: name,
                         axis: Some(rec.axes[k].clone()),
-                        parameters: e.parameters(rec.rotary[k]).into_iter().collect(),
+                        parameters: params.into_iter().collect(),
                         reason: format!(
                             "it moves the axis by {size:.3e} RMS, less than the {:.3e} the rounding of the values or the clock alignment leaves",
                             unresolved[k]
@@ -446,8 +518,7 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
             rec.block.last().copied().flatten(),
         ];
         for (p, f) in terms.iter().enumerate() {
-            let effect = effect_of(*f, &rec.axes[k], beta[p]);
-            let params = effect.parameters(rec.rotary[k]);
+            let (name, params, effect) = describe(*f, d, &rec.axes[k], beta[p], rec.rotary[k]);
             let sd = inv[(p, p)].max(0.0).sqrt() * sigma[k];
             let contrib: f64 = (0..d.t.len())
                 .filter(|&i| d.keep[i])
@@ -455,20 +526,32 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
                 .sum::<f64>()
                 / m;
             let unit = if rec.rotary[k] { "deg" } else { "mm" };
+            let condition = match &effect {
+                Some(e) => super::report::condition_text(e, rec.rotary[k]),
+                None => format!(
+                    "after each reversal of {}: a following error that decays with τ = {:.0} ms",
+                    rec.axes[k],
+                    d.spike_tau.get() * 1e3
+                ),
+            };
             findings.push(JointFinding {
-                effect: effect.kind().name().to_string(),
+                effect: name,
                 axis: Some(rec.axes[k].clone()),
-                uncertainty: params.iter().map(|(n, _)| (n.clone(), sd)).collect(),
+                // One fitted coefficient; a spike's decay time is chosen from a grid.
+                uncertainty: params
+                    .iter()
+                    .take(1)
+                    .map(|(n, _)| (n.clone(), sd))
+                    .collect(),
                 parameters: params.into_iter().collect(),
                 where_: Where {
                     blocks,
                     t_s: [t0, t1],
-                    condition: super::report::condition_text(&effect, rec.rotary[k])
-                        + " (seen by the axis's own feedback)",
+                    condition: condition + " (seen by the axis's own feedback)",
                 },
                 rms_explained: [(format!("rms_explained_{unit}"), contrib.sqrt())].into(),
                 machine_physics: true,
-                spec: EffectSpec::from(effect),
+                spec: effect.map(EffectSpec::from),
             });
         }
         let hb = (hold0 / m).sqrt();

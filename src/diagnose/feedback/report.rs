@@ -49,7 +49,7 @@ pub struct JointFinding {
     pub machine_physics: bool,
     /// The effect in model-file form.
     #[serde(skip)]
-    pub spec: EffectSpec,
+    pub spec: Option<EffectSpec>,
 }
 
 /// The report of a joint-feedback diagnosis.
@@ -182,7 +182,9 @@ impl FeedbackReport {
     ) -> crate::geometric::ErrorModel {
         let mut m = base.cloned().unwrap_or_default();
         for f in &self.findings {
-            m.effects.push(f.spec.clone());
+            if let Some(spec) = &f.spec {
+                m.effects.push(spec.clone());
+            }
         }
         m
     }
