@@ -340,9 +340,15 @@ impl<'a> GcodeConverter<'a> {
         // Only the last line of a file can lack its line end. In pose mode
         // the rest of it may have been a pose (`X12.3` of `X12.345`): a
         // truncated file is refused.
+        // A last line that ends the program (M2, M30, M99, `%`) is whole.
+        let program_end = line.bytes.trim_ascii() == b"%"
+            || line
+                .words()
+                .any(|w| w.address == "M" && [2.0, 30.0, 99.0].contains(&w.value));
         if self.modal.pose_mode
             && !line.bytes.ends_with(b"\n")
             && !line.bytes.iter().all(|b| b.is_ascii_whitespace())
+            && !program_end
         {
             return Err(Error::input_with(
                 Location::new(&opts.file_name, line.number, line.bytes.len() + 1),
@@ -416,8 +422,7 @@ impl<'a> GcodeConverter<'a> {
         }
         let Some((tip, axis)) = meaning.pose else {
             let text = String::from_utf8_lossy(&line.bytes);
-            let unended =
-                !line.bytes.ends_with(b"\n") && !text.trim().is_empty() && text.trim() != "%";
+            let unended = !line.bytes.ends_with(b"\n") && !text.trim().is_empty() && !program_end;
             if unended {
                 self.stats.warnings.push(format!(
                     "{}: the file ends without a line end after `{}`: a truncated file? (passed on unchanged)",

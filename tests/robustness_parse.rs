@@ -114,6 +114,10 @@ fn a_file_cut_inside_a_pose_block_is_refused() {
         err.contains("plain.ngc:3:1") && err.contains("truncated"),
         "{err}"
     );
+    // A program whose last line `M30` has no line end is whole.
+    let (code, _, err) = post("end.ngc", &full.as_bytes()[..full.len() - 1]);
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("truncated"), "{err}");
     // The whole program: quiet.
     let (code, _, err) = post("cut.ngc", full.as_bytes());
     assert_eq!(code, 0);
