@@ -337,34 +337,8 @@ impl<'a> GcodeConverter<'a> {
             let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);
             Location::new(&opts.file_name, line.number, col)
         };
-        // Only the last line of a file can lack its line end. In pose mode
-        // the rest of it may have been a pose (`X12.3` of `X12.345`): a
-        // truncated file is refused.
-        // A last line that ends the program (M2, M30, M99, `%`) is whole.
-        let program_end = line.bytes.trim_ascii() == b"%"
-            || line
-                .words()
-                .any(|w| w.address == "M" && [2.0, 30.0, 99.0].contains(&w.value));
-        if self.modal.pose_mode
-            && !line.bytes.ends_with(b"\n")
-            && !line.bytes.iter().all(|b| b.is_ascii_whitespace())
-            && !program_end
-        {
-            return Err(Error::input_with(
-                Location::new(&opts.file_name, line.number, line.bytes.len() + 1),
-                "the file ends without a line end while in pose mode: a truncated file? The rest of the block may have been a pose; if the program is complete, end it with a line break (and M30)",
-                String::from_utf8_lossy(&line.bytes),
-            ));
-        }
-        // A text NC program never holds a NUL byte: a damaged or binary
-        // file is refused, not passed on.
-        if let Some(at) = line.bytes.iter().position(|b| *b == 0) {
-            return Err(Error::input_with(
-                Location::new(&opts.file_name, line.number, at + 1),
-                "a NUL byte: the file is damaged or not a text NC program",
-                String::from_utf8_lossy(&line.bytes),
-            ));
-        }
+        let program_end = crate::program::integrity::ends_program(line);
+        crate::program::integrity::check_line(line, &opts.file_name, self.modal.pose_mode)?;
         let mut words = recycle(std::mem::take(&mut self.words));
         let mut keywords = Vec::new();
         for (i, item) in line.items.iter().enumerate() {

@@ -1,6 +1,7 @@
 //! NC programs as sequences of blocks: modal state, poses, output formatting.
 
 pub mod format;
+pub mod integrity;
 pub mod modal;
 pub mod opaque;
 pub mod source;
