@@ -164,6 +164,17 @@ fn a_trace_without_time_needs_its_sample_rate() {
 
 #[test]
 fn a_following_error_at_reversals_is_found_as_a_reversal_spike() {
+    spikes(None);
+}
+
+#[test]
+fn a_reversal_spike_concealed_under_a_servo_lag_is_found_with_it() {
+    spikes(Some(0.004));
+}
+
+/// A following error of 5 µm decaying with 20 ms after each reversal of
+/// X (wang: Y), on its own or with a servo lag `lag` (s) of the same axis.
+fn spikes(lag: Option<f64>) {
     // 5 µm (5 mdeg) after each reversal of X (wang: Y), decaying with
     // τ = 20 ms, added to a simulated trace.
     for m in [Machine::Zhao, Machine::Wang] {
@@ -177,7 +188,13 @@ fn a_following_error_at_reversals_is_found_as_a_reversal_spike() {
                 seed,
                 ..FeedbackSimOptions::default()
             };
-            let mut rec = simulate_feedback(&m.chain(), &m.program(40, seed), &[], &o).unwrap();
+            let injected: Vec<String> = lag
+                .iter()
+                .map(|l| format!("servo_lag:{axis}={l}"))
+                .collect();
+            let refs: Vec<&str> = injected.iter().map(String::as_str).collect();
+            let mut rec =
+                simulate_feedback(&m.chain(), &m.program(40, seed), &effects(&refs), &o).unwrap();
             let k = rec.axes.iter().position(|a| a == axis).unwrap();
             // Independent of the library: direction and reversal times
             // from the command with the same 0.1 µm dead band.
@@ -215,17 +232,28 @@ fn a_following_error_at_reversals_is_found_as_a_reversal_spike() {
                 param(&r, "reversal_spike", "peak_mm"),
                 param(&r, "reversal_spike", "tau_s"),
                 names(&r),
+                param(&r, "servo_lag", "tau_s"),
             )
         });
         println!("{m:?}: reversal spike {res:?}");
-        for (peak, tau, found) in &res {
+        for (peak, tau, found, servo) in &res {
             let p = peak.unwrap_or_else(|| panic!("{m:?}: not found: {found:?}"));
             assert!((p - 0.005).abs() <= 0.25 * 0.005, "{m:?}: peak {p}");
             assert!(
                 tau.is_some_and(|t| (t - 0.02).abs() <= 0.25 * 0.02),
                 "{m:?}: τ {tau:?}"
             );
-            assert_eq!(found.len(), 1, "{m:?}: {found:?}");
+            assert_eq!(
+                found.len(),
+                1 + usize::from(lag.is_some()),
+                "{m:?}: {found:?}"
+            );
+            if let Some(l) = lag {
+                assert!(
+                    servo.is_some_and(|s| (s - l).abs() <= 0.25 * l),
+                    "{m:?}: lag {servo:?}"
+                );
+            }
         }
     }
 }
