@@ -14,6 +14,10 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use super::motion_components::{
+    MOTION_BASIS, MOTION_HARMONICS, TRANSLATIONS, covered_arc, mask_components, motion_span,
+    motion_weights, visible_components,
+};
 use super::prepare::Prepared;
 use crate::geometric::effects::{Effect, EffectKind, EffectSpec};
 use crate::machine::chain::JointKind;
@@ -41,12 +45,14 @@ pub enum Family {
     PivotLength,
     /// Vibration of a linear joint (non-linear parameter: frequency, Hz).
     Vibration(usize),
-    /// Error motion of a revolute joint: its translations x, y, z (joint
-    /// frame) once and twice per turn.
-    ErrorMotion(usize),
-    /// Error motion of a prismatic joint: its translations x, y, z (joint
-    /// frame) as cubic B-splines over the recorded travel.
-    LinearMotion(usize),
+    /// Error motion of a revolute joint once and twice per turn, in the
+    /// components of the mask (bit c: component c of the joint's frame,
+    /// translations x, y, z then rotations about x, y, z; see
+    /// [`visible_components`]).
+    ErrorMotion(usize, u8),
+    /// Error motion of a prismatic joint as cubic B-splines over the
+    /// recorded travel, in the components of the mask.
+    LinearMotion(usize, u8),
 }
 
 impl Family {
@@ -63,7 +69,7 @@ impl Family {
             Family::RotaryCenterOffset(_) => EffectKind::RotaryCenterOffset,
             Family::PivotLength => EffectKind::PivotLength,
             Family::Vibration(_) => EffectKind::Vibration,
-            Family::ErrorMotion(_) | Family::LinearMotion(_) => EffectKind::ErrorMotion,
+            Family::ErrorMotion(..) | Family::LinearMotion(..) => EffectKind::ErrorMotion,
         }
     }
 
@@ -78,8 +84,8 @@ impl Family {
             | Family::ZeroOffset(j)
             | Family::RotaryCenterOffset(j)
             | Family::Vibration(j)
-            | Family::ErrorMotion(j)
-            | Family::LinearMotion(j) => Some(j),
+            | Family::ErrorMotion(j, _)
+            | Family::LinearMotion(j, _) => Some(j),
             Family::Squareness(_, b) => Some(b),
             Family::PivotLength => None,
         }
@@ -98,9 +104,20 @@ impl Family {
     pub fn linear_params(self) -> usize {
         match self {
             Family::Cyclic(_) | Family::RotaryCenterOffset(_) | Family::Vibration(_) => 2,
-            Family::ErrorMotion(_) => 3 * 2 * MOTION_HARMONICS as usize,
-            Family::LinearMotion(_) => 3 * MOTION_BASIS,
+            Family::ErrorMotion(_, m) => m.count_ones() as usize * 2 * MOTION_HARMONICS as usize,
+            Family::LinearMotion(_, m) => m.count_ones() as usize * MOTION_BASIS,
             _ => 1,
+        }
+    }
+
+    /// Whether `self` and `other` model the same thing, so that one model
+    /// holds at most one of them: the same family, or two error motions of
+    /// one joint (with different components).
+    pub fn same_slot(self, other: Family) -> bool {
+        match (self, other) {
+            (Family::ErrorMotion(a, _), Family::ErrorMotion(b, _))
+            | (Family::LinearMotion(a, _), Family::LinearMotion(b, _)) => a == b,
+            _ => self == other,
         }
     }
 
@@ -124,14 +141,14 @@ impl Family {
             if prep.kinds[j] == JointKind::Prismatic {
                 v.push(Family::ThermalDrift(j));
                 v.push(Family::Vibration(j));
-                v.push(Family::LinearMotion(j));
+                motion_families(prep, j, Family::LinearMotion, &mut v);
             }
             v.push(Family::Scale(j));
             v.push(Family::Cyclic(j));
             v.push(Family::ZeroOffset(j));
             if prep.kinds[j] == JointKind::Revolute {
                 v.push(Family::RotaryCenterOffset(j));
-                v.push(Family::ErrorMotion(j));
+                motion_families(prep, j, Family::ErrorMotion, &mut v);
             }
         }
         for &a in &lin {
@@ -144,6 +161,22 @@ impl Family {
         v.push(Family::PivotLength);
         v
     }
+}
+
+/// The error-motion families of joint `j`: each visible component alone,
+/// its visible translations together, and every visible component (the
+/// selection pays for each coefficient, so it prefers the smallest family
+/// that explains the residual; one model holds at most one of them, see
+/// [`Family::same_slot`]).
+fn motion_families(prep: &Prepared, j: usize, fam: fn(usize, u8) -> Family, v: &mut Vec<Family>) {
+    let all = visible_components(prep, j);
+    let translations = all & TRANSLATIONS;
+    let mut masks: Vec<u8> = mask_components(all).map(|c| 1u8 << c).collect();
+    masks.extend([translations, all]);
+    masks.retain(|&m| m != 0);
+    masks.sort_unstable();
+    masks.dedup();
+    v.extend(masks.into_iter().map(|m| fam(j, m)));
 }
 
 impl Prepared {
@@ -219,7 +252,7 @@ pub fn base_columns(prep: &Prepared, fam: Family, nl: f64) -> Cols {
     let mut c = Cols::zeros(rows, k);
     let t_ref = prep.t.first().copied().unwrap_or(0.0);
     let span = match fam {
-        Family::LinearMotion(j) => motion_span(prep, j),
+        Family::LinearMotion(j, _) => motion_span(prep, j),
         _ => None,
     };
     for i in 0..prep.n {
@@ -255,33 +288,15 @@ pub fn base_columns(prep: &Prepared, fam: Family, nl: f64) -> Cols {
                 }
             }
             Family::PivotLength => put(0, prep.tool_axis[i]),
-            Family::ErrorMotion(j) => {
-                let Some(m) = prep.motion.get(j).and_then(|m| m.as_ref()) else {
+            Family::ErrorMotion(j, mask) | Family::LinearMotion(j, mask) => {
+                let Some(Some(m)) = prep.motion.get(j) else {
                     continue;
                 };
-                let q = prep.qj(i, j).to_radians();
-                for c in 0..3 {
-                    for k in 1..=MOTION_HARMONICS {
-                        let (s, co) = (k as f64 * q).sin_cos();
-                        let base = (c * MOTION_HARMONICS as usize + (k as usize - 1)) * 2;
-                        let col = m[i][c];
-                        put(base, [col[0] * co, col[1] * co, col[2] * co]);
-                        put(base + 1, [col[0] * s, col[1] * s, col[2] * s]);
-                    }
-                }
-            }
-            Family::LinearMotion(j) => {
-                let (Some(Some(m)), Some(sp)) = (prep.motion.get(j), span.as_ref()) else {
-                    continue;
-                };
-                let b = sp.values(prep.qj(i, j));
-                for c in 0..3 {
+                let w = motion_weights(prep, j, i, span.as_ref());
+                for (p, c) in mask_components(mask).enumerate() {
                     let col = m[i][c];
-                    for (k, bk) in b.iter().enumerate() {
-                        put(
-                            c * MOTION_BASIS + k,
-                            [col[0] * bk, col[1] * bk, col[2] * bk],
-                        );
+                    for (k, wk) in w.iter().enumerate() {
+                        put(p * w.len() + k, col.map(|x| x * wk));
                     }
                 }
             }
@@ -803,21 +818,6 @@ pub fn search_family(
     }
 }
 
-/// Cubic B-spline functions of a linear axis's fitted error motion over
-/// its recorded travel.
-pub const MOTION_BASIS: usize = 6;
-
-/// The B-spline basis over the travel joint `j` covers in the recording.
-pub fn motion_span(prep: &Prepared, j: usize) -> Option<crate::geometric::effects::MotionSpan> {
-    let (lo, hi) = (0..prep.n).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), i| {
-        (a.min(prep.qj(i, j)), b.max(prep.qj(i, j)))
-    });
-    crate::geometric::effects::MotionSpan::new(lo, hi, MOTION_BASIS)
-}
-
-/// Harmonics per turn of a fitted error motion (once and twice per turn).
-pub const MOTION_HARMONICS: u32 = 2;
-
 /// Lowest frequency searched for a vibration, Hz.
 pub const MIN_VIBRATION_HZ: f64 = 0.2;
 
@@ -1058,11 +1058,11 @@ pub fn term_effect(prep: &Prepared, term: &Term, beta: &[f64]) -> Effect {
             }
         }
         Family::PivotLength => Effect::PivotLength { delta_mm: beta[0] },
-        Family::ErrorMotion(j) => {
+        Family::ErrorMotion(j, mask) => {
             let mut terms = Vec::new();
-            for c in 0..3 {
+            for (p, c) in mask_components(mask).enumerate() {
                 for k in 1..=MOTION_HARMONICS {
-                    let base = (c * MOTION_HARMONICS as usize + (k as usize - 1)) * 2;
+                    let base = (p * MOTION_HARMONICS as usize + (k as usize - 1)) * 2;
                     terms.push((c, k, beta[base], beta[base + 1]));
                 }
             }
@@ -1070,19 +1070,21 @@ pub fn term_effect(prep: &Prepared, term: &Term, beta: &[f64]) -> Effect {
                 axis: name(j),
                 terms,
                 span: None,
+                arc: covered_arc(prep, j),
             }
         }
-        Family::LinearMotion(j) => {
+        Family::LinearMotion(j, mask) => {
             let mut terms = Vec::new();
-            for c in 0..3 {
+            for (p, c) in mask_components(mask).enumerate() {
                 for k in 0..MOTION_BASIS {
-                    terms.push((c, k as u32, beta[c * MOTION_BASIS + k], 0.0));
+                    terms.push((c, k as u32, beta[p * MOTION_BASIS + k], 0.0));
                 }
             }
             Effect::ErrorMotion {
                 axis: name(j),
                 terms,
                 span: motion_span(prep, j),
+                arc: None,
             }
         }
         Family::Vibration(j) => {
@@ -1132,15 +1134,28 @@ pub fn parameter_sd(prep: &Prepared, term: &Term, beta: &[f64], cov: &DMatrix<f6
                 })
                 .collect()
         }
-        Family::ErrorMotion(_) | Family::LinearMotion(_) => {
-            // The peak's uncertainty: the largest coefficient's; a spline's
-            // span (from, to, basis count) is chosen, not fitted.
+        Family::ErrorMotion(_, mask) | Family::LinearMotion(_, mask) => {
+            // The peaks' uncertainty: the largest coefficient's of their
+            // kind (rotations in µrad, as reported); a spline's span (from,
+            // to, basis count) is chosen, not fitted.
             let n = beta.len();
-            let mut v = vec![(0..n).map(sd).fold(0.0, f64::max)];
-            if matches!(term.family, Family::LinearMotion(_)) {
+            let per = n / (mask.count_ones() as usize).max(1);
+            let comp = |p: usize| mask_components(mask).nth(p / per.max(1)).unwrap_or(0);
+            let scaled = |p: usize| if comp(p) < 3 { sd(p) } else { sd(p) * 1e6 };
+            let peak = |rot: bool| {
+                (0..n)
+                    .filter(|&p| (comp(p) >= 3) == rot)
+                    .map(scaled)
+                    .fold(0.0, f64::max)
+            };
+            let mut v = vec![peak(false)];
+            if mask & !TRANSLATIONS != 0 {
+                v.push(peak(true));
+            }
+            if matches!(term.family, Family::LinearMotion(..)) {
                 v.extend([0.0; 3]);
             }
-            v.extend((0..n).map(sd));
+            v.extend((0..n).map(scaled));
             v
         }
         _ => vec![sd(0)],

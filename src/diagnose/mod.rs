@@ -20,6 +20,7 @@
 
 pub mod feedback;
 pub mod fit;
+pub mod motion_components;
 pub mod plausible;
 pub mod prepare;
 pub mod programs;
@@ -189,7 +190,7 @@ pub fn diagnose(
         let above_noise = chi_now > 1.05 && (chi_now - 1.0) * (1.5 * n_rows).sqrt() > 4.0;
         let mut cands: Vec<Candidate> = families
             .iter()
-            .filter(|f| !terms.iter().any(|t| t.family == **f))
+            .filter(|f| !terms.iter().any(|t| t.family.same_slot(**f)))
             .filter(|f| {
                 !matches!(f, Family::Vibration(_))
                     || terms.is_empty()
@@ -576,8 +577,17 @@ pub fn diagnose(
         chi2_per_dof_after: chi_after,
         t_s: t_span,
         blocks,
+        // The best of each slot: an axis's error-motion variants (which
+        // components) are one candidate.
         candidates: first_round
             .iter()
+            .enumerate()
+            .filter(|(k, c)| {
+                !first_round[..*k]
+                    .iter()
+                    .any(|o| o.term.family.same_slot(c.term.family))
+            })
+            .map(|(_, c)| c)
             .take(10)
             .map(|c| report::Candidate {
                 effect: c.term.family.kind().name().to_string(),

@@ -16,6 +16,10 @@ pub const MAX_SQUARENESS_URAD: f64 = 10_000.0;
 pub const MAX_CENTER_OFFSET_MM: f64 = 10.0;
 /// Largest backlash, zero offset or cyclic amplitude, mm or deg.
 pub const MAX_OFFSET: f64 = 10.0;
+
+/// Largest tilt of an error motion (rad) taken for a bearing's or a
+/// guideway's: 1 mrad (0.06°) is far beyond any axis in service.
+pub const MAX_MOTION_TILT_RAD: f64 = 1e-3;
 /// Largest pivot-length error, mm.
 pub const MAX_PIVOT_MM: f64 = 100.0;
 /// Largest thermal drift, mm.
@@ -182,9 +186,21 @@ pub fn implausible(effect: &Effect, prep: &Prepared) -> Option<String> {
                 )
             })
         }
-        Effect::ErrorMotion { axis, terms, span } => {
+        Effect::ErrorMotion {
+            axis,
+            terms,
+            span,
+            arc,
+        } => {
             let j = joint(axis)?;
-            let (peak, _) = crate::geometric::effects::error_motion_peaks(terms, span.as_ref());
+            let (peak, tilt) =
+                crate::geometric::effects::error_motion_peaks(terms, span.as_ref(), *arc);
+            if tilt > MAX_MOTION_TILT_RAD {
+                return Some(format!(
+                    "an error motion that tilts by {:.0} µrad is not a bearing's or a guideway's",
+                    tilt * 1e6
+                ));
+            }
             if span.is_some() {
                 return (peak > MAX_OFFSET)
                     .then(|| format!("an error motion of {peak:.3} mm is not a guideway's"));

@@ -75,6 +75,10 @@ pub struct Prepared {
     pub names: Vec<String>,
     /// Joint kinds.
     pub kinds: Vec<JointKind>,
+    /// For each joint, the coordinate (0 x, 1 y, 2 z) of the frame before
+    /// it that its axis (direction of motion or of rotation) lies closest
+    /// to.
+    pub axis_coord: Vec<usize>,
     /// Time, s.
     pub t: Vec<f64>,
     /// Block of each sample (`None` when the recording has none).
@@ -100,10 +104,11 @@ pub struct Prepared {
     /// Sample indices where a new block (or pseudo-block) starts: the
     /// candidate onsets.
     pub onsets: Vec<usize>,
-    /// For each joint: the tip change per mm of a translation error motion
-    /// of the joint along x, y, z of its own frame, per sample (the columns
-    /// of its `error_motion`).
-    pub motion: Vec<Option<Vec<[[f64; 3]; 3]>>>,
+    /// For each joint: the tip change per unit of each of its six
+    /// error-motion components (translations x, y, z of its own frame per
+    /// mm, rotations about x, y, z per rad), per sample (the columns of its
+    /// `error_motion`).
+    pub motion: Vec<Option<Vec<[[f64; 3]; 6]>>>,
 }
 
 /// Rotary-centre-offset basis of one revolute joint.
@@ -276,6 +281,7 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
         }
     }
     let kinds: Vec<JointKind> = chain.joints.iter().map(|j| j.kind).collect();
+    let axis_coord: Vec<usize> = chain.joints.iter().map(|j| j.axis.iamax()).collect();
     let deg = std::f64::consts::PI / 180.0;
     // Onsets of the model's dynamic effects.
     let mut dynamic = machine.dynamic.clone();
@@ -297,7 +303,7 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
         })
         .collect();
     let mut rco_cols = vec![[[0.0; 3]; 2]; dof];
-    let mut motion: Vec<Option<Vec<[[f64; 3]; 3]>>> =
+    let mut motion: Vec<Option<Vec<[[f64; 3]; 6]>>> =
         kinds.iter().map(|_| Some(Vec::with_capacity(n))).collect();
     let mut jac = Vec::with_capacity(n * dof);
     let mut tool_axis = Vec::with_capacity(n);
@@ -350,22 +356,27 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
         model_tip.push([pose.tip.x, pose.tip.y, pose.tip.z]);
         for (j, cols) in motion.iter_mut().enumerate() {
             let Some(cols) = cols else { continue };
-            let mut c3 = [[0.0; 3]; 3];
-            for (c, col) in c3.iter_mut().enumerate() {
+            let mut c6 = [[0.0; 3]; 6];
+            for (c, col) in c6.iter_mut().enumerate() {
+                let eps = if c < 3 {
+                    MOTION_STEP_MM
+                } else {
+                    MOTION_STEP_RAD
+                };
                 let poked = Poke {
                     base: errors,
                     joint: j,
                     comp: c,
-                    eps: MOTION_STEP_MM,
+                    eps,
                 };
                 let t = chain.pose(&qi, &poked).tip;
                 *col = [
-                    (t.x - pose.tip.x) / MOTION_STEP_MM,
-                    (t.y - pose.tip.y) / MOTION_STEP_MM,
-                    (t.z - pose.tip.z) / MOTION_STEP_MM,
+                    (t.x - pose.tip.x) / eps,
+                    (t.y - pose.tip.y) / eps,
+                    (t.z - pose.tip.z) / eps,
                 ];
             }
-            cols.push(c3);
+            cols.push(c6);
         }
         if rco_dirs.iter().any(Option::is_some) {
             rco_columns(chain, &qi, errors, &rco_dirs, &mut rco_cols);
@@ -407,6 +418,7 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
         dof,
         names: chain.joints.iter().map(|j| j.name.clone()).collect(),
         kinds,
+        axis_coord,
         t,
         block,
         q,
@@ -425,6 +437,11 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
 /// Step of the translation error motion by which its tip change is taken
 /// (the change is linear in it), mm.
 const MOTION_STEP_MM: f64 = 1e-3;
+
+/// Step of the rotational error motion by which its tip change is taken,
+/// rad (a lever of a metre moves the tip by 1 µm: still linear, and far
+/// above the rounding of the pose).
+const MOTION_STEP_RAD: f64 = 1e-6;
 
 /// An error source with one component of one joint's error motion raised.
 struct Poke<'a> {

@@ -76,29 +76,60 @@ pub struct Finding {
     pub spec: EffectSpec,
 }
 
-/// One component of an error motion.
+/// One component of an error motion: a translation (`peak_mm`) or a
+/// rotation (`peak_urad`).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ComponentPeak {
-    /// ISO 230-1 name (`EXC`, `EYC`, …).
+    /// ISO 230-1 name (`EXC`, `EYC`, … `EAC`, `EBC`, `ECC`).
     pub name: String,
-    /// Its peak over one turn, mm.
-    pub peak_mm: f64,
+    /// A translation's peak over one turn or the travel, mm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peak_mm: Option<f64>,
+    /// A rotation's peak over one turn or the travel, µrad.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peak_urad: Option<f64>,
 }
 
-/// The components of an error motion worth naming: those whose peak is at
-/// least a quarter of the largest one's.
+impl ComponentPeak {
+    /// The peak with its unit, for text (`1.234 µm`, `5.6 µrad`).
+    pub fn peak_text(&self) -> String {
+        match (self.peak_mm, self.peak_urad) {
+            (Some(mm), _) => format!("{:.3} µm", mm * 1e3),
+            (None, Some(urad)) => format!("{urad:.2} µrad"),
+            (None, None) => "—".into(),
+        }
+    }
+}
+
+/// The components of an error motion worth naming: translations whose peak
+/// is at least a quarter of the largest translation's, rotations at least
+/// a quarter of the largest rotation's.
 pub fn shown_components(effect: &Effect) -> Vec<ComponentPeak> {
-    let Effect::ErrorMotion { axis, terms, span } = effect else {
+    let Effect::ErrorMotion {
+        axis,
+        terms,
+        span,
+        arc,
+    } = effect
+    else {
         return Vec::new();
     };
-    let comps = crate::geometric::effects::error_motion_components(terms, span.as_ref());
-    let top = comps.iter().map(|c| c.1).fold(0.0, f64::max);
+    let comps = crate::geometric::effects::error_motion_components(terms, span.as_ref(), *arc);
+    let top = |rot: bool| {
+        comps
+            .iter()
+            .filter(|c| (c.0 >= 3) == rot)
+            .map(|c| c.1)
+            .fold(0.0, f64::max)
+    };
+    let (top_mm, top_rad) = (top(false), top(true));
     comps
         .into_iter()
-        .filter(|c| c.1 >= 0.25 * top)
+        .filter(|&(c, peak)| peak >= 0.25 * if c < 3 { top_mm } else { top_rad })
         .map(|(c, peak)| ComponentPeak {
             name: crate::geometric::effects::component_name(c, axis),
-            peak_mm: peak,
+            peak_mm: (c < 3).then_some(peak),
+            peak_urad: (c >= 3).then_some(peak * 1e6),
         })
         .collect()
 }
@@ -578,12 +609,19 @@ impl Report {
     /// An `error_motion` is written as error-table columns of its axis
     /// (`formats.md` §4): its components tabulated every degree over a turn
     /// (added to the axis's columns where it has them) and fitted like any
-    /// table, so the model reads as if the axis had been measured.
+    /// table, so the model reads as if the axis had been measured. A motion
+    /// found over part of a turn is held beyond that arc at its nearer end.
+    /// Nothing is claimed of the part the recording did not turn through.
     pub fn improved_model(&self, base: Option<&ErrorModel>) -> ErrorModel {
         let mut m = base.cloned().unwrap_or_default();
         for f in &self.findings {
-            if let Effect::ErrorMotion { axis, terms, span } = &f.spec.effect
-                && add_motion_columns(&mut m, axis, terms, span.as_ref())
+            if let Effect::ErrorMotion {
+                axis,
+                terms,
+                span,
+                arc,
+            } = &f.spec.effect
+                && add_motion_columns(&mut m, axis, terms, span.as_ref(), *arc)
             {
                 continue;
             }
@@ -622,6 +660,7 @@ fn add_motion_columns(
     axis: &str,
     terms: &[crate::geometric::effects::MotionTerm],
     span: Option<&crate::geometric::effects::MotionSpan>,
+    arc: crate::geometric::effects::TurnArc,
 ) -> bool {
     use crate::geometric::table::{Component, ErrorColumn, ErrorTable};
     // A turn every degree, or the travel in 200 steps.
@@ -649,7 +688,8 @@ fn add_motion_columns(
                 .iter()
                 .map(|&d| {
                     let own =
-                        crate::geometric::effects::error_motion_at(terms, span, internal(d))[c];
+                        crate::geometric::effects::error_motion_at(terms, span, arc, internal(d))
+                            [c];
                     let old = existing.as_ref().map_or(0.0, |a| a.error_at(d).0[c]);
                     own + old
                 })
@@ -716,10 +756,12 @@ pub fn condition_text(effect: &Effect, rotary: bool) -> String {
             format!("varies with the {axis} angle: {axis} turns about a displaced line")
         }
         Effect::PivotLength { .. } => "along the tool axis, showing as the tool tilts".to_string(),
-        Effect::ErrorMotion { axis, terms, span } => {
+        Effect::ErrorMotion {
+            axis, terms, span, ..
+        } => {
             let names: Vec<String> = shown_components(effect)
                 .into_iter()
-                .map(|c| format!("{} peak {:.3} µm", c.name, c.peak_mm * 1e3))
+                .map(|c| format!("{} peak {}", c.name, c.peak_text()))
                 .collect();
             if let Some(sp) = span {
                 return format!(

@@ -267,10 +267,14 @@ impl<'a> TrueMachine<'a> {
             if active & (1 << k) == 0 {
                 continue;
             }
-            if let (crate::geometric::effects::Effect::ErrorMotion { terms, span, .. }, Some(j)) =
-                (&e.spec.effect, e.joint)
+            if let (
+                crate::geometric::effects::Effect::ErrorMotion {
+                    terms, span, arc, ..
+                },
+                Some(j),
+            ) = (&e.spec.effect, e.joint)
             {
-                motions.push((j, terms, span.as_ref()));
+                motions.push((j, terms, span.as_ref(), *arc));
             } else if e.modifies_chain() {
                 chain_mask |= 1 << k;
             } else if let Some(j) = e.joint {
@@ -330,15 +334,20 @@ struct WithMotions<'b> {
     motions: Vec<Motion<'b>>,
 }
 
-/// An injected error motion: joint, terms, spline basis.
-type Motion<'b> = (usize, &'b [MotionTerm], Option<&'b MotionSpan>);
+/// An injected error motion: joint, terms, spline basis, arc.
+type Motion<'b> = (
+    usize,
+    &'b [MotionTerm],
+    Option<&'b MotionSpan>,
+    crate::geometric::effects::TurnArc,
+);
 
 impl JointErrors for WithMotions<'_> {
     fn error(&self, joint: usize, q: f64) -> Option<crate::machine::chain::ErrorMotion> {
         let mut e = self.base.error(joint, q);
-        for (j, terms, span) in &self.motions {
+        for (j, terms, span, arc) in &self.motions {
             if *j == joint {
-                let add = crate::geometric::effects::error_motion_at(terms, *span, q);
+                let add = crate::geometric::effects::error_motion_at(terms, *span, *arc, q);
                 e = Some(e.unwrap_or_else(crate::machine::chain::ErrorMotion::zeros) + add);
             }
         }

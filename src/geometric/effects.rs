@@ -25,9 +25,9 @@ use std::fmt;
 
 use nalgebra::{Matrix4, Vector3};
 
-use super::error_motion::parse_term_key;
+use super::error_motion::motion_from_parameters;
 pub use super::error_motion::{
-    MotionSpan, MotionTerm, component_name, error_motion_at, error_motion_components,
+    MotionSpan, MotionTerm, TurnArc, component_name, error_motion_at, error_motion_components,
     error_motion_peaks,
 };
 use crate::error::{Error, Location, Result};
@@ -209,6 +209,9 @@ pub enum Effect {
         terms: Vec<MotionTerm>,
         /// For a linear axis: the B-spline basis over its travel.
         span: Option<MotionSpan>,
+        /// For a rotary axis found over part of a turn: that arc (rad),
+        /// beyond which the motion is held; `None` for a whole turn.
+        arc: TurnArc,
     },
     /// Δq = a · sin(2π f t + φ), t the recording's time.
     Vibration {
@@ -329,11 +332,20 @@ impl Effect {
                 p("frequency_hz", *frequency_hz),
                 p("phase_deg", *phase_deg),
             ],
-            Effect::ErrorMotion { axis, terms, span } => {
-                let (peak_mm, peak_rad) = error_motion_peaks(terms, span.as_ref());
+            Effect::ErrorMotion {
+                axis,
+                terms,
+                span,
+                arc,
+            } => {
+                let (peak_mm, peak_rad) = error_motion_peaks(terms, span.as_ref(), *arc);
                 let mut v = vec![p("peak_mm", peak_mm)];
                 if terms.iter().any(|t| t.0 >= 3) {
                     v.push(p("peak_urad", peak_rad * 1e6));
+                }
+                if let Some([lo, hi]) = arc {
+                    v.push(p("from_deg", lo.to_degrees()));
+                    v.push(p("to_deg", hi.to_degrees()));
                 }
                 if let Some(sp) = span {
                     v.push(p("from_mm", sp.lo));
@@ -460,55 +472,13 @@ impl Effect {
             },
             EffectKind::ErrorMotion => {
                 let axis = one_axis()?;
-                let mut terms: Vec<MotionTerm> = Vec::new();
-                let span = match (params.get("from_mm"), params.get("to_mm"), params.get("basis")) {
-                    (Some(&lo), Some(&hi), Some(&n)) => Some(
-                        MotionSpan::new(lo, hi, n as usize).ok_or(
-                            "error_motion: from_mm < to_mm and at least 4 basis functions are needed",
-                        )?,
-                    ),
-                    (None, None, None) => None,
-                    _ => return Err("error_motion: a spline needs from_mm, to_mm and basis".into()),
-                };
-                for (key, v) in params {
-                    if key.starts_with("peak")
-                        || matches!(key.as_str(), "value" | "from_mm" | "to_mm" | "basis")
-                    {
-                        continue;
-                    }
-                    let (c, k, is_sin, scale, spline) =
-                        parse_term_key(key, &axis).ok_or_else(|| {
-                            format!(
-                                "error_motion: `{key}` is not a term such as E{}{axis}_cos1_mm",
-                                "X"
-                            )
-                        })?;
-                    if !v.is_finite() {
-                        return Err(format!("error_motion: `{key}` must be a finite number"));
-                    }
-                    if spline != span.is_some() {
-                        return Err(format!(
-                            "error_motion: `{key}` does not fit the other terms (cosK/sinK terms for a rotary axis; bM terms with from_mm, to_mm and basis for a linear one)"
-                        ));
-                    }
-                    let slot = match terms.iter().position(|t| t.0 == c && t.1 == k) {
-                        Some(i) => i,
-                        None => {
-                            terms.push((c, k, 0.0, 0.0));
-                            terms.len() - 1
-                        }
-                    };
-                    if is_sin {
-                        terms[slot].3 = v * scale;
-                    } else {
-                        terms[slot].2 = v * scale;
-                    }
+                let (terms, span, arc) = motion_from_parameters(&axis, params)?;
+                Effect::ErrorMotion {
+                    axis,
+                    terms,
+                    span,
+                    arc,
                 }
-                if terms.is_empty() {
-                    return Err("error_motion needs at least one term such as EXC_cos1_mm".into());
-                }
-                terms.sort_by_key(|t| (t.0, t.1));
-                Effect::ErrorMotion { axis, terms, span }
             }
             EffectKind::Vibration => {
                 let frequency_hz = get(&["frequency_hz", "frequency", "f"])?;
@@ -880,7 +850,9 @@ impl StaticTerm {
                 let d = angle_urad * 1e-6 * q * self.along;
                 ErrorMotion::new(d.x, d.y, d.z, 0.0, 0.0, 0.0)
             }
-            Effect::ErrorMotion { terms, span, .. } => error_motion_at(terms, span.as_ref(), q),
+            Effect::ErrorMotion {
+                terms, span, arc, ..
+            } => error_motion_at(terms, span.as_ref(), *arc, q),
             Effect::RotaryCenterOffset { offset_mm, .. } => {
                 let d = Vector3::from_column_slice(offset_mm);
                 let r = crate::machine::chain::rotation3(&self.axis, q);
