@@ -21,6 +21,8 @@ use std::path::PathBuf;
 pub struct SimulateArgs {
     #[command(flatten)]
     pub machine: MachineChoice,
+    #[command(flatten)]
+    pub job: super::JobArgs,
     /// Known geometric errors of the machine (model JSON or error table CSV).
     #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
     pub errors: Option<PathBuf>,
@@ -179,9 +181,17 @@ fn check(ok: bool, option: &str, value: f64, expected: &str) -> Result<()> {
 pub fn simulate(a: SimulateArgs) -> Result<()> {
     super::check_outputs(
         &[("-o", a.output.as_deref())],
-        &[a.errors.as_deref(), Some(&a.program), a.machine.file()],
+        &[
+            a.errors.as_deref(),
+            Some(&a.program),
+            a.machine.file(),
+            a.job.inputs(),
+        ],
     )?;
-    let machine = a.machine.load()?;
+    let machine = a.job.machine(
+        &a.machine.load()?,
+        Some(&mut input::open(Some(&a.program))?),
+    )?;
     // Ranges a real machine and a real recorder can have: a value outside
     // them is a typo, and would give no samples or infinite values.
     check(

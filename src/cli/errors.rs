@@ -104,6 +104,8 @@ pub struct AnalyzeArgs {
     pub input: Option<PathBuf>,
     #[command(flatten)]
     pub machine: MachineChoice,
+    #[command(flatten)]
+    pub job: super::JobArgs,
     /// Error model: model JSON from `kinpost fit`, or an error table CSV
     /// (fitted on the fly). Required unless --nonlinear.
     #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
@@ -142,9 +144,17 @@ pub struct NonlinearBlock {
 pub fn analyze(a: AnalyzeArgs) -> Result<()> {
     super::check_outputs(
         &[("--svg", a.svg.as_deref())],
-        &[a.input.as_deref(), a.errors.as_deref(), a.machine.file()],
+        &[
+            a.input.as_deref(),
+            a.errors.as_deref(),
+            a.machine.file(),
+            a.job.inputs(),
+        ],
     )?;
-    let machine = a.machine.load()?;
+    let base = a.machine.load()?;
+    let mut inp = input::open(a.input.as_deref())?;
+    super::require_program(&mut inp)?;
+    let machine = a.job.machine(&base, Some(&mut inp))?;
     if a.errors.is_none() && !a.nonlinear {
         return Err(Error::Usage(
             "analyze needs --errors MODEL (or --nonlinear)".into(),
@@ -158,8 +168,6 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         Some(m) => Some(m.bind(&machine.chain)?),
         None => None,
     };
-    let mut inp = input::open(a.input.as_deref())?;
-    super::require_program(&mut inp)?;
     let head = input::peek(&mut *inp.reader)?;
     let poses = looks_like_poses(&head);
     let name = inp.name.clone();
@@ -358,6 +366,8 @@ pub struct CompensateArgs {
     pub input: Option<PathBuf>,
     #[command(flatten)]
     pub machine: MachineChoice,
+    #[command(flatten)]
+    pub job: super::JobArgs,
     /// Error model: model JSON from `kinpost fit`, or an error table CSV.
     #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
     pub errors: PathBuf,
@@ -455,9 +465,17 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             ("-o", a.output.as_deref()),
             ("--report", a.report.as_deref()),
         ],
-        &[a.input.as_deref(), Some(&a.errors), a.machine.file()],
+        &[
+            a.input.as_deref(),
+            Some(&a.errors),
+            a.machine.file(),
+            a.job.inputs(),
+        ],
     )?;
-    let machine: Machine = a.machine.load()?;
+    let base: Machine = a.machine.load()?;
+    let mut inp = input::open(a.input.as_deref())?;
+    super::require_program(&mut inp)?;
+    let machine = a.job.machine(&base, Some(&mut inp))?;
     let model = load_errors(&a.errors)?;
     let bound = model.bind(&machine.chain)?;
     let method = match a.method {
@@ -500,8 +518,6 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         .as_ref()
         .map(|r| r.display().to_string())
         .unwrap_or_default();
-    let mut inp = input::open(a.input.as_deref())?;
-    super::require_program(&mut inp)?;
     let kind = super::resolve_kind(a.input_kind, &mut *inp.reader)?;
     let opts = PostOptions {
         decimals: a.decimals,

@@ -20,6 +20,8 @@ pub struct LinkageArgs {
     pub input: Option<PathBuf>,
     #[command(flatten)]
     pub machine: MachineChoice,
+    #[command(flatten)]
+    pub job: super::JobArgs,
     /// Seed 003 exactly: insert this many points (a count, even; 2) into every block that
     /// moves both rotaries — tips at 1/3 and 2/3 of the line, the split rotary
     /// (A) half way with the other (B) held, then B, then A.
@@ -74,9 +76,12 @@ pub fn linkage(a: LinkageArgs) -> Result<()> {
             ("-o", a.output.as_deref()),
             ("--report", a.report.as_deref()),
         ],
-        &[a.input.as_deref(), a.machine.file()],
+        &[a.input.as_deref(), a.machine.file(), a.job.inputs()],
     )?;
-    let machine = a.machine.load()?;
+    let base = a.machine.load()?;
+    let mut inp = input::open(a.input.as_deref())?;
+    super::require_program(&mut inp)?;
+    let machine = a.job.machine(&base, Some(&mut inp))?;
     let mode = match (a.insert, a.tolerance) {
         (Some(n), _) => Mode::Insert(n),
         (None, Some(t)) if t.is_finite() && t > 0.0 => Mode::Tolerance(t),
@@ -108,8 +113,6 @@ pub fn linkage(a: LinkageArgs) -> Result<()> {
             Some(RotaryPair { split, held })
         }
     };
-    let mut inp = input::open(a.input.as_deref())?;
-    super::require_program(&mut inp)?;
     let poses = looks_like_poses(&input::peek(&mut *inp.reader)?);
     if poses && crate::cl::looks_like_cl(&input::peek(&mut *inp.reader)?) {
         return Err(Error::Usage(

@@ -125,6 +125,121 @@ impl MachineChoice {
     }
 }
 
+/// The job set-up: the tool and the work offset, applied to the machine's
+/// chain (`crate::machine::job`), the same for every command that takes it.
+#[derive(Debug, Args, Clone)]
+pub struct JobArgs {
+    /// Tool length in mm, from the gauge line (the end of the machine's
+    /// chain) to the tool tip along the tool axis: `translate [0, 0, -MM]`
+    /// is appended to the chain. The machine file must then end at the
+    /// gauge line (a tool length already in it would be added to).
+    #[arg(
+        long,
+        value_name = "MM",
+        conflicts_with = "tool_table",
+        allow_hyphen_values = true
+    )]
+    pub tool_length: Option<f64>,
+    /// LinuxCNC tool table (`T1 P1 Z+50.0 D6 ;comment`, Z the length in mm,
+    /// or in inch with --tool-table-units inch): the program's `G43`/`G43.4`/
+    /// `G43.5` H word, or the T word of its tool change (M6), selects the tool
+    /// whose length is appended to the chain as with --tool-length.
+    #[arg(long, value_name = "FILE")]
+    pub tool_table: Option<PathBuf>,
+    /// Length unit of the tool table's Z values.
+    #[arg(long, value_enum, default_value = "mm", requires = "tool_table")]
+    pub tool_table_units: UnitsArg,
+    /// Work offset X,Y,Z in mm: the position of the program's origin in the
+    /// machine file's workpiece frame (program point p is the point p + offset
+    /// of that frame; the frame's axes are kept).
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = parse_xyz_mm)]
+    pub work_offset: Option<Vector3Arg>,
+}
+
+/// Three lengths in mm from `X,Y,Z`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vector3Arg(pub [f64; 3]);
+
+fn parse_xyz_mm(s: &str) -> std::result::Result<Vector3Arg, String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("expected X,Y,Z in mm (three numbers), got `{s}`"));
+    }
+    let mut v = [0.0; 3];
+    for (k, p) in parts.iter().enumerate() {
+        v[k] = p
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("`{p}` is not a finite length in mm"))?;
+    }
+    Ok(Vector3Arg(v))
+}
+
+impl JobArgs {
+    /// The job set-up these options describe (reads the tool table).
+    pub fn setup(&self) -> Result<crate::machine::job::JobSetup> {
+        use crate::machine::job::{JobSetup, ToolChoice, ToolTable};
+        let tool = match (&self.tool_length, &self.tool_table) {
+            (Some(l), _) if !l.is_finite() => {
+                return Err(Error::Usage(format!(
+                    "--tool-length {l}: expected a finite length in mm"
+                )));
+            }
+            (Some(l), _) => ToolChoice::Length(*l),
+            (None, Some(path)) => {
+                let text = crate::text::read_text_file(path)?;
+                let scale = match self.tool_table_units {
+                    UnitsArg::Mm => 1.0,
+                    UnitsArg::Inch => 25.4,
+                };
+                ToolChoice::Table(ToolTable::parse(&text, &path.display().to_string(), scale)?)
+            }
+            (None, None) => ToolChoice::MachineFile,
+        };
+        Ok(JobSetup {
+            tool,
+            work_offset_mm: self
+                .work_offset
+                .map(|v| nalgebra::Vector3::from(v.0))
+                .unwrap_or_else(nalgebra::Vector3::zeros),
+        })
+    }
+
+    /// The input files these options name (for the output checks).
+    pub fn inputs(&self) -> Option<&std::path::Path> {
+        self.tool_table.as_deref()
+    }
+
+    /// The machine of the job: `base` with the set-up applied. With a tool
+    /// table the program `inp` selects the tool: it is read whole into
+    /// memory for that (G-code only) and handed back to be read again.
+    pub fn machine(&self, base: &Machine, inp: Option<&mut input::Input>) -> Result<Machine> {
+        let setup = self.setup()?;
+        if setup.is_identity() {
+            return Ok(base.clone());
+        }
+        match (&setup.tool, inp) {
+            (crate::machine::job::ToolChoice::Table(_), Some(inp)) => {
+                let mut bytes = Vec::new();
+                std::io::Read::read_to_end(&mut inp.reader, &mut bytes)
+                    .map_err(|e| Error::io(&inp.name, e))?;
+                if crate::cl::looks_like_cl(&bytes[..bytes.len().min(4096)]) {
+                    return Err(Error::Usage(
+                        "--tool-table selects the tool by G-code H and T words; for APT CL give --tool-length".into(),
+                    ));
+                }
+                let name = inp.name.clone();
+                let m = setup.machine_for_program(base, Some((&mut &bytes[..], &name)))?;
+                inp.reader = Box::new(std::io::Cursor::new(bytes));
+                Ok(m)
+            }
+            _ => setup.machine_for_program(base, None),
+        }
+    }
+}
+
 /// The tool-axis tolerance of a four-axis machine, for the commands that
 /// turn poses into axes besides `post` (which has the same option).
 #[derive(Debug, Args, Clone, Copy)]
@@ -236,10 +351,30 @@ pub struct PostArgs {
     /// warning).
     #[arg(long, value_enum)]
     pub units: Option<UnitsArg>,
+    #[command(flatten)]
+    pub job: JobArgs,
+    /// Feeds of converted blocks: `keep` (default) writes the programmed F
+    /// as it is; `inverse-time` writes G93 with F = 1/(block time in min) on
+    /// every pose block that moves a rotary axis, the time being the tool
+    /// tip's path length over the programmed feed (mm/min), and G94 with the
+    /// programmed F again after them.
+    #[arg(long, value_enum, default_value = "keep")]
+    pub feed: FeedArg,
+}
+
+/// How `post` writes feeds of converted blocks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
+pub enum FeedArg {
+    /// The programmed F word stays as it is.
+    #[default]
+    Keep,
+    /// Inverse time (G93) on the blocks that move a rotary axis, so that the
+    /// tool tip keeps the programmed feed.
+    InverseTime,
 }
 
 /// Units of `--units`.
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum UnitsArg {
     /// Millimetres.
     Mm,
@@ -345,12 +480,13 @@ fn post(a: PostArgs) -> Result<()> {
     }
     check_outputs(
         &[("-o", a.output.as_deref())],
-        &[a.input.as_deref(), a.machine.file()],
+        &[a.input.as_deref(), a.machine.file(), a.job.inputs()],
     )?;
-    let machine = a.machine.load()?;
-    let mut solver = IkSolver::new(&machine);
+    let base = a.machine.load()?;
     let mut inp = input::open(a.input.as_deref())?;
     require_program(&mut inp)?;
+    let machine = a.job.machine(&base, Some(&mut inp))?;
+    let mut solver = IkSolver::new(&machine);
     let kind = resolve_kind(a.input_kind, &mut *inp.reader)?;
     let opts = PostOptions {
         decimals: a.decimals,
