@@ -303,3 +303,80 @@ fn the_tool_table_gives_the_length_the_program_selects() {
     let (code, _, err) = run(&["post", "--work-offset", "1,2", p.to_str().unwrap()]);
     assert_eq!(code, 2, "{err}");
 }
+
+#[test]
+fn the_job_tool_replaces_the_tool_of_the_machine_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let ini = root().join("fixtures/linuxcnc/xyzac-trt.ini");
+    let file = |t: &str| {
+        let path = dir.path().join(format!("trt-{t}.json"));
+        ok(&[
+            "machine",
+            "--from-linuxcnc",
+            ini.to_str().unwrap(),
+            "--tool-length",
+            t,
+            "-o",
+            path.to_str().unwrap(),
+        ]);
+        path
+    };
+    let (m20, m50) = (file("20"), file("50"));
+    assert!(
+        std::fs::read_to_string(&m20)
+            .unwrap()
+            .contains("\"tool_length\": 20")
+    );
+    let p = program(dir.path(), FIVE_AXIS);
+    let post = |m: &Path, extra: &[&str]| {
+        let mut v = vec!["post", "-q", "--decimals", "9", "-m", m.to_str().unwrap()];
+        v.extend(extra);
+        v.push(p.to_str().unwrap());
+        ok(&v)
+    };
+    // The file made for a 20 mm tool, posted for a 50 mm one, is the file
+    // made for the 50 mm tool: the job's tool replaces the file's.
+    let replaced = post(&m20, &["--tool-length", "50"]);
+    assert_eq!(replaced, post(&m50, &[]));
+    assert_ne!(replaced, post(&m20, &[]));
+    assert_eq!(post(&m50, &["--tool-length", "20"]), post(&m20, &[]));
+}
+
+#[test]
+fn a_work_offset_with_a_base_fixed_error_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("model.json");
+    ok(&[
+        "fit",
+        root()
+            .join("fixtures/errors/zhao2022-xzbc.csv")
+            .to_str()
+            .unwrap(),
+        "-o",
+        model.to_str().unwrap(),
+    ]);
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    v["fixed"] = serde_json::json!([{"name": "base tilt", "after_joint": null,
+        "motion": [0.0, 0.0, 0.0, 1e-5, 0.0, 0.0]}]);
+    std::fs::write(&model, v.to_string()).unwrap();
+    let lens = root().join("fixtures/programs/zhao2022-lens.nc");
+    for cmd in ["analyze", "compensate"] {
+        let (code, _, err) = run(&[
+            cmd,
+            "-e",
+            model.to_str().unwrap(),
+            "--work-offset",
+            "0,0,3",
+            lens.to_str().unwrap(),
+        ]);
+        assert_eq!(code, 2, "{cmd}: {err}");
+        assert!(
+            err.contains("fixed error `base tilt` at the start of the chain"),
+            "{err}"
+        );
+        // Without the offset the same model is used.
+        let (code, _, err) = run(&[cmd, "-e", model.to_str().unwrap(), lens.to_str().unwrap()]);
+        assert_eq!(code, 0, "{cmd}: {err}");
+    }
+}

@@ -240,6 +240,9 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         Some(p) => Some(super::errors::load_errors(p)?),
         None => None,
     };
+    if let Some(m) = &model {
+        a.job.check_model(m)?;
+    }
     let effects = a
         .inject
         .iter()

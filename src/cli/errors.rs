@@ -164,6 +164,9 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         Some(p) => Some(load_errors(p)?),
         None => None,
     };
+    if let Some(m) = &model {
+        a.job.check_model(m)?;
+    }
     let bound = match &model {
         Some(m) => Some(m.bind(&machine.chain)?),
         None => None,
@@ -477,6 +480,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     super::require_program(&mut inp)?;
     let machine = a.job.machine(&base, Some(&mut inp))?;
     let model = load_errors(&a.errors)?;
+    a.job.check_model(&model)?;
     let bound = model.bind(&machine.chain)?;
     let method = match a.method {
         MethodArg::Exact => Method::Exact,

@@ -207,6 +207,21 @@ impl JobArgs {
         })
     }
 
+    /// Refuses a work offset with an error model that has a fixed error at
+    /// the start of the chain (`after_joint` null): that error belongs to
+    /// the machine file's workpiece frame, but the model would insert it in
+    /// front of the work offset, turning it about the program's origin.
+    pub fn check_model(&self, model: &crate::geometric::ErrorModel) -> Result<()> {
+        let offset = self.work_offset.is_some_and(|v| v.0 != [0.0; 3]);
+        match model.fixed.iter().find(|f| f.after_joint.is_none()) {
+            Some(f) if offset => Err(Error::Usage(format!(
+                "--work-offset with the error model's fixed error `{}` at the start of the chain (after_joint null) is not supported: the error would turn about the program's origin instead of the workpiece frame's; give the program in the workpiece frame (its origin set in the CAM system) without --work-offset",
+                f.name
+            ))),
+            _ => Ok(()),
+        }
+    }
+
     /// The input files these options name (for the output checks).
     pub fn inputs(&self) -> Option<&std::path::Path> {
         self.tool_table.as_deref()

@@ -1,15 +1,16 @@
 //! The job set-up: the tool and the work offset of one job, applied to the
 //! machine's chain without editing the machine file.
 //!
-//! A machine file's chain runs from the workpiece frame W to the end of the
-//! chain: for `--tool-length` and `--tool-table` that end is the gauge line
-//! (the spindle nose or tool flange point the tool length is measured
-//! from). The job set-up makes the chain the job needs, once, before any
-//! command converts or evaluates a pose:
+//! A machine file's chain runs from the workpiece frame W to the tool tip
+//! of the tool the file declares with `tool_length` (mm, default 0: the
+//! chain ends at the gauge line, the spindle nose or tool flange point the
+//! tool length is measured from). The job set-up makes the chain the job
+//! needs, once, before any command converts or evaluates a pose:
 //!
-//! - the tool: `translate [0, 0, −L]` appended, so the tool tip lies L mm
-//!   further along the tool axis (away from the spindle) than the chain's
-//!   end; it turns with a head like the rest of the chain's end;
+//! - the tool: the job's tool of length L replaces the file's tool of
+//!   length T: `translate [0, 0, T − L]` appended, so the tool tip lies L mm
+//!   along the tool axis (away from the spindle) beyond the gauge line; it
+//!   turns with a head like the rest of the chain's end;
 //! - the work offset `o` (the program's origin in W, mm): `translate −o`
 //!   put in front, so the chain gives the pose in the program's frame, whose
 //!   axes are W's: a program point `p` is the point `p + o` of W.
@@ -212,9 +213,14 @@ impl JobSetup {
             ));
         }
         if let Some(l) = tool_length_mm {
-            m.chain.translate(Vector3::new(0.0, 0.0, -l));
+            // The machine file's own tool (its chain ends `tool_length_mm`
+            // beyond the gauge line) is replaced by this one.
+            m.chain
+                .translate(Vector3::new(0.0, 0.0, base.tool_length_mm - l));
+            m.tool_length_mm = l;
             notes.push(format!(
-                "tool length {l} mm at the end of the chain (from the gauge line)"
+                "tool length {l} mm from the gauge line, replacing the machine file's {} mm",
+                base.tool_length_mm
             ));
         }
         if !notes.is_empty() {
