@@ -517,7 +517,13 @@ fn post(a: PostArgs) -> Result<()> {
             UnitsArg::Mm => crate::cl::ClUnits::Mm,
             UnitsArg::Inch => crate::cl::ClUnits::Inches,
         }),
+        inverse_time: a.feed == FeedArg::InverseTime,
     };
+    if opts.inverse_time && kind == InputKind::Cl {
+        return Err(Error::Usage(
+            "--feed inverse-time is for G-code pose programs: APT CL input is not converted to inverse time".into(),
+        ));
+    }
     let mut progress = RunProgress::new(inp.size, a.quiet, "post");
     let stats = write_atomically(a.output.as_deref(), |out| {
         if kind == InputKind::Cl {
