@@ -141,8 +141,10 @@ fn every_command_agrees_with_a_machine_file_edited_by_hand() {
         v.extend(["-m", edited]);
         ok(&v)
     };
+    let cls = root().join("fixtures/programs/zhao2022-xzbc.cls");
     for cmd in [
         vec!["post", "-q", lens],
+        vec!["post", "-q", cls.to_str().unwrap()],
         vec!["compensate", "-q", "-e", errors, lens],
         vec!["analyze", "--json", "-e", errors, lens],
         vec!["analyze", "--nonlinear", "--json", lens],
@@ -340,6 +342,12 @@ fn the_job_tool_replaces_the_tool_of_the_machine_file() {
     assert_eq!(replaced, post(&m50, &[]));
     assert_ne!(replaced, post(&m20, &[]));
     assert_eq!(post(&m50, &["--tool-length", "20"]), post(&m20, &[]));
+    // `machine --json` keeps the file's tool: it loads back the same.
+    let json = ok(&["machine", "--json", "-m", m20.to_str().unwrap()]);
+    assert!(json.contains("\"tool_length\": 20"), "{json}");
+    let back = dir.path().join("back.json");
+    std::fs::write(&back, json).unwrap();
+    assert_eq!(post(&back, &["--tool-length", "50"]), replaced);
 }
 
 #[test]
@@ -379,4 +387,50 @@ fn a_work_offset_with_a_base_fixed_error_is_refused() {
         let (code, _, err) = run(&[cmd, "-e", model.to_str().unwrap(), lens.to_str().unwrap()]);
         assert_eq!(code, 0, "{cmd}: {err}");
     }
+}
+
+#[test]
+fn diagnose_takes_the_set_up_of_the_recorded_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("rec.csv");
+    let errors = root().join("fixtures/errors/zhao2022-xzbc.csv");
+    let errors = errors.to_str().unwrap();
+    let program = root().join("fixtures/programs/zhao2022-xzbc-exercise.nc");
+    let job = ["--tool-length", "30", "--work-offset", "0,0,-3"];
+    let mut sim = vec!["simulate", "-e", errors, "-p", program.to_str().unwrap()];
+    sim.extend([
+        "--noise",
+        "0.0005",
+        "--seed",
+        "5",
+        "-o",
+        rec.to_str().unwrap(),
+    ]);
+    sim.extend(job);
+    ok(&sim);
+    let diag = |extra: &[&str]| {
+        let mut v = vec![
+            "diagnose",
+            "-e",
+            errors,
+            "-r",
+            rec.to_str().unwrap(),
+            "--json",
+        ];
+        v.extend(extra);
+        run(&v)
+    };
+    // With the job's set-up the recording fits the model machine...
+    let (code, out, err) = diag(&job);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    assert!(v.is_object());
+    // ...without it the tip is 30 mm away along the tool axis: refused.
+    let (code, _, err) = diag(&[]);
+    assert_eq!(code, 1, "{err}");
+    // A tool table needs the program that selects the tool.
+    let table = dir.path().join("t.tbl");
+    std::fs::write(&table, "T1 Z30\n").unwrap();
+    let (code, _, err) = diag(&["--tool-table", table.to_str().unwrap()]);
+    assert_eq!(code, 2, "{err}");
 }

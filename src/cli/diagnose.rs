@@ -316,6 +316,8 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
 pub struct DiagnoseArgs {
     #[command(flatten)]
     pub machine: MachineChoice,
+    #[command(flatten)]
+    pub job: super::JobArgs,
     /// Known geometric errors of the machine (model JSON or error table CSV).
     #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
     pub errors: Option<PathBuf>,
@@ -351,13 +353,23 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
             ("--svg", a.svg.as_deref()),
             ("--write-model", a.write_model.as_deref()),
         ],
-        &[a.errors.as_deref(), Some(&a.recording), a.machine.file()],
+        &[
+            a.errors.as_deref(),
+            Some(&a.recording),
+            a.machine.file(),
+            a.job.inputs(),
+        ],
     )?;
-    let machine = a.machine.load()?;
+    // The recording's tool tip is that of the job: the same set-up as the
+    // program it recorded (a tool table needs that program: refused here).
+    let machine = a.job.machine(&a.machine.load()?, None)?;
     let model = match &a.errors {
         Some(p) => Some(super::errors::load_errors(p)?),
         None => None,
     };
+    if let Some(m) = &model {
+        a.job.check_model(m)?;
+    }
     if a.noise_floor
         .is_some_and(|nf| !(nf.is_finite() && nf > 0.0))
     {
