@@ -154,9 +154,17 @@ sys.stdout.write(text)
 fn freecad_wrapper_refuses_what_it_does_not_convert() {
     let Some(out) = run_python(
         r#"
-for cmd in [C("G81", {"X": 1.0, "Y": 2.0, "Z": -3.0, "R": 2.0}), C("G91"), C("G28")]:
+for cmd in [C("G81", {"X": 1.0, "Y": 2.0, "Z": -3.0, "R": 2.0}), C("G91"), C("G28"),
+            C("G2", {"X": 2.0, "Y": 0.0, "R": 1.0})]:
     try:
         k.pose_program([C("G0", {"X": 0.0, "Y": 0.0, "Z": 5.0}), cmd], k.parse_args("--machine m"))
+        print("NOT REFUSED", cmd.Name)
+    except ValueError as e:
+        print("REFUSED", e)
+for plane in ["G18", "G19"]:
+    try:
+        k.pose_program([C("G0", {"X": 0.0, "Y": 0.0, "Z": 5.0}), C(plane),
+                        C("G2", {"X": 2.0, "Z": 5.0, "I": 1.0, "K": 0.0})], k.parse_args("--machine m"))
         print("NOT REFUSED", cmd.Name)
     except ValueError as e:
         print("REFUSED", e)
@@ -179,6 +187,9 @@ except ValueError as e:
         "{out}"
     );
     assert!(out.contains("REFUSED kinpost_post: G28"), "{out}");
+    assert!(out.contains("REFUSED kinpost_post: G2 with R"), "{out}");
+    assert!(out.contains("REFUSED kinpost_post: G2 in G18"), "{out}");
+    assert!(out.contains("REFUSED kinpost_post: G2 in G19"), "{out}");
     assert!(
         out.contains("REFUSED kinpost_post: the job never gives XY"),
         "{out}"

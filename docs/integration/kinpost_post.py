@@ -175,7 +175,7 @@ def pose_program(commands, opts, header="(FreeCAD job)"):
     # The tool tip as the moves so far set it, per coordinate (None: not
     # given yet).
     pos = [None, None, None]
-    state = {"motion": None, "axis": opts["tool_axis"]}
+    state = {"motion": None, "axis": opts["tool_axis"], "plane": "G17"}
     feed = None
     # ahead[i][k]: the first value of coordinate k that a move from
     # command i on gives (None if none does).
@@ -229,6 +229,10 @@ def pose_program(commands, opts, header="(FreeCAD job)"):
                            % (names, "it" if len(names) == 1 else "them"))
             emit(g, list(pos), state["axis"], f)
         elif name in ARCS:
+            if state["plane"] != "G17" or "R" in p:
+                raise ValueError("kinpost_post: %s %s: only arcs in the XY plane (G17) "
+                                 "with I J centres are linearised here"
+                                 % (c.Name, "with R" if "R" in p else "in " + state["plane"]))
             target = [p.get(k, pos[i]) for i, k in enumerate("XYZ")]
             if None in pos or None in target:
                 raise ValueError("kinpost_post: %s before the tool tip is known: "
@@ -242,6 +246,8 @@ def pose_program(commands, opts, header="(FreeCAD job)"):
             raise ValueError("kinpost_post: %s is %s, which this post does not "
                              "convert into tool poses" % (c.Name, REFUSED[name]))
         elif name in PASS_THROUGH:
+            if name in ("G17", "G18", "G19"):
+                state["plane"] = name
             words = [name]
             for k in sorted(p, key=word_order):
                 if k != "F":  # the feed goes on the next G1
