@@ -89,6 +89,10 @@ pub struct PostOptions {
     /// G-code `post`: inverse-time feeds on pose blocks that turn a rotary
     /// axis ([`crate::program::inverse_time`]).
     pub inverse_time: bool,
+    /// G-code `post` of a job whose tool changes: the machine of each tool
+    /// with the 1-based line it applies from (empty: the converter's one
+    /// machine throughout). The solver must switch at the same lines.
+    pub tool_machines: Vec<(usize, Machine)>,
 }
 
 impl Default for PostOptions {
@@ -102,6 +106,7 @@ impl Default for PostOptions {
             arc_tolerance_mm: crate::cl::DEFAULT_ARC_TOLERANCE_MM,
             cl_units: None,
             inverse_time: false,
+            tool_machines: Vec::new(),
         }
     }
 }
@@ -564,7 +569,7 @@ impl<'a> GcodeConverter<'a> {
         if matches!(meaning.motion, Motion::Linear | Motion::Rapid)
             && let Some(prev) = &self.previous
             && let Some(w) = crate::machine::midblock::branch_change_warning(
-                self.machine,
+                self.machine_at(line.number),
                 prev,
                 &solved.q,
                 &pending.pose,
@@ -582,6 +587,15 @@ impl<'a> GcodeConverter<'a> {
 }
 
 impl GcodeConverter<'_> {
+    /// The machine in force at `line` (the tool of that part of the job).
+    fn machine_at(&self, line: usize) -> &Machine {
+        let tools = &self.opts.tool_machines;
+        match tools.iter().rposition(|(from, _)| *from <= line) {
+            Some(k) => &tools[k].1,
+            None => tools.first().map_or(self.machine, |t| &t.1),
+        }
+    }
+
     /// A block in machine coordinates (pose mode off): follow its axis words
     /// and tell the modal state where the tool tip now is, so that a pose
     /// block after `G43.4`/`TRAORI` that gives only some coordinates
@@ -613,7 +627,10 @@ impl GcodeConverter<'_> {
         }
         if moved {
             let q = self.machine.to_internal(&self.machine_ext);
-            let pose = self.machine.chain.pose(&q, &crate::machine::NoErrors);
+            let pose = self
+                .machine_at(line.number)
+                .chain
+                .pose(&q, &crate::machine::NoErrors);
             self.modal.seed_from_machine(pose.tip, pose.axis);
             self.previous = Some(q);
         }

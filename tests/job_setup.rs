@@ -281,8 +281,21 @@ fn the_tool_table_gives_the_length_the_program_selects() {
         err.contains("job.ngc:2:1: tool T4 is not in the tool table"),
         "{err}"
     );
-    let (code, _, err) =
-        by_table(&FIVE_AXIS.replace("G49\n", "T2 M6\nG43.4 H2\nG1 X1 Y1 Z40 I0 J0 K1\nG49\n"));
+    // A command other than post takes one tool length per run: a change to
+    // a tool of another length is refused there.
+    let two = program(
+        dir.path(),
+        &FIVE_AXIS.replace("G49\n", "T2 M6\nG43.4 H2\nG1 X1 Y1 Z40 I0 J0 K1\nG49\n"),
+    );
+    let (code, _, err) = run(&[
+        "analyze",
+        "--nonlinear",
+        "-m",
+        "xyzac-head",
+        "--tool-table",
+        t,
+        two.to_str().unwrap(),
+    ]);
     assert_eq!(code, 1);
     assert!(
         err.contains("job.ngc:8:4: this selects tool 2 of length 87.5 mm"),
@@ -433,4 +446,62 @@ fn diagnose_takes_the_set_up_of_the_recorded_job() {
     std::fs::write(&table, "T1 Z30\n").unwrap();
     let (code, _, err) = diag(&["--tool-table", table.to_str().unwrap()]);
     assert_eq!(code, 2, "{err}");
+}
+
+#[test]
+fn post_switches_to_the_length_of_each_tool_change() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("tool.tbl");
+    std::fs::write(&table, "T1 P1 Z50 ;ball\nT2 P2 Z87.5 ;flat\nT3 P3 Z120\n").unwrap();
+    // Three parts: T1 (H1), T2 by M6 and G43.4 without H, T3 by H3 after
+    // T3 M6; machine-coordinate moves between them.
+    let text = "G21 G90 G94\nT1 M6\nG43.4 H1\nG1 X10 Y20 Z30 I0 J0 K1 F500\n\
+X15 Y22 Z28 I0 J0.6 K0.8\nG49\nG0 Z300\nT2 M6\nG43.4\nG1 X18 Y25 Z26 I0.28 J0.48 K0.83066239\n\
+X5 Y-10 Z20 I-0.3 J0 K0.9539392\nG49\nT3 M6\nG43.4 H3 X-4 Y6 Z12 I0 J0 K1\nX-8 Y6 Z10 I0.6 J0 K0.8\nG49\nM30\n";
+    let p = program(dir.path(), text);
+    let out = ok(&[
+        "post",
+        "-m",
+        "xyzac-head",
+        "--tool-table",
+        table.to_str().unwrap(),
+        "--work-offset",
+        "3,4,5",
+        "--decimals",
+        "9",
+        "-q",
+        p.to_str().unwrap(),
+    ]);
+    let machine = kinpost::machine::Machine::embedded("xyzac-head").unwrap();
+    let order: Vec<&str> = machine.axes.iter().map(|a| a.name.as_str()).collect();
+    // (tip, axis, tool length) of every pose, as programmed.
+    let poses: [([f64; 3], [f64; 3], f64); 6] = [
+        ([10.0, 20.0, 30.0], [0.0, 0.0, 1.0], 50.0),
+        ([15.0, 22.0, 28.0], [0.0, 0.6, 0.8], 50.0),
+        ([18.0, 25.0, 26.0], [0.28, 0.48, 0.83066239], 87.5),
+        ([5.0, -10.0, 20.0], [-0.3, 0.0, 0.9539392], 87.5),
+        ([-4.0, 6.0, 12.0], [0.0, 0.0, 1.0], 120.0),
+        ([-8.0, 6.0, 10.0], [0.6, 0.0, 0.8], 120.0),
+    ];
+    let blocks: Vec<Vec<f64>> = out
+        .lines()
+        .filter(|l| !l.starts_with("G0"))
+        .filter_map(|b| axis_words(b, &order))
+        .collect();
+    assert_eq!(blocks.len(), poses.len(), "{out}");
+    let o = [3.0, 4.0, 5.0];
+    for (values, (tip, axis, l)) in blocks.iter().zip(poses) {
+        let q = machine.to_internal(values);
+        let end = machine.chain.pose(&q, &kinpost::machine::NoErrors);
+        let n = (axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]).sqrt();
+        for k in 0..3 {
+            let got = end.tip[k] - l * end.axis[k] - o[k];
+            assert!(
+                (got - tip[k]).abs() < 1e-6,
+                "tool {l}: {got} != {}\n{out}",
+                tip[k]
+            );
+            assert!((end.axis[k] - axis[k] / n).abs() < 1e-6, "{out}");
+        }
+    }
 }

@@ -156,6 +156,42 @@ pub struct JobArgs {
     pub work_offset: Option<Vector3Arg>,
 }
 
+/// The whole program `inp`, for a tool table to select the tool from
+/// (G-code only).
+fn read_program(inp: &mut input::Input) -> Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut inp.reader, &mut bytes).map_err(|e| Error::io(&inp.name, e))?;
+    if crate::cl::looks_like_cl(&bytes[..bytes.len().min(4096)]) {
+        return Err(Error::Usage(
+            "--tool-table selects the tool by G-code H and T words; for APT CL give --tool-length"
+                .into(),
+        ));
+    }
+    Ok(bytes)
+}
+
+/// One inverse-kinematics solver per tool of a job whose tool changes
+/// (`post --tool-table`), each from the line its tool applies from.
+struct ToolSolvers {
+    solvers: Vec<(usize, IkSolver)>,
+}
+
+impl crate::post::PoseSolver for ToolSolvers {
+    fn solve(
+        &mut self,
+        pose: &crate::machine::Pose,
+        previous: Option<&[f64]>,
+        line: usize,
+    ) -> std::result::Result<crate::post::SolvedPose, String> {
+        let k = self
+            .solvers
+            .iter()
+            .rposition(|(from, _)| *from <= line)
+            .unwrap_or(0);
+        crate::post::PoseSolver::solve(&mut self.solvers[k].1, pose, previous, line)
+    }
+}
+
 /// Three lengths in mm from `X,Y,Z`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Vector3Arg(pub [f64; 3]);
@@ -227,6 +263,33 @@ impl JobArgs {
         self.tool_table.as_deref()
     }
 
+    /// The machines of a job whose tool may change (`post`): one per tool
+    /// length the program changes to, each with the 1-based line from which
+    /// it applies (the first from line 1, also for poses before the first
+    /// selection). Without a tool table, the one machine of
+    /// [`Self::machine`].
+    pub fn machines_by_line(
+        &self,
+        base: &Machine,
+        inp: &mut input::Input,
+    ) -> Result<Vec<(usize, Machine)>> {
+        let setup = self.setup()?;
+        if !matches!(setup.tool, crate::machine::job::ToolChoice::Table(_)) {
+            return Ok(vec![(1, self.machine(base, Some(inp))?)]);
+        }
+        let bytes = read_program(inp)?;
+        let changes = setup.tool_changes(&mut &bytes[..], &inp.name)?;
+        inp.reader = Box::new(std::io::Cursor::new(bytes));
+        Ok(changes
+            .iter()
+            .enumerate()
+            .map(|(k, c)| {
+                let from = if k == 0 { 1 } else { c.at.line };
+                (from, setup.machine(base, Some(c.length_mm)))
+            })
+            .collect())
+    }
+
     /// The machine of the job: `base` with the set-up applied. With a tool
     /// table the program `inp` selects the tool: it is read whole into
     /// memory for that (G-code only) and handed back to be read again.
@@ -237,14 +300,7 @@ impl JobArgs {
         }
         match (&setup.tool, inp) {
             (crate::machine::job::ToolChoice::Table(_), Some(inp)) => {
-                let mut bytes = Vec::new();
-                std::io::Read::read_to_end(&mut inp.reader, &mut bytes)
-                    .map_err(|e| Error::io(&inp.name, e))?;
-                if crate::cl::looks_like_cl(&bytes[..bytes.len().min(4096)]) {
-                    return Err(Error::Usage(
-                        "--tool-table selects the tool by G-code H and T words; for APT CL give --tool-length".into(),
-                    ));
-                }
+                let bytes = read_program(inp)?;
                 let name = inp.name.clone();
                 let m = setup.machine_for_program(base, Some((&mut &bytes[..], &name)))?;
                 inp.reader = Box::new(std::io::Cursor::new(bytes));
@@ -500,8 +556,17 @@ fn post(a: PostArgs) -> Result<()> {
     let base = a.machine.load()?;
     let mut inp = input::open(a.input.as_deref())?;
     require_program(&mut inp)?;
-    let machine = a.job.machine(&base, Some(&mut inp))?;
-    let mut solver = IkSolver::new(&machine);
+    let mut machines = a.job.machines_by_line(&base, &mut inp)?;
+    let machine = machines[0].1.clone();
+    let mut solver = ToolSolvers {
+        solvers: machines
+            .iter()
+            .map(|(from, m)| (*from, IkSolver::new(m)))
+            .collect(),
+    };
+    if machines.len() == 1 {
+        machines.clear();
+    }
     let kind = resolve_kind(a.input_kind, &mut *inp.reader)?;
     let opts = PostOptions {
         decimals: a.decimals,
@@ -518,6 +583,7 @@ fn post(a: PostArgs) -> Result<()> {
             UnitsArg::Inch => crate::cl::ClUnits::Inches,
         }),
         inverse_time: a.feed == FeedArg::InverseTime,
+        tool_machines: machines,
     };
     if opts.inverse_time && kind == InputKind::Cl {
         return Err(Error::Usage(

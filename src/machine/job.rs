@@ -187,6 +187,8 @@ pub struct Selection {
     pub length_mm: f64,
     /// Where the program selects it.
     pub at: Location,
+    /// The line that selects it, as written (for messages).
+    pub text: String,
 }
 
 impl JobSetup {
@@ -254,21 +256,44 @@ impl JobSetup {
         Ok(self.machine(base, length))
     }
 
-    /// The tool a G-code program selects from the tool table: the `H` word
-    /// of `G43`, `G43.4` or `G43.5` (or, in a block of one of them without
-    /// `H`, the tool loaded by the last `M6`), or the tool a tool change
-    /// (`M6`, with the `T` word of its block or the last `T` before it)
-    /// loads. An `H` or `T` the table does not have is refused at its
-    /// place. One job uses one tool length: a program that selects tools
-    /// of different lengths is refused at the second selection (convert it
-    /// per tool). A program that selects none is refused.
+    /// The tool a G-code program selects from the tool table, for a command
+    /// that takes one tool length per run: the first of
+    /// [`Self::tool_changes`]; a program that changes to a tool of another
+    /// length is refused at that change (convert it per tool).
     pub fn selected_tool(&self, program: &mut dyn BufRead, file: &str) -> Result<Selection> {
+        let changes = self.tool_changes(program, file)?;
+        if let Some(second) = changes.get(1) {
+            let first = &changes[0];
+            return Err(Error::input_with(
+                second.at.clone(),
+                format!(
+                    "this selects tool {} of length {} mm, but the program selected tool {} of length {} mm at {}: this command converts a job with one tool length (`post` switches tools); split the program at the tool change and convert each part with its tool",
+                    second.tool, second.length_mm, first.tool, first.length_mm, first.at
+                ),
+                &second.text,
+            ));
+        }
+        Ok(changes
+            .into_iter()
+            .next()
+            .expect("tool_changes is never empty"))
+    }
+
+    /// The tool selections of a G-code program that change the tool length,
+    /// in program order (the first selection always; a later one only when
+    /// its length differs from the one in force): the `H` word of `G43`,
+    /// `G43.4` or `G43.5` (or, in a block of one of them without `H`, the
+    /// tool loaded by the last `M6`), or the tool a tool change (`M6`, with
+    /// the `T` word of its block or the last `T` before it) loads. An `H` or
+    /// `T` the table does not have, an `M6` before any `T`, and a program
+    /// that selects no tool are refused with their place.
+    pub fn tool_changes(&self, program: &mut dyn BufRead, file: &str) -> Result<Vec<Selection>> {
         let ToolChoice::Table(table) = &self.tool else {
             return Err(Error::Usage("no tool table given".into()));
         };
         let mut prepared: Option<u32> = None;
         let mut loaded: Option<u32> = None;
-        let mut chosen: Option<Selection> = None;
+        let mut changes: Vec<Selection> = Vec::new();
         let mut lines = LineReader::new(program);
         while let Some(line) = lines.next_line() {
             let line = line.map_err(|e| Error::io(file, e))?;
@@ -353,36 +378,25 @@ impl JobSetup {
                 continue;
             };
             let length_mm = table.tools[&n].length_mm;
-            match &chosen {
-                None => {
-                    chosen = Some(Selection {
-                        tool: n,
-                        length_mm,
-                        at,
-                    })
-                }
-                Some(first) if first.length_mm != length_mm => {
-                    return Err(Error::input_with(
-                        at,
-                        format!(
-                            "this selects tool {n} of length {length_mm} mm, but the program selected tool {} of length {} mm at {}: kinpost converts a job with one tool length; split the program at the tool change and convert each part with its tool",
-                            first.tool, first.length_mm, first.at
-                        ),
-                        &text,
-                    ));
-                }
-                Some(_) => {}
+            if changes.last().is_none_or(|c| c.length_mm != length_mm) {
+                changes.push(Selection {
+                    tool: n,
+                    length_mm,
+                    at,
+                    text,
+                });
             }
         }
-        chosen.ok_or_else(|| {
-            Error::input(
+        if changes.is_empty() {
+            return Err(Error::input(
                 Location::new(file, 0, 0),
                 format!(
                     "the program selects no tool of the tool table {}: expected G43/G43.4/G43.5 H<number> or T<number> M6",
                     table.file
                 ),
-            )
-        })
+            ));
+        }
+        Ok(changes)
     }
 }
 
