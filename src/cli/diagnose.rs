@@ -188,10 +188,7 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
             a.job.inputs(),
         ],
     )?;
-    let machine = a.job.machine(
-        &a.machine.load()?,
-        Some(&mut input::open(Some(&a.program))?),
-    )?;
+    let base = a.machine.load()?;
     // Ranges a real machine and a real recorder can have: a value outside
     // them is a typo, and would give no samples or infinite values.
     check(
@@ -243,6 +240,12 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
     if let Some(m) = &model {
         a.job.check_model(m)?;
     }
+    // A tool table reads the program for the tool it selects.
+    let mut program = match &a.job.tool_table {
+        Some(_) => Some(input::open(Some(&a.program))?),
+        None => None,
+    };
+    let machine = a.job.machine(&base, program.as_mut())?;
     let effects = a
         .inject
         .iter()

@@ -152,9 +152,6 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         ],
     )?;
     let base = a.machine.load()?;
-    let mut inp = input::open(a.input.as_deref())?;
-    super::require_program(&mut inp)?;
-    let machine = a.job.machine(&base, Some(&mut inp))?;
     if a.errors.is_none() && !a.nonlinear {
         return Err(Error::Usage(
             "analyze needs --errors MODEL (or --nonlinear)".into(),
@@ -167,6 +164,9 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
     if let Some(m) = &model {
         a.job.check_model(m)?;
     }
+    let mut inp = input::open(a.input.as_deref())?;
+    super::require_program(&mut inp)?;
+    let machine = a.job.machine(&base, Some(&mut inp))?;
     let bound = match &model {
         Some(m) => Some(m.bind(&machine.chain)?),
         None => None,
@@ -476,11 +476,12 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         ],
     )?;
     let base: Machine = a.machine.load()?;
+    let model = load_errors(&a.errors)?;
+    a.job.check_model(&model)?;
+    let axis_tolerance_rad = a.axis_tolerance.rad()?;
     let mut inp = input::open(a.input.as_deref())?;
     super::require_program(&mut inp)?;
     let machine = a.job.machine(&base, Some(&mut inp))?;
-    let model = load_errors(&a.errors)?;
-    a.job.check_model(&model)?;
     let bound = model.bind(&machine.chain)?;
     let method = match a.method {
         MethodArg::Exact => Method::Exact,
@@ -505,7 +506,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             OnFailArg::Best => OnFail::Best,
         },
         accept_tip_mm: a.tip_tolerance_mm,
-        axis_tolerance_rad: a.axis_tolerance.rad()?,
+        axis_tolerance_rad,
         records: Vec::new(),
         warnings: dynamic_warnings,
         singular_blocks: 0,
