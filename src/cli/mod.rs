@@ -129,10 +129,10 @@ impl MachineChoice {
 /// chain (`crate::machine::job`), the same for every command that takes it.
 #[derive(Debug, Args, Clone)]
 pub struct JobArgs {
-    /// Tool length in mm, from the gauge line (the end of the machine's
-    /// chain) to the tool tip along the tool axis: `translate [0, 0, -MM]`
-    /// is appended to the chain. The machine file must then end at the
-    /// gauge line (a tool length already in it would be added to).
+    /// Tool length in mm, from the gauge line to the tool tip along the tool
+    /// axis. It replaces the machine file's tool (its `tool_length`, default
+    /// 0: the chain ends at the gauge line): `translate [0, 0, tool_length -
+    /// MM]` is appended to the chain.
     #[arg(
         long,
         value_name = "MM",
@@ -143,7 +143,8 @@ pub struct JobArgs {
     /// LinuxCNC tool table (`T1 P1 Z+50.0 D6 ;comment`, Z the length in mm,
     /// or in inch with --tool-table-units inch): the program's `G43`/`G43.4`/
     /// `G43.5` H word, or the T word of its tool change (M6), selects the tool
-    /// whose length is appended to the chain as with --tool-length.
+    /// whose length is used as with --tool-length (`post` switches at each
+    /// change; the other commands refuse a change to another length).
     #[arg(long, value_name = "FILE")]
     pub tool_table: Option<PathBuf>,
     /// Length unit of the tool table's Z values.
