@@ -202,3 +202,34 @@ fn inverse_time_is_refused_for_apt_cl() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("inverse-time"));
 }
+
+#[test]
+fn a_block_that_sets_its_own_feed_mode_keeps_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("p.ngc");
+    std::fs::write(
+        &path,
+        "G21 G90 G94\nG43.4 H1\nG1 X0 Y0 Z10 I0 J0 K1 F500\nX10 Y0 Z10 I0 J0.6 K0.8\n\
+G93 X20 Y0 Z10 I0 J0 K1 F12\nG94 X30 Y0 Z10 I0 J0.6 K0.8 F400\nG49\nM30\n",
+    )
+    .unwrap();
+    let out = Command::new(BIN)
+        .args(["post", "-m", "xyzac-trt", "-q", "--feed", "inverse-time"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let out = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<&str> = out.lines().collect();
+    // Converted: 10 mm at 500 mm/min.
+    assert!(lines[3].ends_with(" G93 F50"), "{out}");
+    // The program's own G93 block keeps its words (G93 F12).
+    assert!(
+        lines[4].starts_with("G93 X") && lines[4].ends_with(" F12"),
+        "{out}"
+    );
+    assert_eq!(lines[4].matches("G9").count(), 1, "{out}");
+    // Back in the program's G94: converted again (10 mm at 400 mm/min).
+    assert!(lines[5].ends_with(" G93 F40"), "{out}");
+    assert!(!lines[5].contains("G94"), "{out}");
+}

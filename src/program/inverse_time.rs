@@ -87,6 +87,11 @@ impl InverseTime {
                 self.converted += 1;
                 PoseFeed::Append(format!("{g} F{}", feed_text(f / l)))
             }
+            // The block sets G93 or G95 itself: its own words stand.
+            _ if self.active && meaning.feed_mode != FeedMode::PerMinute => {
+                self.active = false;
+                PoseFeed::Keep
+            }
             _ if self.active => {
                 self.active = false;
                 PoseFeed::Append(self.restore_words(meaning))
