@@ -195,3 +195,18 @@ except ValueError as e:
         "{out}"
     );
 }
+
+#[test]
+fn freecad_wrapper_hands_the_job_set_up_to_kinpost() {
+    let Some(out) = run_python(&format!(
+        r#"
+args = "--machine xyz-3axis --kinpost '" + {bin:?} + "' --decimals 3 --work-offset 100,-50,2"
+sys.stdout.write(k.export(job, "-", args))
+"#,
+        bin = BIN,
+    )) else {
+        return;
+    };
+    // The first cutting move X10 Y10 Z-1 of the job, moved by the offset.
+    assert!(out.contains("X110.000 Y-40.000 Z1.000"), "{out}");
+}

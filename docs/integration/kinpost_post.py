@@ -37,6 +37,9 @@
 #     --tool-axis I,J,K     tool axis of moves that carry none (default 0,0,1:
 #                           FreeCAD's 3-axis operations cut along +Z)
 #     --poses-only          write the pose program and do not run kinpost
+#     --tool-length MM, --work-offset X,Y,Z, --tool-table FILE, --feed MODE
+#                           passed to kinpost post (docs/cli.md: the job
+#                           set-up, feeds)
 #
 # Tool axes: a straight move whose parameters carry I, J and K (as 4/5-axis
 # add-ons write them) uses that vector; any other move keeps the current
@@ -61,7 +64,12 @@ TOOLTIP_ARGS = """
 --arc-tolerance MM    chord error of linearised arcs, mm (default 0.001)
 --tool-axis I,J,K     tool axis of moves without one (default 0,0,1)
 --poses-only          write the pose program, do not run kinpost
+--tool-length MM, --work-offset X,Y,Z, --tool-table FILE, --feed MODE
+                      passed to kinpost post
 """
+
+# Options handed to `kinpost post` as they are.
+KINPOST_OPTIONS = ("--tool-length", "--work-offset", "--tool-table", "--feed")
 
 MOTION = {"G0", "G00", "G1", "G01"}
 ARCS = {"G2", "G02", "G3", "G03"}
@@ -92,6 +100,7 @@ def parse_args(argstring):
         "arc_tolerance": 0.001,
         "tool_axis": (0.0, 0.0, 1.0),
         "poses_only": False,
+        "kinpost_args": [],
     }
     args = shlex.split(argstring or "")
     i = 0
@@ -104,7 +113,9 @@ def parse_args(argstring):
             continue
         if value is None:
             raise ValueError("kinpost_post: %s needs a value" % a)
-        if a == "--machine":
+        if a in KINPOST_OPTIONS:
+            opts["kinpost_args"] += [a, value]
+        elif a == "--machine":
             opts["machine"] = value
         elif a == "--kinpost":
             opts["kinpost"] = value
@@ -292,6 +303,7 @@ def run_kinpost(text, filename, opts):
     cmd = [opts["kinpost"], "post", "--machine", opts["machine"], "--quiet"]
     if opts["decimals"] is not None:
         cmd += ["--decimals", str(opts["decimals"])]
+    cmd += opts["kinpost_args"]
     if filename and filename != "-":
         cmd += ["-o", filename]
     cmd.append("-")
