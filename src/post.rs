@@ -12,7 +12,8 @@ use crate::machine::{IkSolver, Machine, Pose};
 use crate::program::format::{push_fixed, push_scaled, scaled_integer};
 use crate::program::modal::Motion;
 use crate::program::opaque::opaque_in_pose_block;
-use crate::program::{ModalState, PoseStart, TcpCode, Units, WordRef};
+pub use crate::program::rewrite::rewrite;
+use crate::program::{ModalState, PoseStart, Units, WordRef};
 use nalgebra::Vector3;
 use std::io::{BufRead, Write};
 
@@ -85,6 +86,13 @@ pub struct PostOptions {
     pub arc_tolerance_mm: f64,
     /// APT CL: units of a program without `UNITS` (None: mm, with a warning).
     pub cl_units: Option<crate::cl::ClUnits>,
+    /// G-code `post`: inverse-time feeds on pose blocks that turn a rotary
+    /// axis ([`crate::program::inverse_time`]).
+    pub inverse_time: bool,
+    /// G-code `post` of a job whose tool changes: the machine of each tool
+    /// with the 1-based line it applies from (empty: the converter's one
+    /// machine throughout). The solver must switch at the same lines.
+    pub tool_machines: Vec<(usize, Machine)>,
 }
 
 impl Default for PostOptions {
@@ -97,6 +105,8 @@ impl Default for PostOptions {
             file_name: "<stdin>".into(),
             arc_tolerance_mm: crate::cl::DEFAULT_ARC_TOLERANCE_MM,
             cl_units: None,
+            inverse_time: false,
+            tool_machines: Vec::new(),
         }
     }
 }
@@ -285,6 +295,8 @@ pub struct GcodeConverter<'a> {
     /// The allocation of the vector of a block's words, kept from block to
     /// block (empty between blocks).
     words: Vec<WordRef<'static>>,
+    /// The feed mode written (`--feed inverse-time`).
+    pub feed: crate::program::inverse_time::InverseTime,
     /// What has been done so far.
     pub stats: PostStats,
 }
@@ -306,6 +318,7 @@ impl<'a> GcodeConverter<'a> {
             machine_ext: vec![0.0; machine.axes.len()],
             machine_ext_stale: false,
             words: Vec::with_capacity(16),
+            feed: Default::default(),
             stats: PostStats::default(),
         }
     }
@@ -368,6 +381,8 @@ impl<'a> GcodeConverter<'a> {
                 ]
                 .contains(&w.value)
         });
+        let has_words = !words.is_empty() || !keywords.is_empty();
+        let start_tip = self.modal.tip;
         let applied = self.modal.apply(&words, &keywords);
         self.words = recycle(words);
         let meaning = applied.map_err(|e| {
@@ -407,6 +422,13 @@ impl<'a> GcodeConverter<'a> {
             if !self.modal.pose_mode {
                 self.follow_machine_words(line, &meaning);
             }
+            let crlf = line.bytes.ends_with(b"\r\n");
+            if let (true, Some(s)) = (
+                opts.inverse_time,
+                self.feed.before_other(has_words, meaning.feed, crlf),
+            ) {
+                out.extend_from_slice(s.as_bytes());
+            }
             if meaning.tcp_codes.is_empty() {
                 out.extend_from_slice(&line.bytes);
             } else {
@@ -432,6 +454,10 @@ impl<'a> GcodeConverter<'a> {
         }
         Ok(Some(PendingPose {
             pose: Pose::new(tip, axis),
+            start_tip: match start_tip {
+                [Some(x), Some(y), Some(z)] => Some(Vector3::new(x, y, z)),
+                _ => None,
+            },
             meaning,
         }))
     }
@@ -490,18 +516,60 @@ impl<'a> GcodeConverter<'a> {
                 sep,
             )
             .map_err(|m| Error::input(loc(meaning.pose_items.first().copied()), m))?;
-        rewrite(
-            line,
-            &meaning.pose_items,
-            words_text,
-            &meaning.tcp_codes,
-            &meaning.tcp_offset_items,
-            out,
-        );
+        let feed = opts.inverse_time.then(|| {
+            let moved = self.previous.as_ref().is_some_and(|p| {
+                self.machine
+                    .chain
+                    .joints
+                    .iter()
+                    .zip(p.iter().zip(&solved.q))
+                    .any(|(j, (a, b))| {
+                        j.kind == crate::machine::JointKind::Revolute && (a - b).abs() > 1e-12
+                    })
+            });
+            let tip = pending.pose.tip;
+            self.feed.pose_block(meaning, pending.start_tip, tip, moved)
+        });
+        if let Some(crate::program::inverse_time::PoseFeed::Append(extra)) = feed {
+            let mut drop = meaning.tcp_offset_items.clone();
+            drop.extend(
+                line.items
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, it)| match &it.kind {
+                        ItemKind::Word(w) if w.address == "F" => Some(i),
+                        ItemKind::Word(w)
+                            if w.address == "G" && [93.0, 94.0].contains(&w.value) =>
+                        {
+                            Some(i)
+                        }
+                        _ => None,
+                    }),
+            );
+            let mut words = words_text.to_vec();
+            words.extend_from_slice(extra.as_bytes());
+            rewrite(
+                line,
+                &meaning.pose_items,
+                &words,
+                &meaning.tcp_codes,
+                &drop,
+                out,
+            );
+        } else {
+            rewrite(
+                line,
+                &meaning.pose_items,
+                words_text,
+                &meaning.tcp_codes,
+                &meaning.tcp_offset_items,
+                out,
+            );
+        }
         if matches!(meaning.motion, Motion::Linear | Motion::Rapid)
             && let Some(prev) = &self.previous
             && let Some(w) = crate::machine::midblock::branch_change_warning(
-                self.machine,
+                self.machine_at(line.number),
                 prev,
                 &solved.q,
                 &pending.pose,
@@ -519,6 +587,15 @@ impl<'a> GcodeConverter<'a> {
 }
 
 impl GcodeConverter<'_> {
+    /// The machine in force at `line` (the tool of that part of the job).
+    fn machine_at(&self, line: usize) -> &Machine {
+        let tools = &self.opts.tool_machines;
+        match tools.iter().rposition(|(from, _)| *from <= line) {
+            Some(k) => &tools[k].1,
+            None => tools.first().map_or(self.machine, |t| &t.1),
+        }
+    }
+
     /// A block in machine coordinates (pose mode off): follow its axis words
     /// and tell the modal state where the tool tip now is, so that a pose
     /// block after `G43.4`/`TRAORI` that gives only some coordinates
@@ -550,7 +627,10 @@ impl GcodeConverter<'_> {
         }
         if moved {
             let q = self.machine.to_internal(&self.machine_ext);
-            let pose = self.machine.chain.pose(&q, &crate::machine::NoErrors);
+            let pose = self
+                .machine_at(line.number)
+                .chain
+                .pose(&q, &crate::machine::NoErrors);
             self.modal.seed_from_machine(pose.tip, pose.axis);
             self.previous = Some(q);
         }
@@ -563,6 +643,8 @@ impl GcodeConverter<'_> {
 pub struct PendingPose {
     /// The tool pose to solve.
     pub pose: Pose,
+    /// The tool tip before the block, mm, when known.
+    pub start_tip: Option<Vector3<f64>>,
     /// What the block means.
     pub meaning: crate::program::BlockMeaning,
 }
@@ -587,6 +669,10 @@ pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
         buf.clear();
         conv.convert(line, &mut buf)?;
         out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
+    }
+    if let Some(end) = conv.feed.end() {
+        out.write_all(end.as_bytes())
+            .map_err(|e| Error::io("<output>", e))?;
     }
     Ok(conv.stats)
 }
@@ -613,125 +699,6 @@ fn separator(line: &Line, replace: &[usize]) -> &'static str {
     match replace.first() {
         Some(&i) if i > 0 && !matches!(line.items[i - 1].kind, ItemKind::Space) => "",
         _ => " ",
-    }
-}
-
-/// Rewrites `line` into `out`: the items in `replace` (sorted) are removed and
-/// `words` is written where the first of them stood; TCP-on codes become
-/// their machine-coordinate equivalent (`G49`, `TRAFOOF`) and the tool length
-/// offset words that went with them are dropped. All other bytes are kept.
-pub fn rewrite(
-    line: &Line,
-    replace: &[usize],
-    words: &[u8],
-    tcp: &[TcpCode],
-    drop: &[usize],
-    out: &mut Vec<u8>,
-) {
-    // Kept bytes are copied in runs: items tile the line, so consecutive
-    // kept items (and the spaces kept between them) are one range.
-    let line_start = out.len();
-    let mut run = Run::default();
-    let mut pending_space: Option<(usize, usize)> = None;
-    let mut swallow_space = false;
-    let mut inserted = false;
-    let mut next_replaced = replace.iter().copied().peekable();
-    for (i, item) in line.items.iter().enumerate() {
-        let span = (item.start, item.end);
-        if matches!(item.kind, ItemKind::Space) {
-            if std::mem::take(&mut swallow_space) {
-                // The space after a word dropped at the start of the line
-                // goes with it; the indentation before it stays pending.
-                continue;
-            }
-            if let Some(p) = pending_space {
-                run.keep(line, p, out);
-            }
-            pending_space = Some(span);
-            continue;
-        }
-        swallow_space = false;
-        while next_replaced.next_if(|&r| r < i).is_some() {}
-        if next_replaced.next_if_eq(&i).is_some() {
-            if !inserted {
-                inserted = true;
-                if !words.is_empty() {
-                    if let Some(p) = pending_space {
-                        run.keep(line, p, out);
-                    }
-                    run.flush(line, out);
-                    out.extend_from_slice(words);
-                }
-            }
-            pending_space = None;
-            continue;
-        }
-        if drop.contains(&i) {
-            // A space before a dropped word goes with it, except at the
-            // start of the line, where the space after it goes instead.
-            let at_start = out.len() == line_start && run.is_empty();
-            pending_space = pending_space.filter(|_| at_start);
-            swallow_space = at_start;
-            continue;
-        }
-        if let Some(p) = pending_space.take() {
-            run.keep(line, p, out);
-        }
-        match tcp
-            .iter()
-            .find(|c| matches!(c, TcpCode::FanucOn(k) | TcpCode::SiemensOn(k) if *k == i))
-        {
-            Some(TcpCode::FanucOn(_)) => {
-                run.flush(line, out);
-                // Keep the letter's case as written.
-                let g = if line.item_bytes(item).first() == Some(&b'g') {
-                    b"g49"
-                } else {
-                    b"G49"
-                };
-                out.extend_from_slice(g);
-            }
-            Some(TcpCode::SiemensOn(_)) => {
-                run.flush(line, out);
-                out.extend_from_slice(b"TRAFOOF");
-            }
-            None => run.keep(line, span, out),
-        }
-    }
-    if let Some(p) = pending_space {
-        run.keep(line, p, out);
-    }
-    run.flush(line, out);
-}
-
-/// A range of a line's bytes waiting to be copied by [`rewrite`].
-#[derive(Default)]
-struct Run {
-    start: usize,
-    end: usize,
-}
-
-impl Run {
-    fn is_empty(&self) -> bool {
-        self.start == self.end
-    }
-
-    /// Keeps the bytes `span` of `line`: extends the run if they follow it,
-    /// else copies the run out and starts a new one.
-    fn keep(&mut self, line: &Line, span: (usize, usize), out: &mut Vec<u8>) {
-        if span.0 != self.end || self.is_empty() {
-            self.flush(line, out);
-            self.start = span.0;
-        }
-        self.end = span.1;
-    }
-
-    /// Copies the run out.
-    fn flush(&mut self, line: &Line, out: &mut Vec<u8>) {
-        if self.start < self.end {
-            out.extend_from_slice(&line.bytes[self.start..self.end]);
-        }
-        self.start = self.end;
     }
 }
 
@@ -926,6 +893,7 @@ fn sanitize_comment(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::program::TcpCode;
 
     #[test]
     fn recycle_keeps_the_allocation() {

@@ -9,9 +9,19 @@
 #
 # which turns every pose into the axis words of one particular machine
 # (inverse kinematics, limits, rotary unwinding; see docs/programs.md).
-# The file FreeCAD asked for is written by kinpost, atomically: if kinpost
-# rejects a block, the error (file:line:col, the offending text) is raised
-# in FreeCAD and the output file is left as it was.
+# Where FreeCAD hands over a file name (FreeCAD 0.x), kinpost writes that
+# file atomically: if kinpost rejects a block, the error (file:line:col, the
+# offending text) is raised in FreeCAD and the file is left as it was.
+# FreeCAD 1.x calls export(objects, "-", args) and writes the returned text
+# itself: then the program comes back from kinpost's standard output, and
+# an error raises before FreeCAD has anything to write.
+#
+# Nothing in the job is dropped: moves become tool poses (the first moves,
+# which give only some of X Y Z, take the others from the next move that
+# gives them, with a comment saying so), tool changes, spindle, coolant and
+# dwell commands keep their words (M6 T2, M3 S12000, G4 P1), comments stay
+# comments, and a command this post does not convert (a canned cycle, G91,
+# G28, G92, an unknown command) raises an error naming it.
 #
 # Install: copy this file into FreeCAD's macro directory (or any directory
 # listed under Preferences → Path/CAM → Job → "Custom post processor
@@ -27,6 +37,9 @@
 #     --tool-axis I,J,K     tool axis of moves that carry none (default 0,0,1:
 #                           FreeCAD's 3-axis operations cut along +Z)
 #     --poses-only          write the pose program and do not run kinpost
+#     --tool-length MM, --work-offset X,Y,Z, --tool-table FILE, --feed MODE
+#                           passed to kinpost post (docs/cli.md: the job
+#                           set-up, feeds)
 #
 # Tool axes: a straight move whose parameters carry I, J and K (as 4/5-axis
 # add-ons write them) uses that vector; any other move keeps the current
@@ -51,13 +64,32 @@ TOOLTIP_ARGS = """
 --arc-tolerance MM    chord error of linearised arcs, mm (default 0.001)
 --tool-axis I,J,K     tool axis of moves without one (default 0,0,1)
 --poses-only          write the pose program, do not run kinpost
+--tool-length MM, --work-offset X,Y,Z, --tool-table FILE, --feed MODE
+                      passed to kinpost post
 """
+
+# Options handed to `kinpost post` as they are.
+KINPOST_OPTIONS = ("--tool-length", "--work-offset", "--tool-table", "--feed")
 
 MOTION = {"G0", "G00", "G1", "G01"}
 ARCS = {"G2", "G02", "G3", "G03"}
-PASS_THROUGH = {"G17", "G18", "G19", "G20", "G21", "G90", "G91", "G93", "G94",
-                "M3", "M03", "M4", "M04", "M5", "M05", "M6", "M06", "M8", "M08",
-                "M9", "M09"}
+# Commands written as they are, with their words (T of M6, S of M3, P of G4…).
+PASS_THROUGH = {"G17", "G18", "G19", "G20", "G21", "G40", "G49", "G54",
+                "G55", "G56", "G57", "G58", "G59", "G80", "G90", "G93", "G94",
+                "G4", "G04", "M0", "M00", "M1", "M01", "M2", "M02", "M3", "M03",
+                "M4", "M04", "M5", "M05", "M6", "M06", "M7", "M07", "M8", "M08",
+                "M9", "M09", "M30"}
+# Commands that would move the tool in a way this wrapper does not convert:
+# refused with a message, never dropped.
+REFUSED = {
+    "G73": "a canned cycle", "G76": "a canned cycle", "G81": "a canned cycle",
+    "G82": "a canned cycle", "G83": "a canned cycle", "G84": "a canned cycle",
+    "G85": "a canned cycle", "G86": "a canned cycle", "G87": "a canned cycle",
+    "G88": "a canned cycle", "G89": "a canned cycle",
+    "G91": "incremental distance mode (FreeCAD paths are absolute)",
+    "G28": "a move to a reference point", "G30": "a move to a reference point",
+    "G92": "a coordinate offset", "G53": "a move in machine coordinates",
+}
 
 
 def parse_args(argstring):
@@ -68,6 +100,7 @@ def parse_args(argstring):
         "arc_tolerance": 0.001,
         "tool_axis": (0.0, 0.0, 1.0),
         "poses_only": False,
+        "kinpost_args": [],
     }
     args = shlex.split(argstring or "")
     i = 0
@@ -80,7 +113,9 @@ def parse_args(argstring):
             continue
         if value is None:
             raise ValueError("kinpost_post: %s needs a value" % a)
-        if a == "--machine":
+        if a in KINPOST_OPTIONS:
+            opts["kinpost_args"] += [a, value]
+        elif a == "--machine":
             opts["machine"] = value
         elif a == "--kinpost":
             opts["kinpost"] = value
@@ -142,48 +177,115 @@ def pose_program(commands, opts, header="(FreeCAD job)"):
     """The pose program (a list of lines) for FreeCAD Path commands.
 
     `commands` is a sequence of objects with `.Name` and `.Parameters`
-    (a dict), as FreeCAD's Path.Command has."""
+    (a dict), as FreeCAD's Path.Command has.  Nothing is dropped: a move
+    becomes a pose (or several, for an arc), a tool change, spindle,
+    coolant or dwell command is written with its words, a comment stays a
+    comment, and any other command raises ValueError naming it."""
     out = ["%", header, "G21 G90 G94 G17"]
+    commands = list(commands)
+    # The tool tip as the moves so far set it, per coordinate (None: not
+    # given yet).
     pos = [None, None, None]
-    axis = opts["tool_axis"]
+    state = {"motion": None, "axis": opts["tool_axis"], "plane": "G17"}
     feed = None
-    motion = None
-    for c in commands:
+    # ahead[i][k]: the first value of coordinate k that a move from
+    # command i on gives (None if none does).
+    ahead = [[None, None, None] for _ in range(len(commands) + 1)]
+    for i in range(len(commands) - 1, -1, -1):
+        ahead[i] = list(ahead[i + 1])
+        c = commands[i]
+        if normal(c.Name) in MOTION or normal(c.Name) in ARCS:
+            p = {k.upper(): v for k, v in c.Parameters.items()}
+            for k, axis in enumerate("XYZ"):
+                if axis in p:
+                    ahead[i][k] = p[axis]
+
+    def emit(g, tip, axis, f):
+        out.append(block(g, tip, axis, f, state["motion"]))
+        state["motion"] = g
+
+    for idx, c in enumerate(commands):
         if c.Name.startswith("("):
             text = c.Name.strip().strip("()")
             out.append("(" + text.replace("(", "[").replace(")", "]") + ")")
             continue
-        name = c.Name.upper()
+        name = normal(c.Name)
         p = {k.upper(): v for k, v in c.Parameters.items()}
         if "F" in p:
             # FreeCAD keeps feeds in mm/s internally; G-code wants mm/min.
             feed = p["F"] * 60.0
-        target = [p.get(k, pos[i]) for i, k in enumerate("XYZ")]
         if name in MOTION:
             if all(k in p for k in "IJK"):
-                axis = unit((p["I"], p["J"], p["K"]))
-            if None in target:
-                continue  # no tool tip known yet: nothing to convert
-            g = "G0" if name in ("G0", "G00") else "G1"
-            out.append(block(g, target, axis, feed if g == "G1" else None, motion))
-            motion = g
-            pos = target
+                state["axis"] = unit((p["I"], p["J"], p["K"]))
+            g = "G0" if name == "G0" else "G1"
+            f = feed if g == "G1" else None
+            for k, ax in enumerate("XYZ"):
+                if ax in p:
+                    pos[k] = p[ax]
+            unknown = [k for k in range(3) if pos[k] is None]
+            if unknown:
+                # The first moves of a FreeCAD job give one or two
+                # coordinates (`G0 Z15`, then `G0 X10 Y10`): the tool
+                # starts wherever the tool change left it.  A tool pose
+                # needs the whole tip, so the coordinates not given yet are
+                # those the next moves give first, said in a comment.
+                names = "".join("XYZ"[k] for k in unknown)
+                for k in unknown:
+                    pos[k] = ahead[idx][k]
+                if None in pos:
+                    missing = "".join("XYZ"[k] for k in range(3) if pos[k] is None)
+                    raise ValueError("kinpost_post: the job never gives %s of the "
+                                     "tool tip" % missing)
+                out.append("(kinpost_post: %s from the next move that gives %s)"
+                           % (names, "it" if len(names) == 1 else "them"))
+            emit(g, list(pos), state["axis"], f)
         elif name in ARCS:
+            if state["plane"] != "G17" or "R" in p:
+                raise ValueError("kinpost_post: %s %s: only arcs in the XY plane (G17) "
+                                 "with I J centres are linearised here"
+                                 % (c.Name, "with R" if "R" in p else "in " + state["plane"]))
+            target = [p.get(k, pos[i]) for i, k in enumerate("XYZ")]
             if None in pos or None in target:
-                raise ValueError("kinpost_post: an arc before the tool tip is known")
+                raise ValueError("kinpost_post: %s before the tool tip is known: "
+                                 "give X, Y and Z by a straight move first" % c.Name)
             center = (pos[0] + p.get("I", 0.0), pos[1] + p.get("J", 0.0))
-            cw = name in ("G2", "G02")
+            cw = name == "G2"
             for pt in arc_points(pos, target, center, cw, opts["arc_tolerance"]):
-                out.append(block("G1", pt, axis, feed, motion))
-                motion = "G1"
-            pos = target
+                emit("G1", pt, state["axis"], feed)
+            pos = list(target)
+        elif name in REFUSED:
+            raise ValueError("kinpost_post: %s is %s, which this post does not "
+                             "convert into tool poses" % (c.Name, REFUSED[name]))
         elif name in PASS_THROUGH:
-            out.append(name)
-        # Anything else (tool changes are in the job's tool controllers,
-        # canned cycles must be expanded by FreeCAD) is dropped.
+            if name in ("G17", "G18", "G19"):
+                state["plane"] = name
+            words = [name]
+            for k in sorted(p, key=word_order):
+                if k != "F":  # the feed goes on the next G1
+                    words.append(k + fmt(p[k]))
+            out.append(" ".join(words))
+        else:
+            raise ValueError("kinpost_post: unknown command %s %s: not converted; "
+                             "nothing is dropped silently" % (c.Name, p))
     out.append("M30")
     out.append("%")
     return out
+
+
+def normal(name):
+    """`G00` → `G0`, `m06` → `M6`: FreeCAD writes both spellings."""
+    n = name.strip().upper()
+    if len(n) > 1 and n[0] in "GM" and n[1:].replace(".", "", 1).isdigit():
+        num = n[1:].lstrip("0") or "0"
+        if num.startswith("."):
+            num = "0" + num
+        return n[0] + num
+    return n
+
+
+def word_order(k):
+    """Words after the command: T, H, D, S, P, then the rest alphabetically."""
+    return ("THDSP".index(k) if k in "THDSP" else 5, k)
 
 
 def block(g, tip, axis, feed, motion):
@@ -201,6 +303,7 @@ def run_kinpost(text, filename, opts):
     cmd = [opts["kinpost"], "post", "--machine", opts["machine"], "--quiet"]
     if opts["decimals"] is not None:
         cmd += ["--decimals", str(opts["decimals"])]
+    cmd += opts["kinpost_args"]
     if filename and filename != "-":
         cmd += ["-o", filename]
     cmd.append("-")

@@ -21,6 +21,8 @@ use std::path::PathBuf;
 pub struct SimulateArgs {
     #[command(flatten)]
     pub machine: MachineChoice,
+    #[command(flatten)]
+    pub job: super::JobArgs,
     /// Known geometric errors of the machine (model JSON or error table CSV).
     #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
     pub errors: Option<PathBuf>,
@@ -179,9 +181,14 @@ fn check(ok: bool, option: &str, value: f64, expected: &str) -> Result<()> {
 pub fn simulate(a: SimulateArgs) -> Result<()> {
     super::check_outputs(
         &[("-o", a.output.as_deref())],
-        &[a.errors.as_deref(), Some(&a.program), a.machine.file()],
+        &[
+            a.errors.as_deref(),
+            Some(&a.program),
+            a.machine.file(),
+            a.job.inputs(),
+        ],
     )?;
-    let machine = a.machine.load()?;
+    let base = a.machine.load()?;
     // Ranges a real machine and a real recorder can have: a value outside
     // them is a typo, and would give no samples or infinite values.
     check(
@@ -230,6 +237,15 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         Some(p) => Some(super::errors::load_errors(p)?),
         None => None,
     };
+    if let Some(m) = &model {
+        a.job.check_model(m)?;
+    }
+    // A tool table reads the program for the tool it selects.
+    let mut program = match &a.job.tool_table {
+        Some(_) => Some(input::open(Some(&a.program))?),
+        None => None,
+    };
+    let machine = a.job.machine(&base, program.as_mut())?;
     let effects = a
         .inject
         .iter()
@@ -303,6 +319,8 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
 pub struct DiagnoseArgs {
     #[command(flatten)]
     pub machine: MachineChoice,
+    #[command(flatten)]
+    pub job: super::JobArgs,
     /// Known geometric errors of the machine (model JSON or error table CSV).
     #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
     pub errors: Option<PathBuf>,
@@ -338,13 +356,23 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
             ("--svg", a.svg.as_deref()),
             ("--write-model", a.write_model.as_deref()),
         ],
-        &[a.errors.as_deref(), Some(&a.recording), a.machine.file()],
+        &[
+            a.errors.as_deref(),
+            Some(&a.recording),
+            a.machine.file(),
+            a.job.inputs(),
+        ],
     )?;
-    let machine = a.machine.load()?;
+    // The recording's tool tip is that of the job: the same set-up as the
+    // program it recorded (a tool table needs that program: refused here).
+    let machine = a.job.machine(&a.machine.load()?, None)?;
     let model = match &a.errors {
         Some(p) => Some(super::errors::load_errors(p)?),
         None => None,
     };
+    if let Some(m) = &model {
+        a.job.check_model(m)?;
+    }
     if a.noise_floor
         .is_some_and(|nf| !(nf.is_finite() && nf > 0.0))
     {

@@ -104,6 +104,8 @@ pub struct AnalyzeArgs {
     pub input: Option<PathBuf>,
     #[command(flatten)]
     pub machine: MachineChoice,
+    #[command(flatten)]
+    pub job: super::JobArgs,
     /// Error model: model JSON from `kinpost fit`, or an error table CSV
     /// (fitted on the fly). Required unless --nonlinear.
     #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
@@ -142,9 +144,14 @@ pub struct NonlinearBlock {
 pub fn analyze(a: AnalyzeArgs) -> Result<()> {
     super::check_outputs(
         &[("--svg", a.svg.as_deref())],
-        &[a.input.as_deref(), a.errors.as_deref(), a.machine.file()],
+        &[
+            a.input.as_deref(),
+            a.errors.as_deref(),
+            a.machine.file(),
+            a.job.inputs(),
+        ],
     )?;
-    let machine = a.machine.load()?;
+    let base = a.machine.load()?;
     if a.errors.is_none() && !a.nonlinear {
         return Err(Error::Usage(
             "analyze needs --errors MODEL (or --nonlinear)".into(),
@@ -154,12 +161,16 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         Some(p) => Some(load_errors(p)?),
         None => None,
     };
+    if let Some(m) = &model {
+        a.job.check_model(m)?;
+    }
+    let mut inp = input::open(a.input.as_deref())?;
+    super::require_program(&mut inp)?;
+    let machine = a.job.machine(&base, Some(&mut inp))?;
     let bound = match &model {
         Some(m) => Some(m.bind(&machine.chain)?),
         None => None,
     };
-    let mut inp = input::open(a.input.as_deref())?;
-    super::require_program(&mut inp)?;
     let head = input::peek(&mut *inp.reader)?;
     let poses = looks_like_poses(&head);
     let name = inp.name.clone();
@@ -358,6 +369,8 @@ pub struct CompensateArgs {
     pub input: Option<PathBuf>,
     #[command(flatten)]
     pub machine: MachineChoice,
+    #[command(flatten)]
+    pub job: super::JobArgs,
     /// Error model: model JSON from `kinpost fit`, or an error table CSV.
     #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
     pub errors: PathBuf,
@@ -455,10 +468,20 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             ("-o", a.output.as_deref()),
             ("--report", a.report.as_deref()),
         ],
-        &[a.input.as_deref(), Some(&a.errors), a.machine.file()],
+        &[
+            a.input.as_deref(),
+            Some(&a.errors),
+            a.machine.file(),
+            a.job.inputs(),
+        ],
     )?;
-    let machine: Machine = a.machine.load()?;
+    let base: Machine = a.machine.load()?;
     let model = load_errors(&a.errors)?;
+    a.job.check_model(&model)?;
+    let axis_tolerance_rad = a.axis_tolerance.rad()?;
+    let mut inp = input::open(a.input.as_deref())?;
+    super::require_program(&mut inp)?;
+    let machine = a.job.machine(&base, Some(&mut inp))?;
     let bound = model.bind(&machine.chain)?;
     let method = match a.method {
         MethodArg::Exact => Method::Exact,
@@ -483,7 +506,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             OnFailArg::Best => OnFail::Best,
         },
         accept_tip_mm: a.tip_tolerance_mm,
-        axis_tolerance_rad: a.axis_tolerance.rad()?,
+        axis_tolerance_rad,
         records: Vec::new(),
         warnings: dynamic_warnings,
         singular_blocks: 0,
@@ -500,8 +523,6 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         .as_ref()
         .map(|r| r.display().to_string())
         .unwrap_or_default();
-    let mut inp = input::open(a.input.as_deref())?;
-    super::require_program(&mut inp)?;
     let kind = super::resolve_kind(a.input_kind, &mut *inp.reader)?;
     let opts = PostOptions {
         decimals: a.decimals,

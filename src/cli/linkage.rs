@@ -20,6 +20,8 @@ pub struct LinkageArgs {
     pub input: Option<PathBuf>,
     #[command(flatten)]
     pub machine: MachineChoice,
+    #[command(flatten)]
+    pub job: super::JobArgs,
     /// Seed 003 exactly: insert this many points (a count, even; 2) into every block that
     /// moves both rotaries — tips at 1/3 and 2/3 of the line, the split rotary
     /// (A) half way with the other (B) held, then B, then A.
@@ -74,9 +76,9 @@ pub fn linkage(a: LinkageArgs) -> Result<()> {
             ("-o", a.output.as_deref()),
             ("--report", a.report.as_deref()),
         ],
-        &[a.input.as_deref(), a.machine.file()],
+        &[a.input.as_deref(), a.machine.file(), a.job.inputs()],
     )?;
-    let machine = a.machine.load()?;
+    let base = a.machine.load()?;
     let mode = match (a.insert, a.tolerance) {
         (Some(n), _) => Mode::Insert(n),
         (None, Some(t)) if t.is_finite() && t > 0.0 => Mode::Tolerance(t),
@@ -90,26 +92,26 @@ pub fn linkage(a: LinkageArgs) -> Result<()> {
     let pair = match &a.split_axis {
         None => None,
         Some(name) => {
-            let split = machine
+            let split = base
                 .chain
                 .joint_index(name)
-                .filter(|&j| machine.chain.joints[j].kind == JointKind::Revolute)
+                .filter(|&j| base.chain.joints[j].kind == JointKind::Revolute)
                 .ok_or_else(|| {
                     Error::Usage(format!(
                         "--split-axis {name}: not a rotary axis of {}",
-                        machine.name
+                        base.name
                     ))
                 })?;
-            let held = (0..machine.chain.dof())
-                .find(|&j| j != split && machine.chain.joints[j].kind == JointKind::Revolute)
-                .ok_or_else(|| {
-                    Error::Usage(format!("{} has no second rotary axis", machine.name))
-                })?;
+            let held = (0..base.chain.dof())
+                .find(|&j| j != split && base.chain.joints[j].kind == JointKind::Revolute)
+                .ok_or_else(|| Error::Usage(format!("{} has no second rotary axis", base.name)))?;
             Some(RotaryPair { split, held })
         }
     };
     let mut inp = input::open(a.input.as_deref())?;
     super::require_program(&mut inp)?;
+    // The job's machine has the same joints as `base`.
+    let machine = a.job.machine(&base, Some(&mut inp))?;
     let poses = looks_like_poses(&input::peek(&mut *inp.reader)?);
     if poses && crate::cl::looks_like_cl(&input::peek(&mut *inp.reader)?) {
         return Err(Error::Usage(

@@ -125,6 +125,193 @@ impl MachineChoice {
     }
 }
 
+/// The job set-up: the tool and the work offset, applied to the machine's
+/// chain (`crate::machine::job`), the same for every command that takes it.
+#[derive(Debug, Args, Clone)]
+pub struct JobArgs {
+    /// Tool length in mm, from the gauge line to the tool tip along the tool
+    /// axis. It replaces the machine file's tool (its `tool_length`, default
+    /// 0: the chain ends at the gauge line): `translate [0, 0, tool_length -
+    /// MM]` is appended to the chain.
+    #[arg(
+        long,
+        value_name = "MM",
+        conflicts_with = "tool_table",
+        allow_hyphen_values = true
+    )]
+    pub tool_length: Option<f64>,
+    /// LinuxCNC tool table (`T1 P1 Z+50.0 D6 ;comment`, Z the length in mm,
+    /// or in inch with --tool-table-units inch): the program's `G43`/`G43.4`/
+    /// `G43.5` H word, or the T word of its tool change (M6), selects the tool
+    /// whose length is used as with --tool-length (`post` switches at each
+    /// change; the other commands refuse a change to another length).
+    #[arg(long, value_name = "FILE")]
+    pub tool_table: Option<PathBuf>,
+    /// Length unit of the tool table's Z values.
+    #[arg(long, value_enum, default_value = "mm", requires = "tool_table")]
+    pub tool_table_units: UnitsArg,
+    /// Work offset X,Y,Z in mm: the position of the program's origin in the
+    /// machine file's workpiece frame (program point p is the point p + offset
+    /// of that frame; the frame's axes are kept).
+    #[arg(long, value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = parse_xyz_mm)]
+    pub work_offset: Option<Vector3Arg>,
+}
+
+/// The whole program `inp`, for a tool table to select the tool from
+/// (G-code only).
+fn read_program(inp: &mut input::Input) -> Result<Vec<u8>> {
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut inp.reader, &mut bytes).map_err(|e| Error::io(&inp.name, e))?;
+    if crate::cl::looks_like_cl(&bytes[..bytes.len().min(4096)]) {
+        return Err(Error::Usage(
+            "--tool-table selects the tool by G-code H and T words; for APT CL give --tool-length"
+                .into(),
+        ));
+    }
+    Ok(bytes)
+}
+
+/// One inverse-kinematics solver per tool of a job whose tool changes
+/// (`post --tool-table`), each from the line its tool applies from.
+struct ToolSolvers {
+    solvers: Vec<(usize, IkSolver)>,
+}
+
+impl crate::post::PoseSolver for ToolSolvers {
+    fn solve(
+        &mut self,
+        pose: &crate::machine::Pose,
+        previous: Option<&[f64]>,
+        line: usize,
+    ) -> std::result::Result<crate::post::SolvedPose, String> {
+        let k = self
+            .solvers
+            .iter()
+            .rposition(|(from, _)| *from <= line)
+            .unwrap_or(0);
+        crate::post::PoseSolver::solve(&mut self.solvers[k].1, pose, previous, line)
+    }
+}
+
+/// Three lengths in mm from `X,Y,Z`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Vector3Arg(pub [f64; 3]);
+
+fn parse_xyz_mm(s: &str) -> std::result::Result<Vector3Arg, String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("expected X,Y,Z in mm (three numbers), got `{s}`"));
+    }
+    let mut v = [0.0; 3];
+    for (k, p) in parts.iter().enumerate() {
+        v[k] = p
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("`{p}` is not a finite length in mm"))?;
+    }
+    Ok(Vector3Arg(v))
+}
+
+impl JobArgs {
+    /// The job set-up these options describe (reads the tool table).
+    pub fn setup(&self) -> Result<crate::machine::job::JobSetup> {
+        use crate::machine::job::{JobSetup, ToolChoice, ToolTable};
+        let tool = match (&self.tool_length, &self.tool_table) {
+            (Some(l), _) if !l.is_finite() => {
+                return Err(Error::Usage(format!(
+                    "--tool-length {l}: expected a finite length in mm"
+                )));
+            }
+            (Some(l), _) => ToolChoice::Length(*l),
+            (None, Some(path)) => {
+                let text = crate::text::read_text_file(path)?;
+                let scale = match self.tool_table_units {
+                    UnitsArg::Mm => 1.0,
+                    UnitsArg::Inch => 25.4,
+                };
+                ToolChoice::Table(ToolTable::parse(&text, &path.display().to_string(), scale)?)
+            }
+            (None, None) => ToolChoice::MachineFile,
+        };
+        Ok(JobSetup {
+            tool,
+            work_offset_mm: self
+                .work_offset
+                .map(|v| nalgebra::Vector3::from(v.0))
+                .unwrap_or_else(nalgebra::Vector3::zeros),
+        })
+    }
+
+    /// Refuses a work offset with an error model that has a fixed error at
+    /// the start of the chain (`after_joint` null): that error belongs to
+    /// the machine file's workpiece frame, but the model would insert it in
+    /// front of the work offset, turning it about the program's origin.
+    pub fn check_model(&self, model: &crate::geometric::ErrorModel) -> Result<()> {
+        let offset = self.work_offset.is_some_and(|v| v.0 != [0.0; 3]);
+        match model.fixed.iter().find(|f| f.after_joint.is_none()) {
+            Some(f) if offset => Err(Error::Usage(format!(
+                "--work-offset with the error model's fixed error `{}` at the start of the chain (after_joint null) is not supported: the error would turn about the program's origin instead of the workpiece frame's; give the program in the workpiece frame (its origin set in the CAM system) without --work-offset",
+                f.name
+            ))),
+            _ => Ok(()),
+        }
+    }
+
+    /// The input files these options name (for the output checks).
+    pub fn inputs(&self) -> Option<&std::path::Path> {
+        self.tool_table.as_deref()
+    }
+
+    /// The machines of a job whose tool may change (`post`): one per tool
+    /// length the program changes to, each with the 1-based line from which
+    /// it applies (the first from line 1, also for poses before the first
+    /// selection). Without a tool table, the one machine of
+    /// [`Self::machine`].
+    pub fn machines_by_line(
+        &self,
+        base: &Machine,
+        inp: &mut input::Input,
+    ) -> Result<Vec<(usize, Machine)>> {
+        let setup = self.setup()?;
+        if !matches!(setup.tool, crate::machine::job::ToolChoice::Table(_)) {
+            return Ok(vec![(1, self.machine(base, Some(inp))?)]);
+        }
+        let bytes = read_program(inp)?;
+        let changes = setup.tool_changes(&mut &bytes[..], &inp.name)?;
+        inp.reader = Box::new(std::io::Cursor::new(bytes));
+        Ok(changes
+            .iter()
+            .enumerate()
+            .map(|(k, c)| {
+                let from = if k == 0 { 1 } else { c.at.line };
+                (from, setup.machine(base, Some(c.length_mm)))
+            })
+            .collect())
+    }
+
+    /// The machine of the job: `base` with the set-up applied. With a tool
+    /// table the program `inp` selects the tool: it is read whole into
+    /// memory for that (G-code only) and handed back to be read again.
+    pub fn machine(&self, base: &Machine, inp: Option<&mut input::Input>) -> Result<Machine> {
+        let setup = self.setup()?;
+        if setup.is_identity() {
+            return Ok(base.clone());
+        }
+        match (&setup.tool, inp) {
+            (crate::machine::job::ToolChoice::Table(_), Some(inp)) => {
+                let bytes = read_program(inp)?;
+                let name = inp.name.clone();
+                let m = setup.machine_for_program(base, Some((&mut &bytes[..], &name)))?;
+                inp.reader = Box::new(std::io::Cursor::new(bytes));
+                Ok(m)
+            }
+            _ => setup.machine_for_program(base, None),
+        }
+    }
+}
+
 /// The tool-axis tolerance of a four-axis machine, for the commands that
 /// turn poses into axes besides `post` (which has the same option).
 #[derive(Debug, Args, Clone, Copy)]
@@ -236,10 +423,30 @@ pub struct PostArgs {
     /// warning).
     #[arg(long, value_enum)]
     pub units: Option<UnitsArg>,
+    #[command(flatten)]
+    pub job: JobArgs,
+    /// Feeds of converted blocks: `keep` (default) writes the programmed F
+    /// as it is; `inverse-time` writes G93 with F = 1/(block time in min) on
+    /// every pose block that moves a rotary axis, the time being the tool
+    /// tip's path length over the programmed feed (mm/min), and G94 with the
+    /// programmed F again after them.
+    #[arg(long, value_enum, default_value = "keep")]
+    pub feed: FeedArg,
+}
+
+/// How `post` writes feeds of converted blocks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Default)]
+pub enum FeedArg {
+    /// The programmed F word stays as it is.
+    #[default]
+    Keep,
+    /// Inverse time (G93) on the blocks that move a rotary axis, so that the
+    /// tool tip keeps the programmed feed.
+    InverseTime,
 }
 
 /// Units of `--units`.
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum UnitsArg {
     /// Millimetres.
     Mm,
@@ -345,12 +552,22 @@ fn post(a: PostArgs) -> Result<()> {
     }
     check_outputs(
         &[("-o", a.output.as_deref())],
-        &[a.input.as_deref(), a.machine.file()],
+        &[a.input.as_deref(), a.machine.file(), a.job.inputs()],
     )?;
-    let machine = a.machine.load()?;
-    let mut solver = IkSolver::new(&machine);
+    let base = a.machine.load()?;
     let mut inp = input::open(a.input.as_deref())?;
     require_program(&mut inp)?;
+    let mut machines = a.job.machines_by_line(&base, &mut inp)?;
+    let machine = machines[0].1.clone();
+    let mut solver = ToolSolvers {
+        solvers: machines
+            .iter()
+            .map(|(from, m)| (*from, IkSolver::new(m)))
+            .collect(),
+    };
+    if machines.len() == 1 {
+        machines.clear();
+    }
     let kind = resolve_kind(a.input_kind, &mut *inp.reader)?;
     let opts = PostOptions {
         decimals: a.decimals,
@@ -366,7 +583,14 @@ fn post(a: PostArgs) -> Result<()> {
             UnitsArg::Mm => crate::cl::ClUnits::Mm,
             UnitsArg::Inch => crate::cl::ClUnits::Inches,
         }),
+        inverse_time: a.feed == FeedArg::InverseTime,
+        tool_machines: machines,
     };
+    if opts.inverse_time && kind == InputKind::Cl {
+        return Err(Error::Usage(
+            "--feed inverse-time is for G-code pose programs: APT CL input is not converted to inverse time".into(),
+        ));
+    }
     let mut progress = RunProgress::new(inp.size, a.quiet, "post");
     let stats = write_atomically(a.output.as_deref(), |out| {
         if kind == InputKind::Cl {

@@ -33,6 +33,10 @@ pub struct Machine {
     pub chain: Chain,
     /// The axes in output order (the order words are written in a block).
     pub axes: Vec<AxisSpec>,
+    /// Length of the tool whose tip the chain ends at, mm (`tool_length`;
+    /// 0: the chain ends at the gauge line). A job's own tool replaces it
+    /// (`crate::machine::job`).
+    pub tool_length_mm: f64,
 }
 
 /// Default decimals for an axis (mm and degrees alike).
@@ -247,14 +251,18 @@ impl Machine {
             o.insert("decimals".into(), a.decimals.into());
             axes.insert(a.name.clone(), Value::Object(o));
         }
-        serde_json::json!({
+        let mut file = serde_json::json!({
             "name": self.name,
             "description": self.description,
             "source": self.source,
             "chain": chain,
             "axes": axes,
             "output_order": self.axes.iter().map(|a| a.name.clone()).collect::<Vec<_>>(),
-        })
+        });
+        if self.tool_length_mm != 0.0 {
+            file["tool_length"] = self.tool_length_mm.into();
+        }
+        file
     }
 
     /// One line per chain element, in file units (`revolute C axis [0, 0, -1]`).
@@ -432,6 +440,7 @@ impl Parser<'_> {
                 "chain",
                 "axes",
                 "output_order",
+                "tool_length",
             ],
             "the machine description",
         )?;
@@ -452,6 +461,10 @@ impl Parser<'_> {
         }
         let description = text_field("description")?;
         let source = text_field("source")?;
+        let tool_length_mm = match top.get("tool_length") {
+            None => 0.0,
+            Some(v) => self.number(v, &[key("tool_length")], "\"tool_length\" (mm)")?,
+        };
 
         let chain_v = self.required(top, &root, "chain", "a machine description")?;
         let chain_at = vec![key("chain")];
@@ -500,6 +513,7 @@ impl Parser<'_> {
             source,
             chain,
             axes,
+            tool_length_mm,
         })
     }
 

@@ -486,5 +486,6 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
         "chain": chain,
         "axes": axes,
         "output_order": order,
+        "tool_length": t,
     }))
 }

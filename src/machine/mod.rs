@@ -14,6 +14,7 @@ pub mod chain;
 pub mod file;
 pub mod ik;
 pub mod ik_error;
+pub mod job;
 pub(crate) mod jsonpos;
 pub mod linuxcnc;
 pub mod midblock;

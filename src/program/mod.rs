@@ -2,8 +2,10 @@
 
 pub mod format;
 pub mod integrity;
+pub mod inverse_time;
 pub mod modal;
 pub mod opaque;
+pub mod rewrite;
 pub mod source;
 
 pub use modal::{
