@@ -5,12 +5,14 @@
 //! (lines, arcs about their axes, drilled holes, `CSYS` set-ups), and the
 //! output through a hand-written forward kinematics of the machine, so the
 //! check does not rest on the converter's geometry. Skipped with a message
-//! when `../shared` is absent.
+//! when `../shared` is absent; under CI (`CI=true`) that fails instead.
 
-use std::path::{Path, PathBuf};
+mod util;
+
+use std::path::PathBuf;
 use std::process::Command;
 
-const DIR: &str = "../shared/real/solidworks-cam";
+const DIR: &str = "real/solidworks-cam";
 const MACHINE: &str = "fixtures/machines/xyzac-trt.json";
 const TOL: f64 = 5e-3;
 
@@ -40,11 +42,7 @@ fn cross(a: V, b: V) -> V {
 }
 
 fn files() -> Option<Vec<PathBuf>> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join(DIR);
-    if !dir.is_dir() {
-        println!("skipped: {} is absent", dir.display());
-        return None;
-    }
+    let dir = util::shared_dir(DIR)?;
     let mut v: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
         .map(|e| e.unwrap().path())
