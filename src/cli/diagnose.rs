@@ -97,7 +97,7 @@ pub fn program_waypoints(
     let name = inp.name.clone();
     let ext = |q: &[f64]| -> Vec<f64> {
         q.iter()
-            .zip(&machine.chain.joints)
+            .zip(machine.chain.joints())
             .map(|(v, j)| {
                 if j.kind == JointKind::Revolute {
                     v.to_degrees()
@@ -352,7 +352,7 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
     }
     let axes: Vec<String> = machine
         .chain
-        .joints
+        .joints()
         .iter()
         .map(|j| j.name.clone())
         .collect();
@@ -443,7 +443,7 @@ fn diagnose_feedback_file(
     let name = a.recording.display().to_string();
     let rotary: Vec<bool> = machine
         .chain
-        .joints
+        .joints()
         .iter()
         .map(|j| j.kind == crate::machine::chain::JointKind::Revolute)
         .collect();

@@ -93,7 +93,7 @@ pub fn linkage(a: LinkageArgs) -> Result<()> {
             let split = machine
                 .chain
                 .joint_index(name)
-                .filter(|&j| machine.chain.joints[j].kind == JointKind::Revolute)
+                .filter(|&j| machine.chain.joints()[j].kind == JointKind::Revolute)
                 .ok_or_else(|| {
                     Error::Usage(format!(
                         "--split-axis {name}: not a rotary axis of {}",
@@ -101,7 +101,7 @@ pub fn linkage(a: LinkageArgs) -> Result<()> {
                     ))
                 })?;
             let held = (0..machine.chain.dof())
-                .find(|&j| j != split && machine.chain.joints[j].kind == JointKind::Revolute)
+                .find(|&j| j != split && machine.chain.joints()[j].kind == JointKind::Revolute)
                 .ok_or_else(|| {
                     Error::Usage(format!("{} has no second rotary axis", machine.name))
                 })?;

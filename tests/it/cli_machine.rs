@@ -34,7 +34,7 @@ fn machine_json_round_trips_for_every_embedded_machine() {
         assert_eq!(back.description, orig.description);
         assert_eq!(back.source, orig.source);
         assert_eq!(back.axes, orig.axes, "{name}");
-        assert_eq!(back.chain.elements.len(), orig.chain.elements.len());
+        assert_eq!(back.chain.elements().len(), orig.chain.elements().len());
         assert_eq!(IkSolver::new(&back).family(), IkSolver::new(&orig).family());
         let family: serde_json::Value = serde_json::from_str(&json).unwrap();
         assert_eq!(

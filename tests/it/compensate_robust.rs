@@ -139,7 +139,7 @@ fn many_turns_one_way_cost_no_precision() {
     .unwrap();
     let bound = model.bind(&machine.chain).unwrap();
     let actual = model.apply_fixed(&machine.chain).unwrap();
-    let c = machine.chain.joints.len() - 1; // X Z B C: C is the last joint
+    let c = machine.chain.joints().len() - 1; // X Z B C: C is the last joint
     let mut rng = SplitMix64::new(11);
     for i in 0..60 {
         let ext = [

@@ -14,7 +14,7 @@ use kinpost::machine::{Chain, JointKind, NoErrors};
 /// `q` with `f` applied to the values of the revolute joints.
 fn map_rotary(chain: &Chain, q: &[f64], f: fn(f64) -> f64) -> Vec<f64> {
     q.iter()
-        .zip(&chain.joints)
+        .zip(chain.joints())
         .map(|(v, j)| {
             if j.kind == JointKind::Revolute {
                 f(*v)

@@ -85,7 +85,7 @@ fn clean_recording_says_consistent_with_noise() {
 #[test]
 fn bad_recordings_are_located_errors() {
     let chain = zhao();
-    let axes: Vec<String> = chain.joints.iter().map(|j| j.name.clone()).collect();
+    let axes: Vec<String> = chain.joints().iter().map(|j| j.name.clone()).collect();
     let text =
         "t,block,C,X,Z,B,meas_x,meas_y,meas_z\n0,1,0,0,0,0,0,0,-20\n0.1,1,0,0,0,inf,0,0,-20\n";
     let e = Recording::parse(text, "r.csv", &axes)

@@ -614,7 +614,7 @@ fn fixed_errors_enter_the_chain_after_their_joint() {
         motion: [0.0, 0.0, 0.0, 0.0, eps, 0.0],
     };
     let c2 = sq.apply(&chain).unwrap();
-    assert_eq!(c2.elements.len(), chain.elements.len() + 1);
+    assert_eq!(c2.elements().len(), chain.elements().len() + 1);
     let q = [0.0, 10.0, 30.0, 0.0];
     let d = c2.pose(&q, &NoErrors).tip - chain.pose(&q, &NoErrors).tip;
     // Rotation εy after X tilts Z's travel and the tool: Δx = εy (z − 20).
@@ -635,7 +635,7 @@ fn fixed_errors_enter_the_chain_after_their_joint() {
         ..Default::default()
     };
     let c3 = model.apply_fixed(&chain).unwrap();
-    assert_eq!(c3.elements.len(), chain.elements.len() + 2);
+    assert_eq!(c3.elements().len(), chain.elements().len() + 2);
     let d = c3.pose(&q, &NoErrors).tip - chain.pose(&q, &NoErrors).tip;
     assert!((d.x - 1e-3 - eps * 10.0).abs() < 1e-12);
     let bad = FixedError {

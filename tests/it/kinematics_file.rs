@@ -496,7 +496,7 @@ fn long_chain(n: usize) -> String {
 fn long_chains_are_capped_and_load_in_linear_time() {
     use kinpost::machine::file::MAX_CHAIN_ELEMENTS;
     let m = Machine::from_json_str(&long_chain(MAX_CHAIN_ELEMENTS), "m.json").unwrap();
-    assert_eq!(m.chain.elements.len(), MAX_CHAIN_ELEMENTS);
+    assert_eq!(m.chain.elements().len(), MAX_CHAIN_ELEMENTS);
     let q = m.to_internal(&[2.0]);
     let tip = m.chain.pose(&q, &kinpost::machine::NoErrors).tip;
     assert!(

@@ -122,7 +122,7 @@ proptest! {
                 .iter()
                 .zip(&jitter)
                 .enumerate()
-                .map(|(j, (v, d))| match m.chain.joints[j].kind {
+                .map(|(j, (v, d))| match m.chain.joints()[j].kind {
                     JointKind::Revolute => v + d * 3f64.to_radians(),
                     JointKind::Prismatic => v + d * 2.0,
                 })
@@ -133,7 +133,7 @@ proptest! {
                 prop_assert!(
                     same_joint(&m, j, *got, *want),
                     "{name}: joint {} = {got} instead of {want}",
-                    m.chain.joints[j].name
+                    m.chain.joints()[j].name
                 );
             }
             prop_assert!(!sol.singular);

@@ -289,7 +289,8 @@ fn the_command_writes_a_machine_file() {
     let m = Machine::load(&out_path).unwrap();
     assert_eq!(m.name, "test-xyzbc-trt");
     assert_eq!(
-        m.chain.joints[0].axis.z, 1.0,
+        m.chain.joints()[0].axis.z,
+        1.0,
         "conventional-directions 1: C about +Z"
     );
 }

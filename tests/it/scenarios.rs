@@ -238,7 +238,7 @@ fn random_machines_and_programs_through_every_command() {
             let mut rng = SplitMix64::new(1000 * seed + checked as u64 + 17);
             let m = random_machine(file, &mut rng, &d.join("m.json"));
             if m.chain
-                .joints
+                .joints()
                 .iter()
                 .all(|j| j.kind != kinpost::machine::chain::JointKind::Revolute)
             {
@@ -375,7 +375,7 @@ fn random_machines_and_programs_through_every_command() {
             // moves; linkage refuses such a block by name.
             let linears = m
                 .chain
-                .joints
+                .joints()
                 .iter()
                 .filter(|j| j.kind == kinpost::machine::chain::JointKind::Prismatic)
                 .count();
