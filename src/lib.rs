@@ -25,5 +25,6 @@ pub mod program;
 pub mod progress;
 pub mod report;
 pub mod text;
+pub mod trajectory;
 
 pub use error::{Error, Location, Result};
