@@ -19,7 +19,6 @@ pub mod linkage;
 pub mod machine;
 pub mod numeric;
 pub mod output;
-pub mod plot;
 pub mod post;
 pub mod program;
 pub mod progress;
