@@ -6,7 +6,6 @@
 
 pub mod analyze;
 pub mod cl;
-pub mod cli;
 pub mod compensate;
 pub mod demo;
 pub mod diagnose;
