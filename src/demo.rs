@@ -153,7 +153,7 @@ pub fn exercise_program(machine: &crate::machine::Machine, blocks: usize, seed: 
     // Travels in the chain's joint order, kept inside the limits.
     let travels: Vec<Travel> = machine
         .chain
-        .joints
+        .joints()
         .iter()
         .map(|j| {
             let spec = machine.axes.iter().find(|a| a.name == j.name);

@@ -6,7 +6,6 @@
 
 pub mod analyze;
 pub mod cl;
-pub mod cli;
 pub mod compensate;
 pub mod demo;
 pub mod diagnose;
@@ -19,11 +18,11 @@ pub mod linkage;
 pub mod machine;
 pub mod numeric;
 pub mod output;
-pub mod plot;
 pub mod post;
 pub mod program;
 pub mod progress;
 pub mod report;
 pub mod text;
+pub mod trajectory;
 
 pub use error::{Error, Location, Result};

@@ -520,7 +520,7 @@ impl<'a> GcodeConverter<'a> {
             let moved = self.previous.as_ref().is_some_and(|p| {
                 self.machine
                     .chain
-                    .joints
+                    .joints()
                     .iter()
                     .zip(p.iter().zip(&solved.q))
                     .any(|(j, (a, b))| {

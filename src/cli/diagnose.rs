@@ -8,10 +8,10 @@ use crate::diagnose::{
 };
 use crate::error::{Error, Location, Result};
 use crate::input;
-use crate::machine::{IkSolver, JointKind, Machine};
+use crate::machine::{JointKind, Machine};
 use crate::output::write_atomically;
 use crate::program::PoseStart;
-use crate::program::source::{looks_like_poses, machine_axis_blocks, program_poses};
+use crate::trajectory::joint_trajectory;
 use clap::Args;
 use std::io::Write;
 use std::path::PathBuf;
@@ -99,7 +99,7 @@ pub fn program_waypoints(
     let name = inp.name.clone();
     let ext = |q: &[f64]| -> Vec<f64> {
         q.iter()
-            .zip(&machine.chain.joints)
+            .zip(machine.chain.joints())
             .map(|(v, j)| {
                 if j.kind == JointKind::Revolute {
                     v.to_degrees()
@@ -110,41 +110,27 @@ pub fn program_waypoints(
             .collect()
     };
     let mut wps = Vec::new();
-    if looks_like_poses(&head) {
-        let ik = IkSolver::new(machine);
-        let mut prev: Option<Vec<f64>> = None;
-        let mut on_pose = |ev: crate::program::source::PoseEvent| -> Result<()> {
-            let q = super::reachable(&ik, machine, &ev.pose, prev.as_deref(), axis_tolerance_rad)
-                .map_err(|m| Error::input(Location::new(&name, ev.line, 0), m))?;
-            let feed = if ev.rapid {
+    joint_trajectory(
+        machine,
+        &mut inp.reader,
+        &head,
+        &name,
+        start,
+        axis_tolerance_rad,
+        |b| {
+            let feed = if b.rapid {
                 rapid_feed
             } else {
-                ev.feed_mm_min.unwrap_or(rapid_feed)
+                b.feed_mm_min.unwrap_or(rapid_feed)
             };
             wps.push(Waypoint {
-                q: ext(&q),
+                q: ext(&b.q),
                 feed,
-                block: ev.line as u64,
-            });
-            prev = Some(q.to_vec());
-            Ok(())
-        };
-        program_poses(&mut inp.reader, &head, &name, start, &mut on_pose)?;
-    } else {
-        machine_axis_blocks(machine, &mut inp.reader, &name, |ev| {
-            let feed = if ev.rapid {
-                rapid_feed
-            } else {
-                ev.feed_mm_min.unwrap_or(rapid_feed)
-            };
-            wps.push(Waypoint {
-                q: ext(&ev.q),
-                feed,
-                block: ev.line as u64,
+                block: b.line as u64,
             });
             Ok(())
-        })?;
-    }
+        },
+    )?;
     if wps.len() < 2 {
         return Err(Error::input(
             Location::new(&name, 0, 0),
@@ -380,7 +366,7 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
     }
     let axes: Vec<String> = machine
         .chain
-        .joints
+        .joints()
         .iter()
         .map(|j| j.name.clone())
         .collect();
@@ -471,7 +457,7 @@ fn diagnose_feedback_file(
     let name = a.recording.display().to_string();
     let rotary: Vec<bool> = machine
         .chain
-        .joints
+        .joints()
         .iter()
         .map(|j| j.kind == crate::machine::chain::JointKind::Revolute)
         .collect();

@@ -15,11 +15,12 @@ use crate::input;
 use crate::linkage::nonlinear_error;
 use crate::machine::{IkSolver, Machine, NoErrors, Pose};
 use crate::output::write_atomically;
-use crate::plot::{Panel, write_panels};
 use crate::post::{PoseSolver, PostOptions, SolvedPose, post_cl};
 use crate::program::PoseStart;
-use crate::program::source::{looks_like_poses, machine_axis_blocks, program_poses};
+use crate::program::source::looks_like_poses;
 use crate::progress::RunProgress;
+use crate::report::svg::{Panel, write_panels};
+use crate::trajectory::joint_trajectory;
 use clap::{Args, ValueEnum};
 use std::io::Write;
 use std::path::PathBuf;
@@ -186,7 +187,6 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
     };
     let mut nonlinear: Vec<NonlinearBlock> = Vec::new();
     let mut prev_q: Option<Vec<f64>> = None;
-    let ik = IkSolver::new(&machine);
     let axis_tolerance = a.axis_tolerance.rad()?;
     let nl_errors: &dyn crate::machine::JointErrors = &NoErrors;
     let mut step = |line: usize, q: Vec<f64>| {
@@ -201,32 +201,27 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         }
         prev_q = Some(q);
     };
-    if poses {
-        let mut ik_prev: Option<Vec<f64>> = None;
-        let mut on_pose = |ev: crate::program::source::PoseEvent| -> Result<()> {
-            let loc = crate::error::Location::new(&name, ev.line, 0);
-            if let Some(an) = analyzer.as_mut() {
-                an.add(ev.line, &ev.pose)
-                    .map_err(|m| Error::input(loc.clone(), m))?;
-            }
-            let q = super::reachable(&ik, &machine, &ev.pose, ik_prev.as_deref(), axis_tolerance)
-                .map_err(|m| Error::input(loc, m))?;
-            ik_prev = Some(q.to_vec());
-            step(ev.line, q.to_vec());
-            Ok(())
-        };
-        program_poses(&mut inp.reader, &head, &name, start, &mut on_pose)?;
-    } else {
-        if analyzer.is_some() {
-            return Err(Error::Usage(
-                "analyze --errors needs a program of tool poses; this one is in machine axes (use --nonlinear alone)".into(),
-            ));
-        }
-        machine_axis_blocks(&machine, &mut inp.reader, &name, |ev| {
-            step(ev.line, ev.q);
-            Ok(())
-        })?;
+    if !poses && analyzer.is_some() {
+        return Err(Error::Usage(
+            "analyze --errors needs a program of tool poses; this one is in machine axes (use --nonlinear alone)".into(),
+        ));
     }
+    joint_trajectory(
+        &machine,
+        &mut inp.reader,
+        &head,
+        &name,
+        start,
+        axis_tolerance,
+        |b| {
+            if let (Some(an), Some(pose)) = (analyzer.as_mut(), &b.pose) {
+                an.add(b.line, pose)
+                    .map_err(|m| Error::input(crate::error::Location::new(&name, b.line, 0), m))?;
+            }
+            step(b.line, b.q);
+            Ok(())
+        },
+    )?;
     let analysis = analyzer.map(|an| an.finish());
     let nl_max = nonlinear
         .iter()

@@ -95,7 +95,7 @@ pub fn linkage(a: LinkageArgs) -> Result<()> {
             let split = base
                 .chain
                 .joint_index(name)
-                .filter(|&j| base.chain.joints[j].kind == JointKind::Revolute)
+                .filter(|&j| base.chain.joints()[j].kind == JointKind::Revolute)
                 .ok_or_else(|| {
                     Error::Usage(format!(
                         "--split-axis {name}: not a rotary axis of {}",
@@ -103,8 +103,10 @@ pub fn linkage(a: LinkageArgs) -> Result<()> {
                     ))
                 })?;
             let held = (0..base.chain.dof())
-                .find(|&j| j != split && base.chain.joints[j].kind == JointKind::Revolute)
-                .ok_or_else(|| Error::Usage(format!("{} has no second rotary axis", base.name)))?;
+                .find(|&j| j != split && base.chain.joints()[j].kind == JointKind::Revolute)
+                .ok_or_else(|| {
+                    Error::Usage(format!("{} has no second rotary axis", base.name))
+                })?;
             Some(RotaryPair { split, held })
         }
     };

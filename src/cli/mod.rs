@@ -323,27 +323,6 @@ pub struct AxisTolerance {
     pub axis_tolerance_urad: f64,
 }
 
-/// The theoretical joint values of `pose` (continuing from `previous`), or
-/// the reason it cannot be reached: an IK failure, or a tool axis the
-/// machine misses by more than `tolerance_rad` (the same refusal as `post`).
-pub fn reachable(
-    ik: &crate::machine::IkSolver,
-    machine: &Machine,
-    pose: &crate::machine::Pose,
-    previous: Option<&[f64]>,
-    tolerance_rad: f64,
-) -> std::result::Result<crate::machine::chain::JointValues, String> {
-    let s = ik.solve(pose, previous).map_err(|e| e.to_string())?;
-    if s.axis_miss_rad > tolerance_rad {
-        return Err(crate::post::unreachable_axis(
-            &machine.name,
-            s.axis_miss_rad,
-            tolerance_rad,
-        ));
-    }
-    Ok(s.q)
-}
-
 impl AxisTolerance {
     /// The tolerance in rad, or a usage error for a negative or NaN value.
     pub fn rad(&self) -> Result<f64> {

@@ -107,7 +107,7 @@ pub(super) fn refine_with(
     );
     let mut step_cap = [0.0; MAX_JOINTS];
     let mut total_cap = [0.0; MAX_JOINTS];
-    for (k, j) in chain.joints.iter().enumerate() {
+    for (k, j) in chain.joints().iter().enumerate() {
         let revolute = j.kind == crate::machine::chain::JointKind::Revolute;
         step_cap[k] = if revolute {
             STEP_ROTARY_RAD

@@ -36,7 +36,7 @@ impl<W: std::io::Write> ReportWriter<W> {
             .map(|a| {
                 let revolute = machine
                     .chain
-                    .joints
+                    .joints()
                     .get(a.joint)
                     .is_some_and(|j| j.kind == crate::machine::chain::JointKind::Revolute);
                 format!("{}_{}", a.name, if revolute { "deg" } else { "mm" })

@@ -94,7 +94,7 @@ impl CompensatingSolver<'_> {
             match &e.effect {
                 Effect::Backlash { axis, value } => {
                     if let Some(j) = chain.joint_index(axis) {
-                        let v = if chain.joints[j].kind == crate::machine::chain::JointKind::Revolute {
+                        let v = if chain.joints()[j].kind == crate::machine::chain::JointKind::Revolute {
                             value.to_radians()
                         } else {
                             *value
@@ -233,7 +233,7 @@ impl CompensatingSolver<'_> {
         let mut lag = [0.0; crate::machine::chain::MAX_JOINTS];
         for (k, &(j, value)) in self.backlash.iter().enumerate() {
             let revolute =
-                self.machine.chain.joints[j].kind == crate::machine::chain::JointKind::Revolute;
+                self.machine.chain.joints()[j].kind == crate::machine::chain::JointKind::Revolute;
             let file_units = if revolute { q[j].to_degrees() } else { q[j] };
             lag[j] = 0.5 * value * self.directions[k].update(file_units);
             q[j] += lag[j];

@@ -948,8 +948,8 @@ impl<'a> DynamicErrors<'a> {
     pub fn new(chain: &Chain, base: &'a dyn JointErrors) -> Self {
         DynamicErrors {
             base,
-            kinds: chain.joints.iter().map(|j| j.kind).collect(),
-            axes: chain.joints.iter().map(|j| j.axis.into_inner()).collect(),
+            kinds: chain.joints().iter().map(|j| j.kind).collect(),
+            axes: chain.joints().iter().map(|j| j.axis.into_inner()).collect(),
             dq: vec![0.0; chain.dof()],
         }
     }

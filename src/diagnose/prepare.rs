@@ -174,7 +174,7 @@ fn rco_columns(
     out: &mut [[[f64; 3]; 2]],
 ) {
     let mut prefix = Matrix4::<f64>::identity();
-    for el in &chain.elements {
+    for el in chain.elements() {
         match el {
             Element::Fixed(m) => prefix *= m,
             Element::Joint(j) => {
@@ -280,8 +280,8 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
             dir[i * dof + j] = trackers[j].update(q[i * dof + j]);
         }
     }
-    let kinds: Vec<JointKind> = chain.joints.iter().map(|j| j.kind).collect();
-    let axis_coord: Vec<usize> = chain.joints.iter().map(|j| j.axis.iamax()).collect();
+    let kinds: Vec<JointKind> = chain.joints().iter().map(|j| j.kind).collect();
+    let axis_coord: Vec<usize> = chain.joints().iter().map(|j| j.axis.iamax()).collect();
     let deg = std::f64::consts::PI / 180.0;
     // Onsets of the model's dynamic effects.
     let mut dynamic = machine.dynamic.clone();
@@ -290,7 +290,7 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
     // revolute joint's axis.
     let rco_dirs: Vec<Option<[Vector3<f64>; 2]>> = (0..dof)
         .map(|j| {
-            (kinds[j] == JointKind::Revolute).then(|| perpendicular_pair(&chain.joints[j].axis))
+            (kinds[j] == JointKind::Revolute).then(|| perpendicular_pair(&chain.joints()[j].axis))
         })
         .collect();
     let mut rco: Vec<Option<RcoBasis>> = rco_dirs
@@ -416,7 +416,7 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
     Ok(Prepared {
         n,
         dof,
-        names: chain.joints.iter().map(|j| j.name.clone()).collect(),
+        names: chain.joints().iter().map(|j| j.name.clone()).collect(),
         kinds,
         axis_coord,
         t,
@@ -518,7 +518,7 @@ mod tests {
         c.translate(Vector3::new(0.0, 0.0, -265.0));
         let q = [0.7, 41.0, -0.4];
         let dirs: Vec<Option<[Vector3<f64>; 2]>> = c
-            .joints
+            .joints()
             .iter()
             .map(|j| (j.kind == JointKind::Revolute).then(|| perpendicular_pair(&j.axis)))
             .collect();
@@ -527,7 +527,7 @@ mod tests {
         let base = c.pose(&q, &Wobbly).tip;
         for (j, d) in dirs.iter().enumerate() {
             let Some(d) = d else { continue };
-            let el = c.joints[j].element;
+            let el = c.joints()[j].element;
             for k in 0..2 {
                 let off = c
                     .with_fixed_inserted(el + 1, translation(&(-d[k])))

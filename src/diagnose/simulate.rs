@@ -121,7 +121,7 @@ impl Segment {
 /// Path length of a move (mm, with 1° counted as 1 mm).
 pub fn path_length(chain: &Chain, from: &[f64], to: &[f64]) -> f64 {
     chain
-        .joints
+        .joints()
         .iter()
         .zip(from.iter().zip(to))
         .map(|(_, (a, b))| (b - a) * (b - a))
@@ -282,7 +282,7 @@ impl<'a> TrueMachine<'a> {
             }
         }
         for (j, v) in q.iter_mut().enumerate().take(n) {
-            if self.chain.joints[j].kind == JointKind::Revolute {
+            if self.chain.joints()[j].kind == JointKind::Revolute {
                 *v = v.to_radians();
             }
         }
@@ -671,7 +671,7 @@ pub fn simulate(
         })
         .collect();
     Ok(Recording {
-        axes: chain.joints.iter().map(|j| j.name.clone()).collect(),
+        axes: chain.joints().iter().map(|j| j.name.clone()).collect(),
         temp_names: Vec::new(),
         samples,
     })

@@ -1,6 +1,6 @@
 //! The nom parser for one physical line of G-code.
 //!
-//! The grammar is written down in `grammar/gcode.ebnf`; `tests/grammar.rs`
+//! The grammar is written down in `grammar/gcode.ebnf`; `tests/it/grammar.rs`
 //! checks the examples given there against this parser.
 //!
 //! The parser never fails. It recognises items from the start of the line
@@ -21,7 +21,7 @@
 //! allocate (a word's address is an inline [`Address`]; only a keyword's
 //! name and a number of more than 19 digits do), and the items go into a
 //! vector the caller may reuse ([`parse_line_into`]).
-//! `tests/gcode_differential.rs` checks that every line is read exactly as
+//! `tests/it/gcode_differential.rs` checks that every line is read exactly as
 //! the plainly composed parser of the grammar reads it.
 
 use nom::{

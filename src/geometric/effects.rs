@@ -248,7 +248,7 @@ impl From<Effect> for EffectSpec {
 /// True when `axis` names a rotary axis on `chain` (revolute joint), or —
 /// without a chain — when it is A, B or C.
 pub fn axis_is_rotary(chain: Option<&Chain>, axis: &str) -> bool {
-    match chain.and_then(|c| c.joint_index(axis).map(|j| c.joints[j].kind)) {
+    match chain.and_then(|c| c.joint_index(axis).map(|j| c.joints()[j].kind)) {
         Some(k) => k == JointKind::Revolute,
         None => matches!(axis.to_ascii_uppercase().as_str(), "A" | "B" | "C"),
     }
@@ -653,7 +653,7 @@ impl BoundEffect {
                 )
             })
         };
-        let kind_of = |j: usize| chain.joints[j].kind;
+        let kind_of = |j: usize| chain.joints()[j].kind;
         let (joint, source) = match &spec.effect {
             Effect::Backlash { axis, .. }
             | Effect::ServoLag { axis, .. }
@@ -810,7 +810,7 @@ impl StaticTerm {
             }
             _ => return None,
         };
-        let jt = &chain.joints[joint];
+        let jt = &chain.joints()[joint];
         Some(StaticTerm {
             joint,
             rotary: jt.kind == JointKind::Revolute,
@@ -867,12 +867,12 @@ impl StaticTerm {
 /// True when a revolute joint lies between joints `a` and `b` in the chain.
 fn revolute_between(chain: &Chain, a: usize, b: usize) -> bool {
     let (lo, hi) = {
-        let ea = chain.joints[a].element;
-        let eb = chain.joints[b].element;
+        let ea = chain.joints()[a].element;
+        let eb = chain.joints()[b].element;
         (ea.min(eb), ea.max(eb))
     };
-    chain.elements[lo + 1..hi].iter().any(|el| {
-        matches!(el, crate::machine::chain::Element::Joint(k) if chain.joints[*k].kind == JointKind::Revolute)
+    chain.elements()[lo + 1..hi].iter().any(|el| {
+        matches!(el, crate::machine::chain::Element::Joint(k) if chain.joints()[*k].kind == JointKind::Revolute)
     })
 }
 
@@ -881,14 +881,14 @@ fn revolute_between(chain: &Chain, a: usize, b: usize) -> bool {
 /// may lie between them).
 fn direction_in_frame_of(chain: &Chain, a: usize, b: usize) -> Vector3<f64> {
     use crate::machine::chain::Element;
-    let ea = chain.joints[a].element;
-    let eb = chain.joints[b].element;
+    let ea = chain.joints()[a].element;
+    let eb = chain.joints()[b].element;
     let rot = |m: &Matrix4<f64>| m.fixed_view::<3, 3>(0, 0).into_owned();
-    let u = chain.joints[b].axis.into_inner();
+    let u = chain.joints()[b].axis.into_inner();
     if ea < eb {
         // Frame after a → frame before b: product of elements in between.
         let mut r = nalgebra::Matrix3::identity();
-        for el in &chain.elements[ea + 1..eb] {
+        for el in &chain.elements()[ea + 1..eb] {
             if let Element::Fixed(m) = el {
                 r *= rot(m);
             }
@@ -898,7 +898,7 @@ fn direction_in_frame_of(chain: &Chain, a: usize, b: usize) -> Vector3<f64> {
         // b comes first: the direction of b in a's moving frame is the
         // inverse rotation of the elements from b up to a.
         let mut r = nalgebra::Matrix3::identity();
-        for el in &chain.elements[eb + 1..ea] {
+        for el in &chain.elements()[eb + 1..ea] {
             if let Element::Fixed(m) = el {
                 r *= rot(m);
             }
@@ -917,7 +917,7 @@ pub fn chain_with_effects(chain: &Chain, effects: &[&BoundEffect]) -> Chain {
             Effect::RotaryCenterOffset { offset_mm, .. } => {
                 if let Some(j) = e.joint {
                     let d = Vector3::from_column_slice(offset_mm);
-                    let el = c.joints[j].element;
+                    let el = c.joints()[j].element;
                     c = c.with_fixed_inserted(el + 1, translation(&(-d)));
                     c = c.with_fixed_inserted(el, translation(&d));
                 }

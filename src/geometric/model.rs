@@ -76,7 +76,7 @@ impl FixedError {
                         ),
                     )
                 })?;
-                chain.joints[j].element + 1
+                chain.joints()[j].element + 1
             }
         };
         Ok(chain.with_fixed_inserted(at, self.matrix()))
@@ -576,7 +576,7 @@ impl ErrorModel {
     /// Binds the model to a chain: every modelled axis must be a joint of the
     /// chain, of the same kind (rotary axes on revolute joints).
     pub fn bind<'a>(&'a self, chain: &Chain) -> Result<BoundErrors<'a>> {
-        let mut per_joint: Vec<Option<&'a AxisErrors>> = vec![None; chain.joints.len()];
+        let mut per_joint: Vec<Option<&'a AxisErrors>> = vec![None; chain.joints().len()];
         let source = self
             .meta
             .source
@@ -593,7 +593,7 @@ impl ErrorModel {
                     ),
                 )
             })?;
-            let revolute = chain.joints[j].kind == JointKind::Revolute;
+            let revolute = chain.joints()[j].kind == JointKind::Revolute;
             if revolute != a.rotary {
                 return Err(a.origin.error(
                     &source,

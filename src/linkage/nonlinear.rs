@@ -63,7 +63,7 @@ pub fn nonlinear_error(
     };
 
     let rotary_moves = chain
-        .joints
+        .joints()
         .iter()
         .enumerate()
         .any(|(k, j)| j.kind == JointKind::Revolute && qa[k] != qb[k]);
@@ -109,7 +109,7 @@ fn errors_are_linear_free(errors: &dyn JointErrors) -> bool {
 fn estimate(chain: &Chain, errors: &dyn JointErrors, qa: &[f64], qb: &[f64]) -> f64 {
     let qm: Vec<f64> = qa.iter().zip(qb).map(|(a, b)| 0.5 * (a + b)).collect();
     let mut sum = 0.0;
-    for (k, joint) in chain.joints.iter().enumerate() {
+    for (k, joint) in chain.joints().iter().enumerate() {
         if joint.kind != JointKind::Revolute || qa[k] == qb[k] {
             continue;
         }

@@ -57,7 +57,7 @@ impl RotaryPair {
     /// the workpiece is split, the one nearer the tool is held.
     pub fn default_for(chain: &Chain) -> Option<RotaryPair> {
         let r: Vec<usize> = (0..chain.dof())
-            .filter(|&j| chain.joints[j].kind == JointKind::Revolute)
+            .filter(|&j| chain.joints()[j].kind == JointKind::Revolute)
             .collect();
         (r.len() == 2).then(|| RotaryPair {
             split: r[0],
@@ -81,7 +81,7 @@ pub fn solve_linears(
     tip: &Vector3<f64>,
 ) -> Result<(), String> {
     let mut lin: Vec<usize> = (0..chain.dof())
-        .filter(|&j| chain.joints[j].kind == JointKind::Prismatic)
+        .filter(|&j| chain.joints()[j].kind == JointKind::Prismatic)
         .collect();
     if lin.is_empty() {
         return Err("the machine has no linear axis to place the tool tip".into());

@@ -18,7 +18,18 @@
 //! Internal units: millimetres for lengths and prismatic joints, radians for
 //! revolute joints and angles. Conversion to degrees happens at the edges.
 
-use nalgebra::{Matrix3, Matrix4, OMatrix, U6, Unit, Vector3, Vector4, Vector6};
+use nalgebra::{Matrix4, OMatrix, U6, Unit, Vector3, Vector6};
+
+mod compiled;
+#[cfg(test)]
+mod reference;
+mod transforms;
+
+pub use compiled::NearTrig;
+use compiled::{Compiled, Rotations};
+pub use transforms::{
+    error_matrix, error_matrix_derivative, rotate, rotation, rotation3, translation,
+};
 
 /// Largest number of joints a chain may have (X, Y, Z, A, B, C, plus one spare).
 pub const MAX_JOINTS: usize = 7;
@@ -66,34 +77,6 @@ pub struct Joint {
 /// The six error motions of one joint at one position (ISO 230-1 style):
 /// `[δx, δy, δz, εx, εy, εz]`, mm and rad, in the joint's moving frame.
 pub type ErrorMotion = Vector6<f64>;
-
-/// The small-angle homogeneous error matrix of `kinematics.md`:
-///
-/// ```text
-/// | 1    −εz   εy   δx |
-/// | εz    1   −εx   δy |
-/// | −εy   εx    1   δz |
-/// | 0     0     0    1 |
-/// ```
-pub fn error_matrix(e: &ErrorMotion) -> Matrix4<f64> {
-    Matrix4::new(
-        1.0, -e[5], e[4], e[0], //
-        e[5], 1.0, -e[3], e[1], //
-        -e[4], e[3], 1.0, e[2], //
-        0.0, 0.0, 0.0, 1.0,
-    )
-}
-
-/// Derivative of [`error_matrix`] for a derivative of the error motions
-/// (the identity drops out; the map is linear in `e`).
-pub fn error_matrix_derivative(de: &ErrorMotion) -> Matrix4<f64> {
-    Matrix4::new(
-        0.0, -de[5], de[4], de[0], //
-        de[5], 0.0, -de[3], de[1], //
-        -de[4], de[3], 0.0, de[2], //
-        0.0, 0.0, 0.0, 0.0,
-    )
-}
 
 /// Source of position-dependent joint errors for the chain evaluator.
 ///
@@ -203,14 +186,14 @@ pub type JacobianColumns = [[f64; 6]; MAX_JOINTS];
 /// [`Chain::translate`], [`Chain::rotate`], [`Chain::fixed_error`],
 /// [`Chain::with_fixed_inserted`]): they keep a precomputed form of the
 /// chain (consecutive fixed elements multiplied out, per-joint constants)
-/// that the evaluators use. A chain whose element or joint list was edited
-/// directly with a different length is evaluated element by element.
+/// that the one evaluator uses. The element and joint lists are read
+/// through [`Chain::elements`] and [`Chain::joints`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Chain {
     /// Elements in order from the workpiece frame to the tool-tip frame.
-    pub elements: Vec<Element>,
+    elements: Vec<Element>,
     /// Joints in chain order (the order of `q`).
-    pub joints: Vec<Joint>,
+    joints: Vec<Joint>,
     compiled: Compiled,
 }
 
@@ -237,367 +220,6 @@ pub enum ChainPart {
     },
 }
 
-/// The sines and cosines of a chain's revolute joints at joint values `q0`
-/// ([`Chain::trig_at`]): near `q0` those of `q = q0 + d` follow by the
-/// addition theorem, `sin q = sin q0 · cos d + cos q0 · sin d`, with
-/// `sin d` and `cos d` from their series, which for |d| ≤ 1e-4 rad are
-/// exact to far below an ulp (the first omitted terms are d⁵/120 < 1e-22
-/// and d⁶/720 < 2e-27). The Newton refinement's steps are micro-radians,
-/// so its trial points cost no `sin_cos` call.
-#[derive(Debug, Clone, Copy)]
-pub struct NearTrig {
-    q0: [f64; MAX_JOINTS],
-    sc: [(f64, f64); MAX_JOINTS],
-}
-
-impl NearTrig {
-    /// Largest |q − q0| handled by the addition theorem, rad.
-    const NEAR_RAD: f64 = 1e-4;
-
-    /// The sines and cosines at `q0 + d`, with the offsets `d` (rad for the
-    /// revolute joints) taken exactly: they need not be representable as a
-    /// change of `q0 + d` in floating point. For a rotary at thousands of
-    /// degrees, `q0 + d` resolves only 1e-14 rad or so (1e-12 mm at a
-    /// 100 mm radius); the refinement steps by its offsets through this
-    /// and loses nothing. Evaluate the chain at `q0 + d` (rounded) with the
-    /// result: the rotations come from here, the error motions from the
-    /// rounded values, where their resolution does not matter.
-    pub fn shifted(&self, d: &[f64]) -> NearTrig {
-        let mut t = *self;
-        for (j, &dj) in d.iter().enumerate().take(MAX_JOINTS) {
-            t.q0[j] = self.q0[j] + dj;
-            if dj == 0.0 {
-                continue;
-            }
-            let d = if dj.abs() <= Self::NEAR_RAD {
-                small_sin_cos(dj)
-            } else {
-                dj.sin_cos()
-            };
-            t.sc[j] = add_angles(self.sc[j], d);
-        }
-        t
-    }
-
-    /// `(sin q, cos q)` of joint `j`.
-    #[inline]
-    pub fn sin_cos(&self, j: usize, q: f64) -> (f64, f64) {
-        let d = q - self.q0[j];
-        if d.abs() > Self::NEAR_RAD || d.is_nan() {
-            return q.sin_cos();
-        }
-        if d == 0.0 {
-            return self.sc[j];
-        }
-        add_angles(self.sc[j], small_sin_cos(d))
-    }
-}
-
-/// `(sin d, cos d)` of a small angle (|d| ≤ 1e-4 rad) from the series, to
-/// far below an ulp.
-#[inline]
-fn small_sin_cos(d: f64) -> (f64, f64) {
-    let d2 = d * d;
-    (
-        d - d * d2 * (1.0 / 6.0),
-        1.0 - d2 * (0.5 - d2 * (1.0 / 24.0)),
-    )
-}
-
-/// `(sin(a + b), cos(a + b))` from those of `a` and `b` (addition theorem).
-#[inline]
-fn add_angles((sa, ca): (f64, f64), (sb, cb): (f64, f64)) -> (f64, f64) {
-    (sa * cb + ca * sb, ca * cb - sa * sb)
-}
-
-/// Where [`Chain::pose_backward`] takes the revolute joints' rotations from.
-#[derive(Clone, Copy)]
-enum Rotations<'a> {
-    /// Computed from the joint values.
-    Compute,
-    /// Given by the caller, by joint index.
-    Given(&'a [[[f64; 3]; 3]; MAX_JOINTS]),
-    /// From sines and cosines near known ones.
-    Near(&'a NearTrig),
-}
-
-/// An affine transform `[R | t]` (row-major, the last row `0 0 0 1`
-/// implied). Products and point maps sum in the same order as nalgebra's
-/// 4×4 products (k = 0, 1, 2, then the translation), skipping only the
-/// terms that are exactly zero.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Affine {
-    m: [[f64; 4]; 3],
-}
-
-impl Affine {
-    const IDENTITY: Affine = Affine {
-        m: [
-            [1.0, 0.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0, 0.0],
-            [0.0, 0.0, 1.0, 0.0],
-        ],
-    };
-
-    /// The affine part of `m`, if its last row is exactly `0 0 0 1`.
-    fn from_matrix4(m: &Matrix4<f64>) -> Option<Affine> {
-        if m[(3, 0)] != 0.0 || m[(3, 1)] != 0.0 || m[(3, 2)] != 0.0 || m[(3, 3)] != 1.0 {
-            return None;
-        }
-        let mut a = Affine::IDENTITY;
-        for (i, row) in a.m.iter_mut().enumerate() {
-            for (j, v) in row.iter_mut().enumerate() {
-                *v = m[(i, j)];
-            }
-        }
-        Some(a)
-    }
-
-    fn to_matrix4(self) -> Matrix4<f64> {
-        let m = &self.m;
-        Matrix4::new(
-            m[0][0], m[0][1], m[0][2], m[0][3], //
-            m[1][0], m[1][1], m[1][2], m[1][3], //
-            m[2][0], m[2][1], m[2][2], m[2][3], //
-            0.0, 0.0, 0.0, 1.0,
-        )
-    }
-
-    /// `self · b`.
-    #[inline]
-    fn mul(&self, b: &Affine) -> Affine {
-        let (a, b) = (&self.m, &b.m);
-        let mut c = [[0.0; 4]; 3];
-        for i in 0..3 {
-            for j in 0..4 {
-                c[i][j] = a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j];
-            }
-            c[i][3] += a[i][3];
-        }
-        Affine { m: c }
-    }
-
-    /// `R p + t`.
-    #[inline]
-    fn point(&self, p: &[f64; 3]) -> [f64; 3] {
-        let m = &self.m;
-        std::array::from_fn(|i| m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + m[i][3])
-    }
-
-    /// `R d`.
-    #[inline]
-    fn dir(&self, d: &[f64; 3]) -> [f64; 3] {
-        let m = &self.m;
-        std::array::from_fn(|i| m[i][0] * d[0] + m[i][1] * d[1] + m[i][2] * d[2])
-    }
-}
-
-/// `r d` for a 3×3 `r` (row-major).
-#[inline]
-fn rot3_apply(r: &[[f64; 3]; 3], d: &[f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| r[i][0] * d[0] + r[i][1] * d[1] + r[i][2] * d[2])
-}
-
-/// `a · b` for 3×3 matrices (row-major), nalgebra's summation order.
-#[inline]
-fn mul3(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    std::array::from_fn(|i| {
-        std::array::from_fn(|j| a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j])
-    })
-}
-
-/// `a · [r | t]` for a 3×3 `a` and an affine `[r | t]`.
-#[inline]
-fn mul3_affine(a: &[[f64; 3]; 3], b: &Affine) -> Affine {
-    let b = &b.m;
-    Affine {
-        m: std::array::from_fn(|i| {
-            std::array::from_fn(|j| a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j])
-        }),
-    }
-}
-
-/// Per-joint constants: the axis, its cross matrix `K = [u]ₓ` and `K²`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct JointConst {
-    kind: JointKind,
-    u: [f64; 3],
-    k: [[f64; 3]; 3],
-    kk: [[f64; 3]; 3],
-}
-
-impl JointConst {
-    fn new(joint: &Joint) -> Self {
-        let u = joint.axis.into_inner();
-        let k = joint.axis.cross_matrix();
-        let kk = k * k;
-        let arr = |m: &Matrix3<f64>| std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]));
-        JointConst {
-            kind: joint.kind,
-            u: [u.x, u.y, u.z],
-            k: arr(&k),
-            kk: arr(&kk),
-        }
-    }
-
-    /// Rodrigues `I + sinθ K + (1 − cosθ) K²`, as [`rotation3`] computes it.
-    #[inline]
-    fn rotation(&self, theta: f64) -> [[f64; 3]; 3] {
-        let (s, c) = theta.sin_cos();
-        self.rotation_sc(s, c)
-    }
-
-    /// [`JointConst::rotation`] from the sine `s` and cosine `c` of θ.
-    #[inline]
-    fn rotation_sc(&self, s: f64, c: f64) -> [[f64; 3]; 3] {
-        let omc = 1.0 - c;
-        std::array::from_fn(|i| {
-            std::array::from_fn(|j| {
-                let id = if i == j { 1.0 } else { 0.0 };
-                (id + self.k[i][j] * s) + self.kk[i][j] * omc
-            })
-        })
-    }
-
-    /// `G = M(q) · E` (the joint's motion after its error motion `e`) and
-    /// the rotation of `M(q)` (the identity for a prismatic joint); `sc`:
-    /// the sine and cosine of `q` when the caller has them (revolute joints).
-    #[inline]
-    fn motion(
-        &self,
-        q: f64,
-        sc: Option<(f64, f64)>,
-        e: Option<&ErrorMotion>,
-    ) -> (Affine, [[f64; 3]; 3]) {
-        const I3: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-        let e_aff = |e: &ErrorMotion| Affine {
-            m: [
-                [1.0, -e[5], e[4], e[0]],
-                [e[5], 1.0, -e[3], e[1]],
-                [-e[4], e[3], 1.0, e[2]],
-            ],
-        };
-        match self.kind {
-            JointKind::Prismatic => {
-                let mut g = match e {
-                    Some(e) => e_aff(e),
-                    None => Affine::IDENTITY,
-                };
-                for (row, u) in g.m.iter_mut().zip(self.u) {
-                    row[3] += u * q;
-                }
-                (g, I3)
-            }
-            JointKind::Revolute => {
-                let (sn, cs) = sc.unwrap_or_else(|| q.sin_cos());
-                let r = self.rotation_sc(sn, cs);
-                let g = match e {
-                    Some(e) => mul3_affine(&r, &e_aff(e)),
-                    None => Affine {
-                        m: std::array::from_fn(|i| [r[i][0], r[i][1], r[i][2], 0.0]),
-                    },
-                };
-                (g, r)
-            }
-        }
-    }
-}
-
-/// One step of the precomputed chain.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Step {
-    /// Consecutive fixed elements multiplied out.
-    Fixed(Affine),
-    /// A joint (index into the joints).
-    Joint(usize),
-}
-
-/// The precomputed form of a chain (see [`Chain`]).
-#[derive(Clone, Default)]
-struct Compiled {
-    steps: Vec<Step>,
-    joints: Vec<JointConst>,
-    /// Number of elements it was built from (a staleness check).
-    elements: usize,
-    /// Some fixed element is not affine: evaluate with full 4×4 matrices.
-    general: bool,
-}
-
-impl std::fmt::Debug for Compiled {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("Compiled")
-    }
-}
-
-impl PartialEq for Compiled {
-    /// Derived data: equal elements give equal compiled forms.
-    fn eq(&self, _: &Self) -> bool {
-        true
-    }
-}
-
-impl Compiled {
-    fn new(elements: &[Element], joints: &[Joint]) -> Self {
-        let mut c = Compiled {
-            steps: Vec::with_capacity(elements.len()),
-            joints: joints.iter().map(JointConst::new).collect(),
-            elements: elements.len(),
-            general: false,
-        };
-        for el in elements {
-            match el {
-                Element::Fixed(m) => match Affine::from_matrix4(m) {
-                    Some(a) => match c.steps.last_mut() {
-                        Some(Step::Fixed(prev)) => *prev = prev.mul(&a),
-                        _ => c.steps.push(Step::Fixed(a)),
-                    },
-                    None => c.general = true,
-                },
-                Element::Joint(j) => c.steps.push(Step::Joint(*j)),
-            }
-        }
-        c
-    }
-
-    fn fits(&self, chain: &Chain) -> bool {
-        !self.general
-            && self.elements == chain.elements.len()
-            && self.joints.len() == chain.joints.len()
-            && chain.joints.len() <= MAX_JOINTS
-    }
-}
-
-/// Homogeneous translation.
-pub fn translation(v: &Vector3<f64>) -> Matrix4<f64> {
-    let mut m = Matrix4::identity();
-    m[(0, 3)] = v.x;
-    m[(1, 3)] = v.y;
-    m[(2, 3)] = v.z;
-    m
-}
-
-/// Rodrigues rotation `R = I + sinθ [u]x + (1 − cosθ)[u]x²` as a 3×3 matrix.
-pub fn rotation3(u: &Unit<Vector3<f64>>, theta: f64) -> Matrix3<f64> {
-    let k = u.cross_matrix();
-    let (s, c) = theta.sin_cos();
-    Matrix3::identity() + k * s + k * k * (1.0 - c)
-}
-
-/// `v` turned by `theta` (rad) about the unit axis `u` (Rodrigues on the
-/// vector: `v cos θ + (u × v) sin θ + u (u·v)(1 − cos θ)`).
-pub fn rotate(u: &Vector3<f64>, theta: f64, v: &Vector3<f64>) -> Vector3<f64> {
-    let (s, c) = theta.sin_cos();
-    v * c + u.cross(v) * s + u * (u.dot(v) * (1.0 - c))
-}
-
-/// Homogeneous rotation by `theta` (rad) about unit axis `u` through the origin.
-pub fn rotation(u: &Unit<Vector3<f64>>, theta: f64) -> Matrix4<f64> {
-    let mut m = Matrix4::identity();
-    m.fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&rotation3(u, theta));
-    m
-}
-
 impl Chain {
     /// An empty chain (identity).
     pub fn new() -> Self {
@@ -613,14 +235,15 @@ impl Chain {
         self.compiled = Compiled::new(&self.elements, &self.joints);
     }
 
-    /// Runs `f` with the precomputed form, rebuilding it when the chain was
-    /// edited directly; `None` when the chain needs the general 4×4 path.
-    fn with_compiled<T>(&self, f: impl FnOnce(&Compiled) -> T) -> Option<T> {
-        if self.compiled.fits(self) {
-            return Some(f(&self.compiled));
-        }
-        let c = Compiled::new(&self.elements, &self.joints);
-        c.fits(self).then(|| f(&c))
+    /// The elements, in order from the workpiece frame to the tool-tip
+    /// frame.
+    pub fn elements(&self) -> &[Element] {
+        &self.elements
+    }
+
+    /// The joints, in chain order (the order of `q`).
+    pub fn joints(&self) -> &[Joint] {
+        &self.joints
     }
 
     /// A chain built from `parts`, in order from the workpiece to the tool
@@ -673,8 +296,13 @@ impl Chain {
         self
     }
 
-    /// Appends a joint; returns its joint index.
+    /// Appends a joint; returns its joint index. A chain has at most
+    /// [`MAX_JOINTS`] joints (machine files are checked for it).
     pub fn joint(&mut self, name: &str, kind: JointKind, axis: Vector3<f64>) -> usize {
+        assert!(
+            self.joints.len() < MAX_JOINTS,
+            "a chain has at most {MAX_JOINTS} joints"
+        );
         let index = self.joints.len();
         self.joints.push(Joint {
             name: name.to_string(),
@@ -709,8 +337,9 @@ impl Chain {
     }
 
     /// Returns a copy of this chain with a fixed element inserted at element
-    /// position `at` (0 = before everything, `elements.len()` = at the tool).
-    /// Joint element indices are kept consistent.
+    /// position `at` (0 = before everything, `elements().len()` = at the
+    /// tool). Joint element indices are kept consistent. `m` is affine
+    /// (last row `0 0 0 1`), as every transform of a chain is.
     pub fn with_fixed_inserted(&self, at: usize, m: Matrix4<f64>) -> Chain {
         let mut c = self.clone();
         c.elements.insert(at, Element::Fixed(m));
@@ -732,158 +361,17 @@ impl Chain {
         }
     }
 
-    /// Derivative `dM_j/dq` of the joint motion.
-    fn joint_motion_derivative(&self, j: usize, q: f64) -> Matrix4<f64> {
-        let joint = &self.joints[j];
-        match joint.kind {
-            JointKind::Prismatic => {
-                let mut m = Matrix4::zeros();
-                let u = joint.axis.into_inner();
-                m[(0, 3)] = u.x;
-                m[(1, 3)] = u.y;
-                m[(2, 3)] = u.z;
-                m
-            }
-            JointKind::Revolute => {
-                let mut m = Matrix4::zeros();
-                let r = joint.axis.cross_matrix() * rotation3(&joint.axis, q);
-                m.fixed_view_mut::<3, 3>(0, 0).copy_from(&r);
-                m
-            }
-        }
-    }
-
-    /// Transform of joint `j` including its error motion: `M_j(q) · E_j(q)`.
-    fn joint_transform(&self, j: usize, q: f64, errors: &dyn JointErrors) -> Matrix4<f64> {
-        let m = self.joint_motion(j, q);
-        match errors.error(j, q) {
-            Some(e) => m * error_matrix(&e),
-            None => m,
-        }
-    }
-
     /// Forward kinematics: `T_WT(q)` for joint values `q` (chain order,
     /// internal units) on the machine described by `errors`.
     pub fn transform(&self, q: &[f64], errors: &dyn JointErrors) -> Matrix4<f64> {
         debug_assert_eq!(q.len(), self.joints.len());
-        self.with_compiled(|c| Self::forward(c, q, errors).to_matrix4())
-            .unwrap_or_else(|| self.transform_general(q, errors))
-    }
-
-    /// [`Chain::transform`] with full 4×4 matrices, element by element.
-    fn transform_general(&self, q: &[f64], errors: &dyn JointErrors) -> Matrix4<f64> {
-        let mut t = Matrix4::identity();
-        for el in &self.elements {
-            match el {
-                Element::Fixed(m) => t *= m,
-                Element::Joint(j) => t *= self.joint_transform(*j, q[*j], errors),
-            }
-        }
-        t
-    }
-
-    /// The forward product on the precomputed chain.
-    fn forward(c: &Compiled, q: &[f64], errors: &dyn JointErrors) -> Affine {
-        let skip = errors.is_empty();
-        let mut t: Option<Affine> = None;
-        for step in &c.steps {
-            let m = match step {
-                Step::Fixed(m) => *m,
-                Step::Joint(j) => {
-                    let e = if skip { None } else { errors.error(*j, q[*j]) };
-                    c.joints[*j].motion(q[*j], None, e.as_ref()).0
-                }
-            };
-            t = Some(match t {
-                None => m,
-                Some(t) => t.mul(&m),
-            });
-        }
-        t.unwrap_or(Affine::IDENTITY)
-    }
-
-    /// The tool tip and axis of the precomputed chain by one backward pass
-    /// of the two vectors (`T·[0,0,0,1]`, `T·[0,0,1,0]`): each element maps
-    /// a point and a direction instead of multiplying 3×4 matrices.
-    /// `rots`: the revolute joints' rotations when the caller has them
-    /// already (by joint index), else each is computed here.
-    fn pose_backward(
-        c: &Compiled,
-        q: &[f64],
-        errors: &dyn JointErrors,
-        rots: Rotations<'_>,
-    ) -> Pose {
-        let skip = errors.is_empty();
-        let mut tip = [0.0; 3];
-        let mut ax = [0.0, 0.0, 1.0];
-        for step in c.steps.iter().rev() {
-            match step {
-                Step::Fixed(m) => {
-                    tip = m.point(&tip);
-                    ax = m.dir(&ax);
-                }
-                Step::Joint(j) => {
-                    let jc = &c.joints[*j];
-                    let v = q[*j];
-                    if !skip && let Some(e) = errors.error(*j, v) {
-                        // E = [I + [ε]ₓ | δ] (small-angle form, as `transform`).
-                        let d = |x: &[f64; 3]| {
-                            [
-                                x[0] - e[5] * x[1] + e[4] * x[2],
-                                e[5] * x[0] + x[1] - e[3] * x[2],
-                                -e[4] * x[0] + e[3] * x[1] + x[2],
-                            ]
-                        };
-                        let t = d(&tip);
-                        tip = [t[0] + e[0], t[1] + e[1], t[2] + e[2]];
-                        ax = d(&ax);
-                    }
-                    match jc.kind {
-                        JointKind::Prismatic => {
-                            for (t, u) in tip.iter_mut().zip(jc.u) {
-                                *t += u * v;
-                            }
-                        }
-                        JointKind::Revolute => {
-                            let r = match rots {
-                                Rotations::Given(rots) => rots[*j],
-                                Rotations::Near(near) => {
-                                    let (s, c) = near.sin_cos(*j, v);
-                                    jc.rotation_sc(s, c)
-                                }
-                                Rotations::Compute => jc.rotation(v),
-                            };
-                            let rot = |x: &[f64; 3]| -> [f64; 3] {
-                                std::array::from_fn(|i| {
-                                    r[i][0] * x[0] + r[i][1] * x[1] + r[i][2] * x[2]
-                                })
-                            };
-                            tip = rot(&tip);
-                            ax = rot(&ax);
-                        }
-                    }
-                }
-            }
-        }
-        Pose {
-            tip: Vector3::new(tip[0], tip[1], tip[2]),
-            axis: Vector3::new(ax[0], ax[1], ax[2]),
-        }
+        compiled::forward(&self.compiled, q, errors).to_matrix4()
     }
 
     /// Forward kinematics: tool tip `T·[0,0,0,1]` and tool axis `T·[0,0,1,0]`.
     pub fn pose(&self, q: &[f64], errors: &dyn JointErrors) -> Pose {
         debug_assert_eq!(q.len(), self.joints.len());
-        match self.with_compiled(|c| Self::pose_backward(c, q, errors, Rotations::Compute)) {
-            Some(pose) => pose,
-            None => {
-                let t = self.transform_general(q, errors);
-                Pose {
-                    tip: Vector3::new(t[(0, 3)], t[(1, 3)], t[(2, 3)]),
-                    axis: Vector3::new(t[(0, 2)], t[(1, 2)], t[(2, 2)]),
-                }
-            }
-        }
+        compiled::pose_backward(&self.compiled, q, errors, Rotations::Compute)
     }
 
     /// Forward kinematics and the analytic 6×n Jacobian of `[tip; axis]`.
@@ -896,60 +384,32 @@ impl Chain {
     pub fn pose_and_jacobian(&self, q: &[f64], errors: &dyn JointErrors) -> (Pose, Jacobian) {
         let n = self.joints.len();
         let mut cols = [[0.0; 6]; MAX_JOINTS];
-        match self.with_compiled(|c| Self::pose_jacobian_compiled(c, q, errors, &mut cols, None)) {
-            Some(pose) => {
-                let jac = Jacobian::from_fn(n, |r, c| cols[c][r]);
-                (pose, jac)
-            }
-            None => self.pose_and_jacobian_general(q, errors),
-        }
+        let pose = compiled::pose_jacobian(&self.compiled, q, errors, &mut cols, None);
+        (pose, Jacobian::from_fn(n, |r, c| cols[c][r]))
     }
 
     /// [`Chain::pose_and_jacobian`] without allocating: column `k` of
     /// `jac` receives `d[tip; axis]/dq_k` (columns past the dof are left
-    /// as they are). Needs a chain of at most [`MAX_JOINTS`] joints.
+    /// as they are).
     pub fn pose_and_jacobian_into(
         &self,
         q: &[f64],
         errors: &dyn JointErrors,
         jac: &mut JacobianColumns,
     ) -> Pose {
-        match self.with_compiled(|c| Self::pose_jacobian_compiled(c, q, errors, jac, None)) {
-            Some(pose) => pose,
-            None => {
-                let (pose, j) = self.pose_and_jacobian_general(q, errors);
-                for (k, col) in jac.iter_mut().enumerate().take(j.ncols()) {
-                    for (r, v) in col.iter_mut().enumerate() {
-                        *v = j[(r, k)];
-                    }
-                }
-                pose
-            }
-        }
+        compiled::pose_jacobian(&self.compiled, q, errors, jac, None)
     }
 
     /// The sines and cosines of the revolute joints at `q0`, for poses and
     /// Jacobians near `q0` (see [`NearTrig`]).
     pub fn trig_at(&self, q0: &[f64]) -> NearTrig {
-        let mut t = NearTrig {
-            q0: [0.0; MAX_JOINTS],
-            sc: [(0.0, 1.0); MAX_JOINTS],
-        };
-        for (j, joint) in self.joints.iter().enumerate().take(MAX_JOINTS) {
-            t.q0[j] = q0[j];
-            if joint.kind == JointKind::Revolute {
-                t.sc[j] = q0[j].sin_cos();
-            }
-        }
-        t
+        NearTrig::at(&self.joints, q0)
     }
 
     /// [`Chain::pose`] with the revolute joints' sines and cosines taken
     /// from `near` where `q` is near its `q0` (the refinement's trial points).
     pub fn pose_near(&self, q: &[f64], errors: &dyn JointErrors, near: &NearTrig) -> Pose {
-        let compiled =
-            self.with_compiled(|c| Self::pose_backward(c, q, errors, Rotations::Near(near)));
-        compiled.unwrap_or_else(|| self.pose(q, errors))
+        compiled::pose_backward(&self.compiled, q, errors, Rotations::Near(near))
     }
 
     /// [`Chain::pose_and_jacobian_into`] with the revolute joints' sines
@@ -961,10 +421,7 @@ impl Chain {
         jac: &mut JacobianColumns,
         near: &NearTrig,
     ) -> Pose {
-        match self.with_compiled(|c| Self::pose_jacobian_compiled(c, q, errors, jac, Some(near))) {
-            Some(pose) => pose,
-            None => self.pose_and_jacobian_into(q, errors, jac),
-        }
+        compiled::pose_jacobian(&self.compiled, q, errors, jac, Some(near))
     }
 
     /// Theoretical forward kinematics (no errors) and, for each prismatic
@@ -977,236 +434,7 @@ impl Chain {
         q: &[f64],
         dirs: &mut [[f64; 3]; MAX_JOINTS],
     ) -> Pose {
-        let compiled = self.with_compiled(|c| {
-            // Each revolute joint's rotation, once.
-            let mut rots = [[[0.0; 3]; 3]; MAX_JOINTS];
-            for (j, jc) in c.joints.iter().enumerate() {
-                if jc.kind == JointKind::Revolute {
-                    rots[j] = jc.rotation(q[j]);
-                }
-            }
-            // The directions need the rotation of the prefix before each
-            // prismatic joint: a forward pass of 3×3 rotations up to the
-            // last one.
-            let last = c.steps.iter().rposition(
-                |s| matches!(s, Step::Joint(j) if c.joints[*j].kind == JointKind::Prismatic),
-            );
-            let mut rot: Option<[[f64; 3]; 3]> = None;
-            for step in &c.steps[..last.map_or(0, |l| l + 1)] {
-                let r = match step {
-                    Step::Fixed(m) => std::array::from_fn(|i| [m.m[i][0], m.m[i][1], m.m[i][2]]),
-                    Step::Joint(j) => {
-                        let jc = &c.joints[*j];
-                        if jc.kind == JointKind::Prismatic {
-                            dirs[*j] = match &rot {
-                                Some(p) => std::array::from_fn(|i| {
-                                    p[i][0] * jc.u[0] + p[i][1] * jc.u[1] + p[i][2] * jc.u[2]
-                                }),
-                                None => jc.u,
-                            };
-                            continue;
-                        }
-                        rots[*j]
-                    }
-                };
-                rot = Some(match rot {
-                    None => r,
-                    Some(p) => mul3(&p, &r),
-                });
-            }
-            // The pose: one backward pass of the tip and the axis.
-            Self::pose_backward(c, q, &NoErrors, Rotations::Given(&rots))
-        });
-        match compiled {
-            Some(pose) => pose,
-            None => {
-                let (pose, jac) = self.pose_and_jacobian_general(q, &NoErrors);
-                for (j, joint) in self.joints.iter().enumerate() {
-                    if joint.kind == JointKind::Prismatic {
-                        dirs[j] = [jac[(0, j)], jac[(1, j)], jac[(2, j)]];
-                    }
-                }
-                pose
-            }
-        }
-    }
-
-    fn pose_jacobian_compiled(
-        c: &Compiled,
-        q: &[f64],
-        errors: &dyn JointErrors,
-        jac: &mut JacobianColumns,
-        near: Option<&NearTrig>,
-    ) -> Pose {
-        let n = c.joints.len();
-        debug_assert_eq!(q.len(), n);
-        let skip = errors.is_empty();
-        // Per joint: G = M E, the rotation of M, and the derivative E' of
-        // the error motion.
-        let mut g = [Affine::IDENTITY; MAX_JOINTS];
-        let mut rot = [[[0.0; 3]; 3]; MAX_JOINTS];
-        let mut de: [Option<ErrorMotion>; MAX_JOINTS] = [None; MAX_JOINTS];
-        for j in 0..n {
-            let e = if skip {
-                None
-            } else {
-                errors.error_and_derivative(j, q[j])
-            };
-            let sc = near
-                .filter(|_| c.joints[j].kind == JointKind::Revolute)
-                .map(|t| t.sin_cos(j, q[j]));
-            (g[j], rot[j]) = c.joints[j].motion(q[j], sc, e.as_ref().map(|(e, _)| e));
-            de[j] = e.map(|(_, d)| d);
-        }
-        // Backward pass: the tip point `s` and axis direction `a` carried
-        // from the tool through each element; at joint k the column before
-        // its prefix is G'_k applied to them, from vectors alone:
-        //   revolute:  M' = [u]ₓ M, so M' E s = u × (G s);
-        //   prismatic: M' = [0 | u], so M' E s = u (points), 0 (directions);
-        //   both:      M E' s = R (ε' × s + δ') (points), R (ε' × a).
-        let cross = |a: &[f64; 3], b: &[f64; 3]| {
-            [
-                a[1] * b[2] - a[2] * b[1],
-                a[2] * b[0] - a[0] * b[2],
-                a[0] * b[1] - a[1] * b[0],
-            ]
-        };
-        let mut s_tip = [0.0, 0.0, 0.0];
-        let mut s_ax = [0.0, 0.0, 1.0];
-        let mut local = [([0.0; 3], [0.0; 3]); MAX_JOINTS];
-        for step in c.steps.iter().rev() {
-            match step {
-                Step::Fixed(m) => {
-                    s_tip = m.point(&s_tip);
-                    s_ax = m.dir(&s_ax);
-                }
-                Step::Joint(j) => {
-                    let jc = &c.joints[*j];
-                    let (st, sa) = (s_tip, s_ax);
-                    s_tip = g[*j].point(&st);
-                    s_ax = g[*j].dir(&sa);
-                    let (mut dt, mut da) = match jc.kind {
-                        JointKind::Revolute => (cross(&jc.u, &s_tip), cross(&jc.u, &s_ax)),
-                        JointKind::Prismatic => (jc.u, [0.0; 3]),
-                    };
-                    if let Some(d) = &de[*j] {
-                        let eps = [d[3], d[4], d[5]];
-                        let et = cross(&eps, &st);
-                        let et = [et[0] + d[0], et[1] + d[1], et[2] + d[2]];
-                        let ea = cross(&eps, &sa);
-                        let (et, ea) = match jc.kind {
-                            JointKind::Revolute => {
-                                (rot3_apply(&rot[*j], &et), rot3_apply(&rot[*j], &ea))
-                            }
-                            JointKind::Prismatic => (et, ea),
-                        };
-                        for k in 0..3 {
-                            dt[k] += et[k];
-                            da[k] += ea[k];
-                        }
-                    }
-                    local[*j] = (dt, da);
-                }
-            }
-        }
-        // Forward pass: the rotation part of the prefix products (the
-        // columns map directions only); column k = P_k · (G_k' · S_k).
-        let last = c.steps.iter().rposition(|s| matches!(s, Step::Joint(_)));
-        let mut prefix: Option<[[f64; 3]; 3]> = None;
-        for (i, step) in c.steps.iter().enumerate() {
-            let m = match step {
-                Step::Fixed(m) => m,
-                Step::Joint(j) => {
-                    let (mut dt, mut da) = local[*j];
-                    if let Some(p) = &prefix {
-                        dt = rot3_apply(p, &dt);
-                        da = rot3_apply(p, &da);
-                    }
-                    jac[*j] = [dt[0], dt[1], dt[2], da[0], da[1], da[2]];
-                    &g[*j]
-                }
-            };
-            if Some(i) == last {
-                break;
-            }
-            let r: [[f64; 3]; 3] = std::array::from_fn(|i| [m.m[i][0], m.m[i][1], m.m[i][2]]);
-            prefix = Some(match prefix {
-                None => r,
-                Some(p) => mul3(&p, &r),
-            });
-        }
-        // The pose: the backward pass carried the tip and axis through.
-        Pose {
-            tip: Vector3::new(s_tip[0], s_tip[1], s_tip[2]),
-            axis: Vector3::new(s_ax[0], s_ax[1], s_ax[2]),
-        }
-    }
-
-    /// [`Chain::pose_and_jacobian`] with full 4×4 matrices, element by element
-    /// (chains with a fixed element that is not affine).
-    fn pose_and_jacobian_general(&self, q: &[f64], errors: &dyn JointErrors) -> (Pose, Jacobian) {
-        let n = self.joints.len();
-        debug_assert_eq!(q.len(), n);
-        // Per-joint transforms and derivatives.
-        let mut g = [Matrix4::<f64>::identity(); MAX_JOINTS];
-        let mut dg = [Matrix4::<f64>::zeros(); MAX_JOINTS];
-        for j in 0..n {
-            let m = self.joint_motion(j, q[j]);
-            let dm = self.joint_motion_derivative(j, q[j]);
-            match errors.error_and_derivative(j, q[j]) {
-                Some((e, de)) => {
-                    let em = error_matrix(&e);
-                    g[j] = m * em;
-                    dg[j] = dm * em + m * error_matrix_derivative(&de);
-                }
-                None => {
-                    g[j] = m;
-                    dg[j] = dm;
-                }
-            }
-        }
-        let elem = |el: &Element| -> Matrix4<f64> {
-            match el {
-                Element::Fixed(m) => *m,
-                Element::Joint(j) => g[*j],
-            }
-        };
-        // Backward pass: suffix applied to tip point and axis direction.
-        let ne = self.elements.len();
-        let mut s_tip = Vector4::new(0.0, 0.0, 0.0, 1.0);
-        let mut s_ax = Vector4::new(0.0, 0.0, 1.0, 0.0);
-        let mut suffix = [(Vector4::zeros(), Vector4::zeros()); MAX_JOINTS];
-        for i in (0..ne).rev() {
-            if let Element::Joint(j) = self.elements[i] {
-                suffix[j] = (s_tip, s_ax);
-            }
-            let m = elem(&self.elements[i]);
-            s_tip = m * s_tip;
-            s_ax = m * s_ax;
-        }
-        // Forward pass: prefix products.
-        let mut jac = Jacobian::zeros(n);
-        let mut prefix = Matrix4::<f64>::identity();
-        for el in &self.elements {
-            if let Element::Joint(j) = el {
-                let d = prefix * dg[*j];
-                let (st, sa) = suffix[*j];
-                let dt = d * st;
-                let da = d * sa;
-                jac[(0, *j)] = dt[0];
-                jac[(1, *j)] = dt[1];
-                jac[(2, *j)] = dt[2];
-                jac[(3, *j)] = da[0];
-                jac[(4, *j)] = da[1];
-                jac[(5, *j)] = da[2];
-            }
-            prefix *= elem(el);
-        }
-        let pose = Pose {
-            tip: Vector3::new(prefix[(0, 3)], prefix[(1, 3)], prefix[(2, 3)]),
-            axis: Vector3::new(prefix[(0, 2)], prefix[(1, 2)], prefix[(2, 2)]),
-        };
-        (pose, jac)
+        compiled::pose_and_prismatic_directions(&self.compiled, q, dirs)
     }
 }
 

@@ -203,10 +203,10 @@ impl Machine {
     pub fn to_file_json(&self) -> Value {
         let v3 = |v: &Vector3<f64>| serde_json::json!([v.x, v.y, v.z]);
         let mut chain = Vec::new();
-        for el in &self.chain.elements {
+        for el in self.chain.elements() {
             match el {
                 Element::Joint(j) => {
-                    let joint = &self.chain.joints[*j];
+                    let joint = &self.chain.joints()[*j];
                     let kind = match joint.kind {
                         JointKind::Prismatic => "prismatic",
                         JointKind::Revolute => "revolute",
@@ -269,11 +269,11 @@ impl Machine {
     pub fn element_descriptions(&self) -> Vec<String> {
         let fmt_v = |v: &Vector3<f64>| format!("[{}, {}, {}]", round(v.x), round(v.y), round(v.z));
         self.chain
-            .elements
+            .elements()
             .iter()
             .map(|el| match el {
                 Element::Joint(j) => {
-                    let joint = &self.chain.joints[*j];
+                    let joint = &self.chain.joints()[*j];
                     let kind = match joint.kind {
                         JointKind::Prismatic => "prismatic",
                         JointKind::Revolute => "revolute",
@@ -708,7 +708,7 @@ impl Parser<'_> {
                         Target::Key,
                         format!(
                             "\"axes\" names \"{name}\", which is not a joint of the chain; joints are {}",
-                            list(&chain.joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>())
+                            list(&chain.joints().iter().map(|j| j.name.as_str()).collect::<Vec<_>>())
                         ),
                     ));
                 };
@@ -726,7 +726,7 @@ impl Parser<'_> {
         // must say how they turn.
         for j in 0..n {
             if specs[j].is_none() {
-                let joint = &chain.joints[j];
+                let joint = &chain.joints()[j];
                 if joint.kind == JointKind::Revolute {
                     return Err(self.err(
                         &joints[j],
@@ -754,7 +754,7 @@ impl Parser<'_> {
     }
 
     fn axis_spec(&self, v: &Value, at: &[Seg], chain: &Chain, j: usize) -> Result<AxisSpec> {
-        let joint = &chain.joints[j];
+        let joint = &chain.joints()[j];
         let what = format!("the settings of axis \"{}\"", joint.name);
         let obj = self.object(v, at, &what)?;
         let rotary_joint = joint.kind == JointKind::Revolute;
@@ -872,7 +872,7 @@ impl Parser<'_> {
                 }
             };
             let mut order: Vec<usize> = (0..n).collect();
-            order.sort_by_key(|&j| (rank(&chain.joints[j].name), j));
+            order.sort_by_key(|&j| (rank(&chain.joints()[j].name), j));
             return Ok(order);
         };
         let at = vec![key("output_order")];
@@ -893,7 +893,7 @@ impl Parser<'_> {
                     Target::Value,
                     format!(
                         "\"output_order\" names \"{name}\", which is not a joint of the chain; joints are {}",
-                        list(&chain.joints.iter().map(|j| j.name.as_str()).collect::<Vec<_>>())
+                        list(&chain.joints().iter().map(|j| j.name.as_str()).collect::<Vec<_>>())
                     ),
                 ));
             };
@@ -912,7 +912,7 @@ impl Parser<'_> {
                 Target::Key,
                 format!(
                     "\"output_order\" leaves out joint \"{}\"; it must name every joint exactly once",
-                    chain.joints[missing].name
+                    chain.joints()[missing].name
                 ),
             ));
         }

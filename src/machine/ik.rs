@@ -36,6 +36,11 @@ use super::rotary::{angle_diff, choose_turn, within_limits};
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix4, Vector3};
 use std::f64::consts::PI;
 
+mod orient;
+mod subproblem;
+
+use subproblem::{gram_schmidt_solve, rot3, subproblem1, subproblem2};
+
 /// Default largest tool-axis miss a caller should accept silently, rad.
 pub const DEFAULT_AXIS_TOLERANCE_RAD: f64 = 1e-6;
 
@@ -198,87 +203,6 @@ struct Raw {
     branch: u8,
 }
 
-/// Subproblem 1: the angle θ that turns `p` about unit `k` closest to `q`
-/// (exactly onto it when reachable). `None` when `p` or `q` lies along `k`
-/// (within `tol`), where every θ is as good.
-fn subproblem1(k: &Vector3<f64>, p: &Vector3<f64>, q: &Vector3<f64>, tol: f64) -> Option<f64> {
-    let pp = p - k * k.dot(p);
-    let qq = q - k * k.dot(q);
-    if pp.norm() <= tol || qq.norm() <= tol {
-        return None;
-    }
-    Some(k.dot(&pp.cross(&qq)).atan2(pp.dot(&qq)))
-}
-
-/// Subproblem 2: the pairs (θ1, θ2) with `Rot(k1, θ1) Rot(k2, θ2) p = q`
-/// (unit `k1`, `k2` not parallel). Two pairs in general, one when the
-/// orientation is at the edge of the reachable set. When it is not
-/// reachable, the pair through the intersection point with γ = 0 (the
-/// nearest the circles come) is returned, and the caller measures the miss.
-fn subproblem2(
-    k1: &Vector3<f64>,
-    k2: &Vector3<f64>,
-    p: &Vector3<f64>,
-    q: &Vector3<f64>,
-) -> arrayvec::ArrayVec<(f64, f64), 2> {
-    let c12 = k1.dot(k2);
-    let denom = c12 * c12 - 1.0;
-    let alpha = (c12 * k2.dot(p) - k1.dot(q)) / denom;
-    let beta = (c12 * k1.dot(q) - k2.dot(p)) / denom;
-    let cross = k1.cross(k2);
-    let g2 = gamma_squared(k1, k2, p, q, c12, &cross);
-    let gammas: arrayvec::ArrayVec<f64, 2> = if g2 > 0.0 {
-        let g = g2.sqrt();
-        [g, -g].into_iter().collect()
-    } else {
-        [0.0].into_iter().collect()
-    };
-    gammas
-        .into_iter()
-        .map(|g| {
-            let c = k1 * alpha + k2 * beta + cross * g;
-            let t2 = subproblem1(k2, p, &c, 0.0).unwrap_or(0.0);
-            let t1 = subproblem1(k1, &c, q, 0.0).unwrap_or(0.0);
-            (t1, t2)
-        })
-        .collect()
-}
-
-/// γ² of subproblem 2: the squared component, along `k1 × k2`, of the
-/// point `c` where the two circles meet, computed without cancellation.
-///
-/// `c` lies on the circle of `q` about `k1`: its distance from `k1`'s line
-/// is `r1 = |k1 × q|`, which a cross product gives to full relative
-/// precision even when `q` is within 1e-8 rad of `k1` (where the textbook
-/// `|p|² − α² − β² − 2αβ·c12` loses everything: 1 − cos²θ with cos θ
-/// rounded to 1). In the plane ⟂ `k1`, `c`'s component towards `k2` is
-/// `a = (k2·p − c12·k1·q)/s` (s = |k1 × k2|) and the rest, `γ·s`, is
-/// along `k1 × k2`: γ²s² = r1² − a² = (r1 − a)(r1 + a). The same holds
-/// from `k2`'s side with `r2 = |k2 × p|`; the side with the smaller radius
-/// is the better conditioned one and is used.
-fn gamma_squared(
-    k1: &Vector3<f64>,
-    k2: &Vector3<f64>,
-    p: &Vector3<f64>,
-    q: &Vector3<f64>,
-    c12: f64,
-    cross: &Vector3<f64>,
-) -> f64 {
-    let s = cross.norm();
-    let r1 = k1.cross(q).norm();
-    let r2 = k2.cross(p).norm();
-    let (r, a) = if r1 <= r2 {
-        (r1, ((k2.dot(p) - c12 * k1.dot(q)) / s).abs())
-    } else {
-        (r2, ((k1.dot(q) - c12 * k2.dot(p)) / s).abs())
-    };
-    (r - a) * (r + a) / (s * s)
-}
-
-fn rot3(m: &Matrix4<f64>) -> Matrix3<f64> {
-    m.fixed_view::<3, 3>(0, 0).into_owned()
-}
-
 impl IkSolver {
     /// The solver for `machine` with default options.
     pub fn new(machine: &Machine) -> Self {
@@ -295,12 +219,12 @@ impl IkSolver {
                     .axis_of_joint(j)
                     .cloned()
                     .unwrap_or_else(|| AxisSpec {
-                        name: chain.joints[j].name.clone(),
+                        name: chain.joints()[j].name.clone(),
                         joint: j,
-                        kind: chain.joints[j].kind,
+                        kind: chain.joints()[j].kind,
                         min: None,
                         max: None,
-                        rotary: if chain.joints[j].kind == JointKind::Revolute {
+                        rotary: if chain.joints()[j].kind == JointKind::Revolute {
                             RotaryMode::Continuous
                         } else {
                             RotaryMode::Limited
@@ -321,17 +245,17 @@ impl IkSolver {
             }
         }
         let revolutes: Vec<usize> = (0..n)
-            .filter(|&j| chain.joints[j].kind == JointKind::Revolute)
+            .filter(|&j| chain.joints()[j].kind == JointKind::Revolute)
             .collect();
         let prismatics: Vec<usize> = (0..n)
-            .filter(|&j| chain.joints[j].kind == JointKind::Prismatic)
+            .filter(|&j| chain.joints()[j].kind == JointKind::Prismatic)
             .collect();
         let mut segs = Vec::with_capacity(revolutes.len() + 1);
         let mut cur = Matrix3::identity();
-        for el in &chain.elements {
+        for el in chain.elements() {
             match el {
                 Element::Fixed(m) => cur *= rot3(m),
-                Element::Joint(j) if chain.joints[*j].kind == JointKind::Revolute => {
+                Element::Joint(j) if chain.joints()[*j].kind == JointKind::Revolute => {
                     segs.push(cur);
                     cur = Matrix3::identity();
                 }
@@ -365,7 +289,7 @@ impl IkSolver {
     }
 
     fn u(&self, j: usize) -> Vector3<f64> {
-        self.chain.joints[j].axis.into_inner()
+        self.chain.joints()[j].axis.into_inner()
     }
 
     /// Prismatic directions in the workpiece frame at joint values `q`.
@@ -426,42 +350,6 @@ impl IkSolver {
             }
             _ => Family::Generic,
         }
-    }
-
-    /// Checks the RTTR structure (see the module docs) and returns its frame.
-    fn rttr_frame(&self, cols: &[Vector3<f64>]) -> Option<RttrFrame> {
-        let first = self.chain.joints[0].element;
-        let mut pre = Matrix4::identity();
-        for el in &self.chain.elements[..first] {
-            if let Element::Fixed(m) = el {
-                pre *= m;
-            }
-        }
-        let pre_inv = pre.try_inverse()?;
-        let pre_rot_t = rot3(&pre).transpose();
-        // Everything below in the frame just after the first revolute (at 0).
-        let d1 = pre_rot_t * cols[0];
-        let d2 = pre_rot_t * cols[1];
-        let n = d1.cross(&d2).try_normalize(STRUCT_TOL)?;
-        let u1 = self.u(self.revolutes[0]);
-        if u1.dot(&n).abs() > STRUCT_TOL {
-            return None;
-        }
-        let k2 = self.segs[1] * self.u(self.revolutes[1]);
-        if k2.cross(&n).norm() > STRUCT_TOL {
-            return None;
-        }
-        let pose0 = self.chain.pose(&vec![0.0; self.chain.dof()], &NoErrors);
-        let axis_f = pre_rot_t * pose0.axis;
-        if axis_f.dot(&n).abs() > STRUCT_TOL {
-            return None;
-        }
-        let tip_f = (pre_inv * pose0.tip.push(1.0)).xyz();
-        if tip_f.dot(&n).abs() > STRUCT_TOL * (1.0 + tip_f.norm()) {
-            return None;
-        }
-        let d = n.cross(&u1).normalize();
-        Some(RttrFrame { pre_inv, n, d })
     }
 
     /// Every solution branch of `pose` (chain order, internal units), with
@@ -849,191 +737,6 @@ impl IkSolver {
         }
         Ok(p0)
     }
-
-    fn orient_1r(&self, target: &Pose, reference: &[f64]) -> RawBranches {
-        let j1 = self.revolutes[0];
-        let k = self.u(j1);
-        let p = self.segs[1] * Vector3::z();
-        let qt = self.segs[0].transpose() * target.axis;
-        let mut q = [0.0; super::chain::MAX_JOINTS];
-        let (t, singular) = match subproblem1(&k, &p, &qt, self.options.singular_tol_rad) {
-            Some(t) => (t, false),
-            None => (reference[j1], true),
-        };
-        q[j1] = t;
-        [Raw {
-            q,
-            singular,
-            branch: 0,
-        }]
-        .into_iter()
-        .collect()
-    }
-
-    fn orient_2r(&self, target: &Pose, reference: &[f64]) -> RawBranches {
-        let (j1, j2) = (self.revolutes[0], self.revolutes[1]);
-        let k1 = self.u(j1);
-        let k2 = self.segs[1] * self.u(j2);
-        let p = self.segs[1] * self.segs[2] * Vector3::z();
-        let qt = self.segs[0].transpose() * target.axis;
-        if k1.cross(&qt).norm() <= self.options.singular_tol_rad {
-            // Tool axis along the first rotary: it is free; keep it and turn
-            // the second rotary onto the axis.
-            let t1 = reference[j1];
-            let back = rotate(&k1, -t1, &qt);
-            let t2 = subproblem1(&k2, &p, &back, 0.0).unwrap_or_else(|| reference[j2]);
-            let mut q = [0.0; super::chain::MAX_JOINTS];
-            q[j1] = t1;
-            q[j2] = t2;
-            return [Raw {
-                q,
-                singular: true,
-                branch: 0,
-            }]
-            .into_iter()
-            .collect();
-        }
-        subproblem2(&k1, &k2, &p, &qt)
-            .into_iter()
-            .enumerate()
-            .map(|(b, (t1, t2))| {
-                let mut q = [0.0; super::chain::MAX_JOINTS];
-                q[j1] = t1;
-                q[j2] = t2;
-                Raw {
-                    q,
-                    singular: false,
-                    branch: b as u8,
-                }
-            })
-            .collect()
-    }
-
-    /// The first rotary's angles of an RTTR machine for `target`: two
-    /// branches half a turn apart, or one when it is free (singular).
-    fn rttr_angles(&self, target: &Pose, reference: &[f64]) -> Option<RttrAngles> {
-        let f = self.rttr.as_ref()?;
-        let j1 = self.revolutes[0];
-        // Tip and axis in the frame just before the first revolute.
-        let p = (f.pre_inv * target.tip.push(1.0)).xyz();
-        let o = self.segs[0].transpose() * target.axis;
-        // The first rotary must bring both into the plane ⟂ n: the tip
-        // azimuth (weighted strongly) and the axis azimuth, combined in
-        // doubled angles because each is only defined modulo π.
-        let (pa, pb) = (p.dot(&f.d), p.dot(&f.n));
-        let (oa, ob) = (o.dot(&f.d), o.dot(&f.n));
-        let w2 = self.options.rttr_axis_weight_mm.powi(2);
-        let zr = pa * pa - pb * pb + w2 * (oa * oa - ob * ob);
-        let zi = 2.0 * pa * pb + w2 * 2.0 * oa * ob;
-        // The tip on the first rotary's axis and the tool axis along it,
-        // compared squared (no `hypot`: the IK has already refused
-        // coordinates anywhere near overflow).
-        let within = |a: f64, b: f64, tol: f64| tol >= 0.0 && a * a + b * b <= tol * tol;
-        Some(
-            if (within(pa, pb, self.options.on_axis_tol_mm)
-                && within(oa, ob, self.options.singular_tol_rad))
-                || (zr == 0.0 && zi == 0.0)
-            {
-                RttrAngles {
-                    t1: [reference[j1], 0.0],
-                    count: 1,
-                    singular: true,
-                    o,
-                }
-            } else {
-                let t = 0.5 * zi.atan2(zr);
-                RttrAngles {
-                    t1: [t, t + PI],
-                    count: 2,
-                    singular: false,
-                    o,
-                }
-            },
-        )
-    }
-
-    /// Branch `b` of [`IkSolver::rttr_angles`]: the second rotary turns the
-    /// tool axis into place.
-    fn rttr_branch(&self, a: &RttrAngles, b: usize, reference: &[f64]) -> Raw {
-        let (j1, j2) = (self.revolutes[0], self.revolutes[1]);
-        let (u1, u2) = (self.u(j1), self.u(j2));
-        let t1 = a.t1[b];
-        // Tool axis in the frame before the second revolute.
-        let back = self.segs[1].transpose() * rotate(&u1, -t1, &a.o);
-        let pz = self.segs[2] * Vector3::z();
-        let (t2, s2) = match subproblem1(&u2, &pz, &back, self.options.singular_tol_rad) {
-            Some(t2) => (t2, false),
-            None => (reference[j2], true),
-        };
-        let mut q = [0.0; super::chain::MAX_JOINTS];
-        q[j1] = t1;
-        q[j2] = t2;
-        Raw {
-            q,
-            singular: a.singular || s2,
-            branch: b as u8,
-        }
-    }
-}
-
-/// The first rotary's angles of an RTTR machine ([`IkSolver::rttr_angles`]).
-struct RttrAngles {
-    /// The angle of each branch, rad.
-    t1: [f64; 2],
-    /// Branches: 2, or 1 when the first rotary is free.
-    count: usize,
-    singular: bool,
-    /// The tool axis in the frame before the first revolute.
-    o: Vector3<f64>,
-}
-
-/// Least-squares solution of `Σ_c x_c · dirs[cols[c]] = b` for two or three
-/// columns by modified Gram–Schmidt QR, when the columns are certainly far
-/// from dependent: `None` for any other column count, and whenever the
-/// smallest singular value might be below `1e-6` of the largest (then the
-/// caller's SVD decides). With `R` the triangular factor, `σ_max ≤ ‖R‖_F` and
-/// `σ_min ≥ |det R| / ‖R‖_F^(m−1)`, so `|det R| ≥ 1e-6 · ‖R‖_F^m` proves
-/// `σ_min / σ_max ≥ 1e-6`.
-fn gram_schmidt_solve(
-    dirs: &[[f64; 3]; super::chain::MAX_JOINTS],
-    cols: &[usize],
-    b: &Vector3<f64>,
-) -> Option<[f64; 3]> {
-    let m = cols.len();
-    if !(2..=3).contains(&m) {
-        return None;
-    }
-    let mut q = [Vector3::zeros(); 3];
-    let mut r = [[0.0f64; 3]; 3];
-    for c in 0..m {
-        let mut v = Vector3::from(dirs[cols[c]]);
-        for (i, qi) in q.iter().enumerate().take(c) {
-            r[i][c] = qi.dot(&v);
-            v -= r[i][c] * qi;
-        }
-        r[c][c] = v.norm();
-        if r[c][c].is_nan() || r[c][c] <= 0.0 {
-            return None;
-        }
-        q[c] = v / r[c][c];
-    }
-    let frob2: f64 = r.iter().flatten().map(|v| v * v).sum();
-    let det: f64 = (0..m).map(|i| r[i][i]).product();
-    // ‖R‖_F^m without `powf` (m is 2 or 3).
-    let norm_m = if m == 2 { frob2 } else { frob2 * frob2.sqrt() };
-    let bound = 1e-6 * norm_m;
-    if !bound.is_finite() || det.is_nan() || det.abs() < bound {
-        return None;
-    }
-    let mut x = [0.0; 3];
-    for i in (0..m).rev() {
-        let mut v = q[i].dot(b);
-        for k in i + 1..m {
-            v -= r[i][k] * x[k];
-        }
-        x[i] = v / r[i][i];
-    }
-    Some(x)
 }
 
 #[cfg(test)]

@@ -25,7 +25,7 @@ pub fn branch_change_warning(
     q: &[f64],
     pose: &Pose,
 ) -> Option<String> {
-    let joints = &machine.chain.joints;
+    let joints = machine.chain.joints();
     if prev.len() != q.len() || q.len() != joints.len() {
         return None;
     }

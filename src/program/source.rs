@@ -354,7 +354,7 @@ mod tests {
 
     #[test]
     fn arc_centres_are_not_tool_vectors() {
-        // Found by tests/scenarios.rs: a machine-axis program with arcs was
+        // Found by tests/it/scenarios.rs: a machine-axis program with arcs was
         // taken for a pose program, and linkage then passed it through
         // without dividing a single five-axis block.
         assert!(!looks_like_poses(

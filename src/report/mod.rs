@@ -1,3 +1,3 @@
-//! Plots of reports (SVG, via `plotters`).
+//! Plots of reports and analyses (SVG, via `plotters`).
 
 pub mod svg;

@@ -1,13 +1,120 @@
-//! SVG plots of a diagnosis: the residual before and after the fit against
-//! time, and against the position that matters for the top finding.
+//! SVG plots (plotters): the stacked line panels of `analyze` (one panel
+//! per quantity, sharing the x axis) and the two residual panels of a
+//! diagnosis (against time, and against the position that matters for the
+//! top finding). One way to draw and one way to fail: a plot that cannot
+//! be drawn is an error naming its SVG (exit 3, as an output that cannot
+//! be written), and the file is written atomically.
 
+use std::path::Path;
+
+use plotters::coord::Shift;
 use plotters::prelude::*;
 
 use crate::diagnose::Report;
 use crate::error::{Error, Result};
 
-fn plot_err<E: std::fmt::Debug>(e: E) -> Error {
-    Error::Usage(format!("plotting failed: {e:?}"))
+/// What a drawing closure returns: any plotters failure.
+type Drawn = std::result::Result<(), Box<dyn std::error::Error>>;
+
+/// Draws an SVG document of `size` (pixels) with `f` and returns its text;
+/// a failure of the drawing is the one plot error, naming `name`.
+fn draw(
+    name: &str,
+    size: (u32, u32),
+    f: impl FnOnce(&DrawingArea<SVGBackend<'_>, Shift>) -> Drawn,
+) -> Result<String> {
+    let mut out = String::new();
+    {
+        let root = SVGBackend::with_string(&mut out, size).into_drawing_area();
+        f(&root)
+            .and_then(|()| root.present().map_err(Into::into))
+            .map_err(|e| {
+                Error::io(
+                    name.to_string(),
+                    std::io::Error::other(format!("plotting failed: {e}")),
+                )
+            })?;
+    }
+    Ok(out)
+}
+
+/// Writes `svg` to `path` atomically.
+fn write_file(path: &Path, svg: &str) -> Result<()> {
+    crate::output::write_atomically(Some(path), |w| {
+        w.write_all(svg.as_bytes())
+            .map_err(|e| Error::io(path.display().to_string(), e))
+    })
+}
+
+/// One panel: a title with its unit and one or more named series of (x, y).
+pub struct Panel<'a> {
+    /// Y-axis label with unit, e.g. `"tool-tip error E [µm]"`.
+    pub y_label: &'a str,
+    /// Named series.
+    pub series: Vec<(&'a str, Vec<(f64, f64)>)>,
+}
+
+const COLOURS: [RGBColor; 4] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+];
+
+/// Writes stacked panels to `path` as SVG (atomically).
+pub fn write_panels(path: &Path, title: &str, x_label: &str, panels: &[Panel<'_>]) -> Result<()> {
+    let height = 60 + 260 * panels.len() as u32;
+    let name = path.display().to_string();
+    let svg = draw(&name, (900, height), |root| {
+        root.fill(&WHITE)?;
+        let root = root.titled(title, ("sans-serif", 20))?;
+        let areas = root.split_evenly((panels.len().max(1), 1));
+        for (panel, area) in panels.iter().zip(areas) {
+            let pts = panel.series.iter().flat_map(|(_, s)| s.iter());
+            let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+            for &(x, y) in pts {
+                if x.is_finite() && y.is_finite() {
+                    x0 = x0.min(x);
+                    x1 = x1.max(x);
+                    y0 = y0.min(y);
+                    y1 = y1.max(y);
+                }
+            }
+            if x0 > x1 {
+                (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
+            }
+            if x1 - x0 < 1e-12 {
+                x1 = x0 + 1.0;
+            }
+            let pad = ((y1 - y0) * 0.05).max(1e-12);
+            let mut chart = ChartBuilder::on(&area)
+                .margin(10)
+                .x_label_area_size(35)
+                .y_label_area_size(70)
+                .build_cartesian_2d(x0..x1, (y0 - pad)..(y1 + pad))?;
+            chart
+                .configure_mesh()
+                .x_desc(x_label)
+                .y_desc(panel.y_label)
+                .draw()?;
+            for (k, (name, s)) in panel.series.iter().enumerate() {
+                let colour = COLOURS[k % COLOURS.len()];
+                chart
+                    .draw_series(LineSeries::new(s.iter().copied(), colour.stroke_width(2)))?
+                    .label(*name)
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
+                    });
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()?;
+        }
+        Ok(())
+    })?;
+    write_file(path, &svg)
 }
 
 /// Symmetric y range (µm) that holds `p`-quantile of |values|, with margin.
@@ -47,8 +154,9 @@ fn minmax(v: &[f64]) -> (f64, f64) {
 /// evenly, so that the file stays small).
 pub const MAX_POINTS: usize = 800;
 
-/// Renders the report's plots as one SVG document (two panels).
-pub fn render(report: &Report) -> Result<String> {
+/// Renders the report's plots as one SVG document (two panels); `name`
+/// names it in an error.
+pub fn render(report: &Report, name: &str) -> Result<String> {
     let full = &report.series;
     let stride = full.t.len().div_ceil(MAX_POINTS).max(1);
     let pick = |v: &[f64]| v.iter().step_by(stride).copied().collect::<Vec<f64>>();
@@ -63,10 +171,8 @@ pub fn render(report: &Report) -> Result<String> {
         proj_after: pick(&full.proj_after),
     };
     let s = &thinned;
-    let mut out = String::new();
-    {
-        let root = SVGBackend::with_string(&mut out, (1000, 760)).into_drawing_area();
-        root.fill(&WHITE).map_err(plot_err)?;
+    draw(name, (1000, 760), |root| {
+        root.fill(&WHITE)?;
         let (top, bottom) = root.split_vertically(380);
         let title = match report.findings.first() {
             Some(f) => format!(
@@ -99,14 +205,12 @@ pub fn render(report: &Report) -> Result<String> {
             .margin(12)
             .x_label_area_size(36)
             .y_label_area_size(56)
-            .build_cartesian_2d(t0..t1, -ymax..ymax)
-            .map_err(plot_err)?;
+            .build_cartesian_2d(t0..t1, -ymax..ymax)?;
         chart
             .configure_mesh()
             .x_desc("time (s)")
             .y_desc(format!("residual {} (µm)", ["x", "y", "z"][comp]))
-            .draw()
-            .map_err(plot_err)?;
+            .draw()?;
         let red = RGBColor(214, 39, 40).mix(0.45);
         let blue = RGBColor(31, 119, 180).mix(0.45);
         chart
@@ -114,8 +218,7 @@ pub fn render(report: &Report) -> Result<String> {
                 s.t.iter()
                     .zip(&before)
                     .map(|(&t, &y)| Circle::new((t, y), 1, red.filled())),
-            )
-            .map_err(plot_err)?
+            )?
             .label("before (model)")
             .legend(move |(x, y)| Circle::new((x, y), 3, red.filled()));
         chart
@@ -123,16 +226,14 @@ pub fn render(report: &Report) -> Result<String> {
                 s.t.iter()
                     .zip(&after)
                     .map(|(&t, &y)| Circle::new((t, y), 1, blue.filled())),
-            )
-            .map_err(plot_err)?
+            )?
             .label("after (model + findings)")
             .legend(move |(x, y)| Circle::new((x, y), 3, blue.filled()));
         chart
             .configure_series_labels()
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
-            .draw()
-            .map_err(plot_err)?;
+            .draw()?;
 
         // Panel 2: projected residual vs the position that matters.
         let pb: Vec<f64> = s.proj_before.iter().map(|v| v * 1e3).collect();
@@ -148,45 +249,35 @@ pub fn render(report: &Report) -> Result<String> {
             .margin(12)
             .x_label_area_size(36)
             .y_label_area_size(56)
-            .build_cartesian_2d(x0..x1, ymin..ymax)
-            .map_err(plot_err)?;
+            .build_cartesian_2d(x0..x1, ymin..ymax)?;
         chart
             .configure_mesh()
             .x_desc(s.x_label.clone())
             .y_desc(s.y_label.clone())
-            .draw()
-            .map_err(plot_err)?;
-        chart
-            .draw_series(
-                s.x.iter()
-                    .zip(&pb)
-                    .map(|(&x, &y)| Circle::new((x, y), 1, red.filled())),
-            )
-            .map_err(plot_err)?;
-        chart
-            .draw_series(
-                s.x.iter()
-                    .zip(&pa)
-                    .map(|(&x, &y)| Circle::new((x, y), 1, blue.filled())),
-            )
-            .map_err(plot_err)?;
-        root.present().map_err(plot_err)?;
-    }
-    Ok(out)
+            .draw()?;
+        chart.draw_series(
+            s.x.iter()
+                .zip(&pb)
+                .map(|(&x, &y)| Circle::new((x, y), 1, red.filled())),
+        )?;
+        chart.draw_series(
+            s.x.iter()
+                .zip(&pa)
+                .map(|(&x, &y)| Circle::new((x, y), 1, blue.filled())),
+        )?;
+        Ok(())
+    })
 }
 
 impl Report {
     /// Writes the plots as an SVG file.
-    pub fn write_svg(&self, path: &std::path::Path) -> Result<()> {
-        let svg = render(self)?;
-        crate::output::write_atomically(Some(path), |w| {
-            w.write_all(svg.as_bytes())
-                .map_err(|e| Error::io(path.display().to_string(), e))
-        })
+    pub fn write_svg(&self, path: &Path) -> Result<()> {
+        let svg = render(self, &path.display().to_string())?;
+        write_file(path, &svg)
     }
 
     /// The plots as SVG text.
     pub fn to_svg(&self) -> Result<String> {
-        render(self)
+        render(self, "<svg>")
     }
 }

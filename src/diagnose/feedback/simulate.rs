@@ -81,9 +81,9 @@ pub fn simulate_feedback(
         }
     };
     let mut rec = FeedbackRecording {
-        axes: chain.joints.iter().map(|j| j.name.clone()).collect(),
+        axes: chain.joints().iter().map(|j| j.name.clone()).collect(),
         rotary: chain
-            .joints
+            .joints()
             .iter()
             .map(|j| j.kind == JointKind::Revolute)
             .collect(),

@@ -1,0 +1,182 @@
+//! A program as a joint trajectory: the commanded joint values of every
+//! motion block, whether the program is written in tool poses (solved by the
+//! machine's theoretical inverse kinematics, continuing from the previous
+//! block, and refused where the machine misses the tool axis by more than
+//! the tolerance, as `post` refuses it) or in machine axes. `analyze`,
+//! `simulate` and `diagnose` read programs through it.
+
+use std::io::BufRead;
+
+use crate::error::{Error, Location, Result};
+use crate::machine::chain::JointValues;
+use crate::machine::{IkSolver, Machine, Pose};
+use crate::program::PoseStart;
+use crate::program::source::{looks_like_poses, machine_axis_blocks, program_poses};
+
+/// One motion block of a program as joint values.
+#[derive(Debug, Clone)]
+pub struct TrajectoryBlock {
+    /// 1-based line number of the block.
+    pub line: usize,
+    /// Joint values after the block, chain order, mm / rad.
+    pub q: Vec<f64>,
+    /// The programmed tool pose (tip in mm, unit axis; workpiece frame),
+    /// for a program of tool poses.
+    pub pose: Option<Pose>,
+    /// Feed in force, mm/min (None in G93/G95 or when none was given).
+    pub feed_mm_min: Option<f64>,
+    /// Rapid move (G0 / RAPID).
+    pub rapid: bool,
+}
+
+/// The theoretical joint values of `pose` (continuing from `previous`), or
+/// the reason it cannot be reached: an IK failure, or a tool axis the
+/// machine misses by more than `tolerance_rad` (the same refusal as `post`).
+pub fn reachable(
+    ik: &IkSolver,
+    machine: &Machine,
+    pose: &Pose,
+    previous: Option<&[f64]>,
+    tolerance_rad: f64,
+) -> std::result::Result<JointValues, String> {
+    let s = ik.solve(pose, previous).map_err(|e| e.to_string())?;
+    if s.axis_miss_rad > tolerance_rad {
+        return Err(crate::post::unreachable_axis(
+            &machine.name,
+            s.axis_miss_rad,
+            tolerance_rad,
+        ));
+    }
+    Ok(s.q)
+}
+
+/// Calls `f` with every motion block of the program read from `input`
+/// (`head`: its first bytes, which tell tool poses from machine axes; `file`
+/// names it in messages), in order. Pose mode starts as `start` says; a
+/// tool axis missed by more than `axis_tolerance_rad` (rad) is an error
+/// naming the line.
+pub fn joint_trajectory<R: BufRead>(
+    machine: &Machine,
+    input: R,
+    head: &[u8],
+    file: &str,
+    start: PoseStart,
+    axis_tolerance_rad: f64,
+    mut f: impl FnMut(TrajectoryBlock) -> Result<()>,
+) -> Result<()> {
+    if looks_like_poses(head) {
+        let ik = IkSolver::new(machine);
+        let mut previous: Option<JointValues> = None;
+        program_poses(input, head, file, start, |ev| {
+            let q = reachable(
+                &ik,
+                machine,
+                &ev.pose,
+                previous.as_deref(),
+                axis_tolerance_rad,
+            )
+            .map_err(|m| Error::input(Location::new(file, ev.line, 0), m))?;
+            let block = TrajectoryBlock {
+                line: ev.line,
+                q: q.to_vec(),
+                pose: Some(ev.pose),
+                feed_mm_min: ev.feed_mm_min,
+                rapid: ev.rapid,
+            };
+            previous = Some(q);
+            f(block)
+        })
+    } else {
+        machine_axis_blocks(machine, input, file, |ev| {
+            f(TrajectoryBlock {
+                line: ev.line,
+                q: ev.q,
+                pose: None,
+                feed_mm_min: ev.feed_mm_min,
+                rapid: ev.rapid,
+            })
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::machine::NoErrors;
+
+    fn run(machine: &Machine, text: &str) -> Result<Vec<TrajectoryBlock>> {
+        let mut out = Vec::new();
+        joint_trajectory(
+            machine,
+            text.as_bytes(),
+            text.as_bytes(),
+            "p.nc",
+            PoseStart::Off,
+            1e-4,
+            |b| {
+                out.push(b);
+                Ok(())
+            },
+        )?;
+        Ok(out)
+    }
+
+    /// Pose blocks come back as joint values that put the theoretical
+    /// machine on the programmed pose (forward kinematics, evaluated here),
+    /// with the line, feed and rapid flag of the block; the same moves in
+    /// machine axes give the same joint values.
+    #[test]
+    fn poses_and_machine_axes_give_one_trajectory() {
+        let m = Machine::embedded("xyzac-trt").unwrap();
+        let poses = "G21 G90 G94\nG43.4 H1\nG0 X10 Y0 Z50 I0 J0 K1\nG1 X12 Y3 Z40 I0 J0.5 K0.8660254037844386 F600\nG1 X0 Y20 Z30 I0.3 J0 K0.9539392014169456\n";
+        let got = run(&m, poses).unwrap();
+        assert_eq!(got.len(), 3);
+        assert_eq!(
+            got.iter().map(|b| b.line).collect::<Vec<_>>(),
+            vec![3, 4, 5]
+        );
+        assert!(got[0].rapid && !got[1].rapid);
+        assert_eq!(got[1].feed_mm_min, Some(600.0));
+        for b in &got {
+            let want = b.pose.unwrap();
+            let p = m.chain.pose(&b.q, &NoErrors);
+            assert!((p.tip - want.tip).norm() < 1e-9, "line {}", b.line);
+            assert!(p.axis_angle(&want) < 1e-12, "line {}", b.line);
+        }
+        // The same moves in machine axes (words in mm and degrees).
+        let mut axes = String::from("G21 G90 G94\n");
+        for b in &got {
+            let words: Vec<String> = m
+                .axes
+                .iter()
+                .map(|a| {
+                    let v = b.q[a.joint];
+                    let v = match a.kind {
+                        crate::machine::JointKind::Revolute => v.to_degrees(),
+                        crate::machine::JointKind::Prismatic => v,
+                    };
+                    format!("{}{v:.12}", a.name)
+                })
+                .collect();
+            axes.push_str(&format!("G1 {} F600\n", words.join(" ")));
+        }
+        let again = run(&m, &axes).unwrap();
+        assert_eq!(again.len(), 3);
+        for (a, b) in again.iter().zip(&got) {
+            assert!(a.pose.is_none());
+            for (x, y) in a.q.iter().zip(&b.q) {
+                assert!((x - y).abs() < 1e-9, "{:?} vs {:?}", a.q, b.q);
+            }
+        }
+    }
+
+    /// A tool axis a four-axis machine cannot reach is refused, naming
+    /// the file and line.
+    #[test]
+    fn an_unreachable_tool_axis_names_its_line() {
+        let m = Machine::embedded("xyza-4axis").unwrap();
+        let text = "G21 G90 G94\nG43.4 H1\nG1 X0 Y0 Z50 I0 J0 K1 F600\nG1 X0 Y0 Z50 I0.5 J0 K0.8660254037844386\n";
+        let e = run(&m, text).unwrap_err().to_string();
+        assert!(e.starts_with("p.nc:4"), "{e}");
+    }
+}

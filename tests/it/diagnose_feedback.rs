@@ -1,0 +1,257 @@
+//! Joint-feedback traces (`formats.md` §2b, issue 12): servo lag, backlash
+//! and a clock offset found on `fb − command` without the chain; clean
+//! traces (also with outliers, rounding or only a clock offset) quiet. Both
+//! seed machines, 40-block exercise programs sampled at 100 Hz, encoder
+//! noise 0.5 µm (0.5 mdeg), 6 seeds per case.
+
+use crate::diagnose_support::*;
+use kinpost::diagnose::DiagOptions;
+use kinpost::diagnose::feedback::{
+    FeedbackRecording, FeedbackSimOptions, diagnose_feedback, simulate_feedback,
+};
+
+const SEEDS: u64 = 6;
+
+fn run(
+    m: Machine,
+    seed: u64,
+    specs: &[&str],
+    f: impl Fn(&mut FeedbackSimOptions),
+) -> kinpost::diagnose::feedback::FeedbackReport {
+    let mut o = FeedbackSimOptions {
+        seed,
+        ..FeedbackSimOptions::default()
+    };
+    f(&mut o);
+    let rec = simulate_feedback(&m.chain(), &m.program(40, seed), &effects(specs), &o).unwrap();
+    diagnose_feedback(&rec, &DiagOptions::default()).unwrap()
+}
+
+fn names(r: &kinpost::diagnose::feedback::FeedbackReport) -> Vec<String> {
+    r.findings
+        .iter()
+        .map(|f| format!("{} {}", f.effect, f.axis.clone().unwrap_or_default()))
+        .collect()
+}
+
+fn param(r: &kinpost::diagnose::feedback::FeedbackReport, effect: &str, key: &str) -> Option<f64> {
+    r.findings
+        .iter()
+        .find(|f| f.effect == effect)
+        .and_then(|f| f.parameters.get(key).copied())
+}
+
+fn offset(r: &kinpost::diagnose::feedback::FeedbackReport) -> Option<f64> {
+    r.measurement
+        .iter()
+        .find(|m| m.effect == "time_offset")
+        .and_then(|m| m.parameters.get("offset_s").copied())
+}
+
+#[test]
+fn clean_traces_stay_quiet() {
+    type Fault = fn(&mut FeedbackSimOptions);
+    let cases: [(&str, Fault); 4] = [
+        ("clean", |_| {}),
+        ("0.5 % outliers", |o| o.outlier_fraction = 0.005),
+        ("rounded to 1 µm", |o| o.quantum = 0.001),
+        ("clock offset 15 ms", |o| o.time_offset_s = 0.015),
+    ];
+    for m in [Machine::Zhao, Machine::Wang] {
+        for (label, fault) in cases {
+            let seeds: Vec<u64> = (5000..5000 + SEEDS).collect();
+            let res = par_map(&seeds, |&s| names(&run(m, s, &[], fault)));
+            let alarms = res.iter().filter(|n| !n.is_empty()).count();
+            println!("{label} on {m:?}: {alarms} of {SEEDS} with a machine finding {res:?}");
+            assert!(alarms == 0, "{label} on {m:?}: {res:?}");
+        }
+    }
+}
+
+#[test]
+fn servo_lag_backlash_and_clock_offset_are_found() {
+    for m in [Machine::Zhao, Machine::Wang] {
+        let (lin, other) = match m {
+            Machine::Zhao => ("X", "Z"),
+            Machine::Wang => ("Y", "X"),
+        };
+        let lag = format!("servo_lag:{lin}=0.004");
+        let bl = format!("backlash:{other}=0.003");
+        let seeds: Vec<u64> = (5100..5100 + SEEDS).collect();
+        // Each alone, then together under a 15 ms clock offset, 0.5 %
+        // outliers and 0.1 µm rounding.
+        let res = par_map(&seeds, |&s| {
+            let a = run(m, s, &[&lag], |_| {});
+            let b = run(m, s, &[&bl], |_| {});
+            let c = run(m, s, &[&lag, &bl], |o| {
+                o.time_offset_s = 0.015;
+                o.outlier_fraction = 0.005;
+                o.quantum = 0.0001;
+            });
+            (
+                (param(&a, "servo_lag", "tau_s"), names(&a)),
+                (param(&b, "backlash", "value_mm"), names(&b)),
+                (
+                    param(&c, "servo_lag", "tau_s"),
+                    param(&c, "backlash", "value_mm"),
+                    offset(&c),
+                    names(&c),
+                ),
+            )
+        });
+        let within =
+            |x: Option<f64>, t: f64, tol: f64| x.is_some_and(|v| ((v - t) / t).abs() <= tol);
+        for (a, b, c) in &res {
+            assert!(
+                within(a.0, 0.004, 0.25) && a.1.len() == 1,
+                "{m:?} lag alone: {a:?}"
+            );
+            assert!(
+                within(b.0, 0.003, 0.25) && b.1.len() == 1,
+                "{m:?} backlash alone: {b:?}"
+            );
+            assert!(within(c.2, 0.015, 0.10), "{m:?} clock offset: {c:?}");
+            assert!(
+                within(c.0, 0.004, 0.25),
+                "{m:?} lag under the faults: {c:?}"
+            );
+            assert!(
+                within(c.1, 0.003, 0.25),
+                "{m:?} backlash under the faults: {c:?}"
+            );
+        }
+        let extra: Vec<&Vec<String>> = res.iter().map(|r| &r.2.3).filter(|n| n.len() > 2).collect();
+        println!(
+            "{m:?}: together under the faults, {} of {SEEDS} with more than the two effects {extra:?}",
+            extra.len()
+        );
+        assert!(extra.len() <= 1, "{m:?}: {extra:?}");
+    }
+}
+
+#[test]
+fn a_trace_without_time_needs_its_sample_rate() {
+    let csv = "X,Z,fb_X,fb_Z\n0,0,0,0\n";
+    let axes: Vec<String> = ["C", "X", "Z", "B"].iter().map(|s| s.to_string()).collect();
+    let rot = [true, false, false, true];
+    let err = FeedbackRecording::read(csv.as_bytes(), "trace.csv", &axes, &rot, None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("trace.csv:1:1") && err.contains("--sample-rate"),
+        "{err}"
+    );
+    let mut text = String::from("X,Z,fb_X,fb_Z\n");
+    for i in 0..5 {
+        text.push_str(&format!("{i},0,{i},0\n"));
+    }
+    let rec =
+        FeedbackRecording::read(text.as_bytes(), "trace.csv", &axes, &rot, Some(1000.0)).unwrap();
+    assert_eq!(rec.axes, ["X", "Z"]);
+    assert_eq!(rec.t[4], 0.004);
+    // Repeated time stamps are an error at their line.
+    let bad = "t,X,fb_X\n0,0,0\n0.1,0,0\n0.1,0,0\n";
+    let err = FeedbackRecording::read(bad.as_bytes(), "r.csv", &axes, &rot, None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("r.csv:4:1") && err.contains("time must increase"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_following_error_at_reversals_is_found_as_a_reversal_spike() {
+    spikes(None);
+}
+
+#[test]
+fn a_reversal_spike_concealed_under_a_servo_lag_is_found_with_it() {
+    spikes(Some(0.004));
+}
+
+/// A following error of 5 µm decaying with 20 ms after each reversal of
+/// X (wang: Y), on its own or with a servo lag `lag` (s) of the same axis.
+fn spikes(lag: Option<f64>) {
+    // 5 µm (5 mdeg) after each reversal of X (wang: Y), decaying with
+    // τ = 20 ms, added to a simulated trace.
+    for m in [Machine::Zhao, Machine::Wang] {
+        let axis = match m {
+            Machine::Zhao => "X",
+            Machine::Wang => "Y",
+        };
+        let seeds: Vec<u64> = (5200..5200 + SEEDS).collect();
+        let res = par_map(&seeds, |&seed| {
+            let o = FeedbackSimOptions {
+                seed,
+                ..FeedbackSimOptions::default()
+            };
+            let injected: Vec<String> = lag
+                .iter()
+                .map(|l| format!("servo_lag:{axis}={l}"))
+                .collect();
+            let refs: Vec<&str> = injected.iter().map(String::as_str).collect();
+            let mut rec =
+                simulate_feedback(&m.chain(), &m.program(40, seed), &effects(&refs), &o).unwrap();
+            let k = rec.axes.iter().position(|a| a == axis).unwrap();
+            // Independent of the library: direction and reversal times
+            // from the command with the same 0.1 µm dead band.
+            let (mut dir, mut ext, mut last) = (0.0f64, rec.cmd[k][0], None::<f64>);
+            for i in 0..rec.len() {
+                let q = rec.cmd[k][i];
+                let before = dir;
+                if dir > 0.0 {
+                    if q > ext {
+                        ext = q;
+                    } else if q < ext - 1e-4 {
+                        dir = -1.0;
+                        ext = q;
+                    }
+                } else if dir < 0.0 {
+                    if q < ext {
+                        ext = q;
+                    } else if q > ext + 1e-4 {
+                        dir = 1.0;
+                        ext = q;
+                    }
+                } else if (q - ext).abs() > 1e-4 {
+                    dir = (q - ext).signum();
+                    ext = q;
+                }
+                if before * dir < 0.0 {
+                    last = Some(rec.t[i]);
+                }
+                if let Some(l) = last {
+                    rec.fb[k][i] -= dir * 0.005 * (-(rec.t[i] - l) / 0.02).exp();
+                }
+            }
+            let r = diagnose_feedback(&rec, &DiagOptions::default()).unwrap();
+            (
+                param(&r, "reversal_spike", "peak_mm"),
+                param(&r, "reversal_spike", "tau_s"),
+                names(&r),
+                param(&r, "servo_lag", "tau_s"),
+            )
+        });
+        println!("{m:?}: reversal spike {res:?}");
+        for (peak, tau, found, servo) in &res {
+            let p = peak.unwrap_or_else(|| panic!("{m:?}: not found: {found:?}"));
+            assert!((p - 0.005).abs() <= 0.25 * 0.005, "{m:?}: peak {p}");
+            assert!(
+                tau.is_some_and(|t| (t - 0.02).abs() <= 0.25 * 0.02),
+                "{m:?}: τ {tau:?}"
+            );
+            assert_eq!(
+                found.len(),
+                1 + usize::from(lag.is_some()),
+                "{m:?}: {found:?}"
+            );
+            if let Some(l) = lag {
+                assert!(
+                    servo.is_some_and(|s| (s - l).abs() <= 0.25 * l),
+                    "{m:?}: lag {servo:?}"
+                );
+            }
+        }
+    }
+}

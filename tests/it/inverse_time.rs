@@ -1,0 +1,235 @@
+//! `post --feed inverse-time`, checked as a controller would run the output:
+//! the test follows the feed mode (G93/G94) and F of the written program
+//! block by block and, for every block, compares the time the controller
+//! takes (G93: 1/F min; G94: path/F) with the tool tip's path length over
+//! the programmed feed, the path computed here from the programmed poses.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::process::Command;
+
+use crate::util::BIN;
+
+fn words(block: &str) -> HashMap<String, f64> {
+    let code = block.split('(').next().unwrap();
+    let mut m = HashMap::new();
+    for w in code.split_whitespace() {
+        let (a, v) = w.split_at(1);
+        if let Ok(v) = v.parse::<f64>() {
+            if a == "G" {
+                m.insert(format!("G{v}"), v);
+            } else {
+                m.insert(a.to_string(), v);
+            }
+        }
+    }
+    m
+}
+
+/// A pose program on the xyzac-trt machine: N numbers on every pose block,
+/// full X Y Z I J K, a feed that changes, straight moves with and without
+/// a change of tool axis, a block that only turns the tool, rapids.
+/// A programmed pose block: N, tool tip (mm), rapid, feed in force (mm/min).
+type Block = (u32, [f64; 3], bool, f64);
+
+fn program() -> (String, Vec<Block>) {
+    let mut text = String::from("G21 G90 G94\nG43.4 H1\n");
+    let mut poses = Vec::new();
+    let mut feed = 800.0;
+    let mut axis = [0.0f64, 0.0, 1.0];
+    for k in 0..40u32 {
+        let t = k as f64 * 0.37;
+        // As written in the program (6 decimals).
+        let r6 = |v: f64| format!("{v:.6}").parse::<f64>().unwrap();
+        let tip = [
+            r6(30.0 * t.cos()),
+            r6(20.0 * (1.3 * t).sin()),
+            r6(5.0 + 2.0 * t.sin()),
+        ];
+        // Every fifth block keeps the axis (no rotary move), every seventh
+        // keeps the tip (a pure reorientation), block 12 is a rapid.
+        if k % 5 != 0 {
+            let a = 0.4 * (0.7 * t).sin();
+            let c = 1.1 * t;
+            axis = [a.sin() * c.cos(), a.sin() * c.sin(), a.cos()];
+        }
+        let tip = if k % 7 == 6 {
+            poses
+                .last()
+                .map(|p: &(u32, [f64; 3], bool, f64)| p.1)
+                .unwrap()
+        } else {
+            tip
+        };
+        if k == 20 {
+            feed = 350.0;
+        }
+        let rapid = k == 12;
+        let n = 10 * (k + 1);
+        text.push_str(&format!(
+            "N{n} {} X{:.6} Y{:.6} Z{:.6} I{:.9} J{:.9} K{:.9}{}\n",
+            if rapid { "G0" } else { "G1" },
+            tip[0],
+            tip[1],
+            tip[2],
+            axis[0],
+            axis[1],
+            axis[2],
+            if k == 0 || k == 13 || k == 20 {
+                format!(" F{feed}")
+            } else {
+                String::new()
+            }
+        ));
+        if k == 26 {
+            text.push_str("M8\n");
+        }
+        poses.push((n, tip, rapid, feed));
+    }
+    text.push_str("G49\nG1 X0 Y0 Z50\nM30\n");
+    (text, poses)
+}
+
+#[test]
+fn the_tool_tip_keeps_the_programmed_feed() {
+    let dir = tempfile::tempdir().unwrap();
+    let (text, poses) = program();
+    let path = dir.path().join("p.ngc");
+    std::fs::write(&path, &text).unwrap();
+    let run = |feed: &str| {
+        let out = Command::new(BIN)
+            .args([
+                "post",
+                "-m",
+                "xyzac-trt",
+                "--decimals",
+                "9",
+                "-q",
+                "--feed",
+                feed,
+            ])
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let out = run("inverse-time");
+    let by_n: HashMap<u32, &Block> = poses.iter().map(|p| (p.0, p)).collect();
+    // The controller's state while running the output.
+    let mut inverse = false;
+    let mut f_modal: Option<f64> = None;
+    let mut last_axes: Option<(f64, f64)> = None;
+    let mut last_tip: Option<[f64; 3]> = None;
+    let (mut converted, mut kept) = (0, 0);
+    for line in out.lines() {
+        let w = words(line);
+        if w.contains_key("G93") {
+            inverse = true;
+        }
+        if w.contains_key("G94") {
+            inverse = false;
+        }
+        if let Some(f) = w.get("F") {
+            f_modal = Some(*f);
+        }
+        let Some(n) = w.get("N").map(|n| *n as u32) else {
+            continue;
+        };
+        let &(_, tip, rapid, feed) = by_n[&n];
+        let axes = (w["A"], w["C"]);
+        let rotary =
+            last_axes.is_some_and(|a| (a.0 - axes.0).abs() > 1e-7 || (a.1 - axes.1).abs() > 1e-7);
+        let length = last_tip.map(|s| {
+            ((tip[0] - s[0]).powi(2) + (tip[1] - s[1]).powi(2) + (tip[2] - s[2]).powi(2)).sqrt()
+        });
+        if !rapid && rotary && length.is_some_and(|l| l > 1e-6) {
+            // G93: the block lasts 1/F min; at the programmed feed the tip
+            // needs length/feed.
+            assert!(inverse, "N{n} not in G93: {line}");
+            let time = 1.0 / f_modal.unwrap();
+            let l = length.unwrap();
+            assert!(
+                (feed * time - l).abs() < 1e-7 * l.max(1.0),
+                "N{n}: F·t = {} mm, tip path {l} mm: {line}",
+                feed * time
+            );
+            assert!(w.contains_key("F"), "G93 needs F on every block: {line}");
+            converted += 1;
+        } else {
+            // Not converted: G94 with the programmed feed.
+            assert!(!inverse, "N{n} left in G93: {line}");
+            if !rapid {
+                assert_eq!(f_modal, Some(feed), "N{n}: {line}");
+            }
+            kept += 1;
+        }
+        last_axes = Some(axes);
+        last_tip = Some(tip);
+    }
+    assert!(!inverse, "the program ends in G93:\n{out}");
+    assert!(
+        converted >= 25 && kept >= 8,
+        "converted {converted}, kept {kept}"
+    );
+    // M8 between converted blocks: the controller is back in G94 before it.
+    let m8 = out.lines().position(|l| l.trim() == "M8").unwrap();
+    assert!(
+        out.lines().nth(m8 - 1).unwrap().starts_with("G94 F"),
+        "{out}"
+    );
+    // The default leaves the feeds as programmed: no G93 anywhere.
+    let keep = run("keep");
+    assert!(!keep.contains("G93"));
+    assert_eq!(
+        keep.lines().filter(|l| l.contains('F')).count(),
+        text.lines().filter(|l| l.contains('F')).count()
+    );
+}
+
+#[test]
+fn inverse_time_is_refused_for_apt_cl() {
+    let cls = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/programs/zhao2022-xzbc.cls");
+    let out = Command::new(BIN)
+        .args(["post", "--feed", "inverse-time"])
+        .arg(&cls)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("inverse-time"));
+}
+
+#[test]
+fn a_block_that_sets_its_own_feed_mode_keeps_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("p.ngc");
+    std::fs::write(
+        &path,
+        "G21 G90 G94\nG43.4 H1\nG1 X0 Y0 Z10 I0 J0 K1 F500\nX10 Y0 Z10 I0 J0.6 K0.8\n\
+G93 X20 Y0 Z10 I0 J0 K1 F12\nG94 X30 Y0 Z10 I0 J0.6 K0.8 F400\nG49\nM30\n",
+    )
+    .unwrap();
+    let out = Command::new(BIN)
+        .args(["post", "-m", "xyzac-trt", "-q", "--feed", "inverse-time"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let out = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<&str> = out.lines().collect();
+    // Converted: 10 mm at 500 mm/min.
+    assert!(lines[3].ends_with(" G93 F50"), "{out}");
+    // The program's own G93 block keeps its words (G93 F12).
+    assert!(
+        lines[4].starts_with("G93 X") && lines[4].ends_with(" F12"),
+        "{out}"
+    );
+    assert_eq!(lines[4].matches("G9").count(), 1, "{out}");
+    // Back in the program's G94: converted again (10 mm at 400 mm/min).
+    assert!(lines[5].ends_with(" G93 F40"), "{out}");
+    assert!(!lines[5].contains("G94"), "{out}");
+}

@@ -1,0 +1,296 @@
+//! `kinpost machine --from-linuxcnc`: the machine file made from a LinuxCNC
+//! configuration reproduces LinuxCNC's own forward kinematics.
+//!
+//! The reference below restates the forward kinematics of LinuxCNC's
+//! `trtfuncs.c` (xyzac-trt-kins, xyzbc-trt-kins) and `5axiskins.c` as
+//! formulas, written independently of kinpost's chain. LinuxCNC's pose is
+//! the programmed point with the tool length offset added along Z (its
+//! `tool-offset` pin is added to `z-offset`; 5axiskins' `pivot-length` is
+//! the mechanical pivot plus the tool length), so kinpost's tool tip plus
+//! (0, 0, T) must equal it.
+
+use kinpost::machine::linuxcnc::machine_from_linuxcnc;
+use kinpost::machine::{Machine, NoErrors};
+use std::path::{Path, PathBuf};
+
+const FIXTURES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/linuxcnc");
+
+/// The geometry of one test configuration.
+#[derive(Clone, Copy)]
+struct Geometry {
+    /// x/y/z-rot-point.
+    r: [f64; 3],
+    /// x/y/z-offset (the one of the other family is unused).
+    d: [f64; 3],
+    /// Tool length.
+    t: f64,
+    /// +1 with conventional-directions 1, −1 otherwise.
+    con: f64,
+    /// 5axiskins: the mechanical pivot length.
+    pivot: f64,
+}
+
+/// xyzac-trt-kins forward kinematics (joints x, y, z mm; a, c deg).
+fn lcnc_xyzac(g: &Geometry, [x, y, z, a, c]: [f64; 5]) -> [f64; 3] {
+    let (sa, ca) = a.to_radians().sin_cos();
+    let (sc, cc) = c.to_radians().sin_cos();
+    let k = g.con;
+    let dy = g.d[1];
+    let dz = g.d[2] + g.t;
+    let ex = x - g.r[0];
+    let ey = y - dy - g.r[1];
+    let ez = z - dz - g.r[2];
+    [
+        cc * ex - k * sc * ca * ey + sc * sa * ez - k * sc * dy + g.r[0],
+        k * sc * ex + cc * ca * ey - k * cc * sa * ez + cc * dy + g.r[1],
+        k * sa * ey + ca * ez + dz + g.r[2],
+    ]
+}
+
+/// xyzbc-trt-kins forward kinematics (joints x, y, z mm; b, c deg).
+fn lcnc_xyzbc(g: &Geometry, [x, y, z, b, c]: [f64; 5]) -> [f64; 3] {
+    let (sb, cb) = b.to_radians().sin_cos();
+    let (sc, cc) = c.to_radians().sin_cos();
+    let k = g.con;
+    let dx = g.d[0];
+    let dz = g.d[2] + g.t;
+    let ex = x - dx - g.r[0];
+    let ey = y - g.r[1];
+    let ez = z - dz - g.r[2];
+    [
+        cc * cb * ex - k * sc * ey + k * cc * sb * ez + cc * dx + g.r[0],
+        k * sc * cb * ex + cc * ey + sc * sb * ez + k * sc * dx + g.r[1],
+        -k * sb * ex + cb * ez + dz + g.r[2],
+    ]
+}
+
+/// 5axiskins forward kinematics (joints x, y, z mm; b, c deg; W = 0): the
+/// pivot point sits `p` above the spindle end and the tool hangs from it
+/// at polar angle 180° − b and azimuth c.
+fn lcnc_5axis(g: &Geometry, [x, y, z, b, c]: [f64; 5]) -> [f64; 3] {
+    let p = g.pivot + g.t;
+    let polar = (180.0 - b).to_radians();
+    let azimuth = c.to_radians();
+    [
+        x + p * polar.sin() * azimuth.cos(),
+        y + p * polar.sin() * azimuth.sin(),
+        z + p + p * polar.cos(),
+    ]
+}
+
+/// Copies the fixture configuration `ini` (and its HAL files) into `dir`,
+/// with conventional-directions set to `con` (0 or 1).
+fn config(dir: &Path, ini: &str, con: u8) -> PathBuf {
+    for entry in std::fs::read_dir(FIXTURES).unwrap() {
+        let path = entry.unwrap().path();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let text = text.replace(
+            "conventional-directions 0",
+            &format!("conventional-directions {con}"),
+        );
+        std::fs::write(dir.join(path.file_name().unwrap()), text).unwrap();
+    }
+    dir.join(ini)
+}
+
+/// A deterministic stream of numbers in [−1, 1).
+struct Lcg(u64);
+
+impl Lcg {
+    fn next(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((self.0 >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    }
+}
+
+fn check(ini: &str, g: Geometry, fk: fn(&Geometry, [f64; 5]) -> [f64; 3], tool: Option<f64>) {
+    let dir = tempfile::tempdir().unwrap();
+    let con = if g.con > 0.0 { 1 } else { 0 };
+    let path = config(dir.path(), ini, con);
+    let file = machine_from_linuxcnc(&path, tool).unwrap_or_else(|e| panic!("{e}"));
+    let text = serde_json::to_string_pretty(&file).unwrap();
+    let m =
+        Machine::from_json_str(&text, "generated.json").unwrap_or_else(|e| panic!("{e}\n{text}"));
+    let names: Vec<&str> = m.axes.iter().map(|a| a.name.as_str()).collect();
+    let mut rng = Lcg(0x5eed + con as u64);
+    let mut worst = 0.0f64;
+    for _ in 0..2000 {
+        let j = [
+            300.0 * rng.next(),
+            300.0 * rng.next(),
+            300.0 * rng.next(),
+            180.0 * rng.next(),
+            720.0 * rng.next(),
+        ];
+        // Output order is X Y Z (A|B) C, the joint order of the reference.
+        assert_eq!(names[..3], ["X", "Y", "Z"]);
+        let q = m.to_internal(&j);
+        let tip = m.chain.pose(&q, &NoErrors).tip;
+        let want = fk(&g, j);
+        let d = ((tip.x - want[0]).powi(2)
+            + (tip.y - want[1]).powi(2)
+            + (tip.z + g.t - want[2]).powi(2))
+        .sqrt();
+        worst = worst.max(d);
+    }
+    eprintln!("{ini} conventional-directions {con}: worst difference {worst:e} mm");
+    assert!(worst <= 5e-13, "{ini} con {con}: {worst:e} mm");
+}
+
+#[test]
+fn xyzac_trt_matches_linuxcnc() {
+    for con in [-1.0, 1.0] {
+        let g = Geometry {
+            r: [12.5, -7.75, -3.25],
+            d: [0.0, 20.5, 10.125],
+            t: 42.5,
+            con,
+            pivot: 0.0,
+        };
+        check("xyzac-trt.ini", g, lcnc_xyzac, None);
+        check(
+            "xyzac-trt.ini",
+            Geometry { t: 3.5, ..g },
+            lcnc_xyzac,
+            Some(3.5),
+        );
+    }
+}
+
+#[test]
+fn xyzbc_trt_matches_linuxcnc() {
+    for con in [-1.0, 1.0] {
+        let g = Geometry {
+            r: [-4.5, 3.0, 8.25],
+            d: [5.5, 0.0, 41.75],
+            t: 60.0,
+            con,
+            pivot: 0.0,
+        };
+        check("xyzbc-trt.ini", g, lcnc_xyzbc, None);
+    }
+}
+
+#[test]
+fn fiveaxiskins_matches_linuxcnc() {
+    // 5axiskins has no conventional-directions pin; both fixture variants
+    // give the same machine.
+    for con in [-1.0, 1.0] {
+        for t in [0.0, 37.25] {
+            let g = Geometry {
+                r: [0.0; 3],
+                d: [0.0; 3],
+                t,
+                con,
+                pivot: 180.5,
+            };
+            check("5axis.ini", g, lcnc_5axis, Some(t));
+        }
+    }
+}
+
+#[test]
+fn limits_modes_and_refusals() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = |ini: &str| {
+        let v = machine_from_linuxcnc(&config(dir.path(), ini, 0), None).unwrap();
+        Machine::from_json_str(&v.to_string(), "g.json").unwrap()
+    };
+    let ac = m("xyzac-trt.ini");
+    assert_eq!(ac.name, "test-xyzac-trt");
+    let a = ac.axis("A").unwrap();
+    assert_eq!((a.min, a.max), (Some(-30.0), Some(110.0)));
+    assert_eq!(
+        ac.axis("C").unwrap().rotary,
+        kinpost::machine::RotaryMode::Continuous
+    );
+    assert_eq!(ac.axis("Z").unwrap().min, Some(-250.0));
+    let bc = m("xyzbc-trt.ini");
+    assert_eq!(
+        bc.axis("C").unwrap().rotary,
+        kinpost::machine::RotaryMode::Modulo
+    );
+    // maxkins is refused with the reason, at the KINEMATICS value.
+    let e = machine_from_linuxcnc(&config(dir.path(), "maxkins.ini", 0), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("maxkins.ini:3:14: maxkins cannot be converted"),
+        "{e}"
+    );
+    // An unknown module, a bad setp value and a missing HAL file.
+    std::fs::write(
+        dir.path().join("u.ini"),
+        "[KINS]\nKINEMATICS = genhexkins\n",
+    )
+    .unwrap();
+    let e = machine_from_linuxcnc(&dir.path().join("u.ini"), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("u.ini:2:14: kinematics `genhexkins` is not supported"),
+        "{e}"
+    );
+    std::fs::write(
+        dir.path().join("b.hal"),
+        "setp 5axiskins.pivot-length abc\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("b.ini"),
+        "[KINS]\nKINEMATICS = 5axiskins\n[HAL]\nHALFILE = b.hal\n",
+    )
+    .unwrap();
+    let e = machine_from_linuxcnc(&dir.path().join("b.ini"), None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("b.hal:1:29: `abc` for 5axiskins.pivot-length is not a number"),
+        "{e}"
+    );
+    std::fs::write(
+        dir.path().join("c.ini"),
+        "[KINS]\nKINEMATICS = 5axiskins\n[HAL]\nHALFILE = nothere.hal\n",
+    )
+    .unwrap();
+    let e = machine_from_linuxcnc(&dir.path().join("c.ini"), None).unwrap_err();
+    assert!(matches!(e, kinpost::Error::Io { .. }), "{e}");
+    // An INI saved with a byte-order mark reads the same.
+    std::fs::write(
+        dir.path().join("bom.ini"),
+        "\u{feff}[KINS]\nKINEMATICS = 5axiskins\n[HAL]\nHALFILE = 5axis.hal\n",
+    )
+    .unwrap();
+    let v = machine_from_linuxcnc(&dir.path().join("bom.ini"), None).unwrap();
+    assert_eq!(v["chain"][3]["translate"][2], 180.5);
+}
+
+#[test]
+fn the_command_writes_a_machine_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let ini = config(dir.path(), "xyzbc-trt.ini", 1);
+    let out_path = dir.path().join("m.json");
+    let out = std::process::Command::new(crate::util::BIN)
+        .args(["machine", "--from-linuxcnc"])
+        .arg(&ini)
+        .arg("-o")
+        .arg(&out_path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.stdout.is_empty());
+    let m = Machine::load(&out_path).unwrap();
+    assert_eq!(m.name, "test-xyzbc-trt");
+    assert_eq!(
+        m.chain.joints()[0].axis.z,
+        1.0,
+        "conventional-directions 1: C about +Z"
+    );
+}

@@ -1,0 +1,63 @@
+//! The integration tests, one binary (linking ~48 binaries was slow):
+//! one module per former `tests/*.rs` file, helpers in `util` and the
+//! helper modules of the diagnose, G-code differential and seed 003 tests.
+//! Snapshots are in `tests/it/snapshots/` (named `it__<module>__<name>`),
+//! proptest regressions in `tests/proptest-regressions/<module>.txt`.
+
+mod util;
+
+mod diagnose_support;
+mod gcode_reference;
+mod seed003_tables;
+
+mod architecture;
+mod bad_input;
+mod cl;
+mod cl_real;
+mod cli_corpus_echo;
+mod cli_diagnose;
+mod cli_help;
+mod cli_machine;
+mod compensate_robust;
+mod compensate_stream;
+mod corpus_roundtrip;
+mod demo_fixtures;
+mod diagnose_docs;
+mod diagnose_effects;
+mod diagnose_error_motion;
+mod diagnose_false_alarm;
+mod diagnose_feedback;
+mod diagnose_loop;
+mod diagnose_report;
+mod diagnose_thermal;
+mod diagnose_untidy;
+mod diagnose_vibration;
+mod filter_corpus;
+mod freecad_wrapper;
+mod fit;
+mod fit_fixtures;
+mod gcode_differential;
+mod gcode_parse;
+mod gcode_proptest;
+mod gcode_snapshot;
+mod grammar;
+mod integration_docs;
+mod inverse_time;
+mod job_setup;
+mod kinematics_continuity;
+mod kinematics_file;
+mod kinematics_near_axis;
+mod kinematics_programs;
+mod kinematics_props;
+mod kinematics_wang;
+mod linkage_fixtures;
+mod linuxcnc_import;
+mod model_file_strict;
+mod output_safety;
+mod parse_throughput;
+mod post;
+mod robustness_parse;
+mod scenarios;
+mod seed000;
+mod seed003;
+mod valid_jobs;

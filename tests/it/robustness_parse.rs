@@ -1,0 +1,125 @@
+//! Broken programs get a clear refusal at file:line:col (issue 13): a word
+//! given twice in a pose block, CR-only line endings, NUL bytes, an
+//! unclosed comment, a file cut inside a pose block. Each passed with exit
+//! 0 or gave a misleading message before; `docs/robustness.md` lists them.
+
+use std::process::Command;
+
+use crate::util::BIN;
+
+/// Runs `kinpost post` on `bytes` written to `name`: (exit code, stdout, stderr).
+fn post(name: &str, bytes: &[u8]) -> (i32, Vec<u8>, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join(name);
+    std::fs::write(&p, bytes).unwrap();
+    let out = Command::new(BIN)
+        .args(["post", "--machine", "zhao2022-xzbc"])
+        .arg(&p)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap(),
+        out.stdout,
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn a_word_given_twice_in_a_pose_block_is_refused_at_the_second() {
+    let (code, _, err) = post("dup.ngc", b"G43.4 H1\nG1 X1 Y2 X5 Z0 I0 J0 K1 F100\nM30\n");
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("dup.ngc:2:10:") && err.contains("word X is given twice"),
+        "{err}"
+    );
+    let (code, _, err) = post(
+        "ijk.ngc",
+        b"G43.4 H1\nG1 X1 Y2 Z0 I0 J0 K1 A3=0.5 F100\nM30\n",
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("same tool-axis component (I and A3)"), "{err}");
+    // Outside pose mode kinpost converts nothing: the block passes through.
+    let prog = b"G1 X1 X5 Y2\nM30\n";
+    let (code, out, err) = post("plain.ngc", prog);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(out, prog);
+}
+
+#[test]
+fn cr_only_line_endings_are_named() {
+    let (code, _, err) = post(
+        "mac.ngc",
+        b"O1000\rG43.4 H1\rG1 X1 Y2 Z0 I0 J0 K1 F100\rM30\r",
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("mac.ngc:1:") && err.contains("CR-only"),
+        "{err}"
+    );
+    assert!(err.contains("O1000\\rG43.4"), "the CR is shown: {err}");
+}
+
+#[test]
+fn a_nul_byte_is_refused_and_shown() {
+    let (code, _, err) = post("nul.ngc", b"G43.4 H1\nG1 X1 Y2\0 Z0 I0 J0 K1 F100\nM30\n");
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("nul.ngc:2:9:") && err.contains("NUL"), "{err}");
+    assert!(err.contains("Y2\\0 Z0"), "{err}");
+    let (code, _, err) = post("zeros.ngc", &[0u8; 300]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("zeros.ngc:1:1:") && err.chars().count() < 400,
+        "{err}"
+    );
+}
+
+#[test]
+fn an_unclosed_comment_in_a_pose_block_is_quoted() {
+    let (code, _, err) = post("unc.ngc", b"G43.4 H1\nG1 X1 Y2 Z3 (abc I0 J0 K1\nM30\n");
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("unc.ngc:2:13: unclosed comment `(abc I0 J0 K1`"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_file_cut_inside_a_pose_block_is_refused() {
+    let full = "G43.4 H1\nG1 X1 Y2 Z3 I0 J0 K1 F100\nG1 X1 Y2 Z3.125 I0 J0 K1\nM30\n";
+    // Every cut inside the last pose block's digits or words.
+    let start = full.find("G1 X1 Y2 Z3.125").unwrap();
+    let end = full.find("\nM30").unwrap();
+    for cut in start + 1..end {
+        let (code, _, err) = post("cut.ngc", &full.as_bytes()[..cut]);
+        assert_eq!(code, 1, "cut at {cut}: {err}");
+        assert!(
+            err.contains("cut.ngc:3:") && err.contains("truncated"),
+            "{err}"
+        );
+    }
+    // Cut after the pose blocks but still in pose mode (`M3` of `M30`):
+    // refused too.
+    let (code, _, err) = post("cut.ngc", &full.as_bytes()[..full.len() - 2]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("cut.ngc:4:") && err.contains("truncated"),
+        "{err}"
+    );
+    // A plain program cut short is passed on unchanged, with a warning.
+    let plain = b"G0 X1 Y2\nG1 X5 F100\nM3";
+    let (code, out, err) = post("plain.ngc", plain);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(out, plain);
+    assert!(
+        err.contains("plain.ngc:3:1") && err.contains("truncated"),
+        "{err}"
+    );
+    // A program whose last line `M30` has no line end is whole.
+    let (code, _, err) = post("end.ngc", &full.as_bytes()[..full.len() - 1]);
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("truncated"), "{err}");
+    // The whole program: quiet.
+    let (code, _, err) = post("cut.ngc", full.as_bytes());
+    assert_eq!(code, 0);
+    assert!(!err.contains("truncated"), "{err}");
+}
