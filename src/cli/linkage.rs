@@ -104,9 +104,7 @@ pub fn linkage(a: LinkageArgs) -> Result<()> {
                 })?;
             let held = (0..base.chain.dof())
                 .find(|&j| j != split && base.chain.joints()[j].kind == JointKind::Revolute)
-                .ok_or_else(|| {
-                    Error::Usage(format!("{} has no second rotary axis", base.name))
-                })?;
+                .ok_or_else(|| Error::Usage(format!("{} has no second rotary axis", base.name)))?;
             Some(RotaryPair { split, held })
         }
     };

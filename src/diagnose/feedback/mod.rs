@@ -35,6 +35,7 @@ use crate::error::{Error, Location, Result};
 use crate::geometric::effects::{DIRECTION_DEAD_BAND, DirectionTracker, Effect, EffectSpec};
 
 /// One axis's data for the fits.
+#[derive(Clone)]
 struct AxisData {
     t: Vec<f64>,
     q: Vec<f64>,
@@ -90,22 +91,72 @@ fn floor_1d(e: &[f64]) -> f64 {
     d[mid] / (0.674_489_75 * std::f64::consts::SQRT_2)
 }
 
-/// Gross outliers of a 1-D residual (as [`super::untidy::gross_outliers`]).
-fn outliers_1d(e: &[f64], dir: &[f64], sigma: f64) -> Vec<usize> {
+/// Gross outliers of a 1-D residual `e` of axis `d` (as
+/// [`super::untidy::gross_outliers`]). A spike at a reversal of the axis
+/// is its following error, machine physics. So is one that the axis's own
+/// lag explains where the command changes speed (a short fast move seen by
+/// a sample or two at a low sample rate, where the speed between samples
+/// is not known): the lag is fitted with the first flags set aside, and a
+/// flagged sample whose spike is within twice that lag times the change
+/// of the commanded speed around it is not a fault of the trace.
+fn outliers_1d(d: &AxisData, e: &[f64], sigma: f64) -> Vec<usize> {
+    let first = spikes(d, e, sigma, 0.0);
+    if first.is_empty() {
+        return first;
+    }
+    let mut skip = vec![false; e.len()];
+    for &p in &first {
+        skip[p] = true;
+    }
+    let fams = [Fam::ServoLag, Fam::Backlash, Fam::ZeroOffset];
+    let on_e = AxisData {
+        e: e.to_vec(),
+        ..d.clone()
+    };
+    let (beta, _, _) = lsq(&on_e, &fams, &|i| !skip[i]);
+    let tau = beta[0].clamp(0.0, MAX_FOLLOWING_TAU_S);
+    spikes(d, e, sigma, 4.0 * tau)
+}
+
+/// Samples of `e` that depart from their neighbours by more than
+/// [`OUTLIER_SIGMAS`] noise floors, away from a reversal of the axis and
+/// beyond `allow_s` times the change of the commanded speed around them;
+/// never the first or the last sample. None when more than 5 % depart:
+/// that is a signal, not faults.
+fn spikes(d: &AxisData, e: &[f64], sigma: f64, allow_s: f64) -> Vec<usize> {
     let n = e.len();
     let mut out = Vec::new();
     if n < 7 {
         return out;
     }
-    for i in 0..n {
-        // A spike at a reversal of the axis is its following error,
-        // machine physics.
+    let dir = &d.dir;
+    // The first and last samples are judged from one side only, and a
+    // change of speed just outside the trace does not show: not flagged.
+    for i in 1..n - 1 {
         let reversal = (i.saturating_sub(2)..(i + 2).min(n - 1)).any(|k| dir[k] * dir[k + 1] < 0.0);
-        if departure(e, i).abs() > OUTLIER_SIGMAS * sigma.max(1e-12) && !reversal {
+        let dep = departure(e, i).abs();
+        if dep > OUTLIER_SIGMAS * sigma.max(1e-12)
+            && !reversal
+            && (allow_s == 0.0 || dep > allow_s * speed_change(d, i))
+        {
             out.push(i);
         }
     }
     if out.len() * 20 > n { Vec::new() } else { out }
+}
+
+/// The slowest servo whose following error a trace may show (time
+/// constant, s).
+const MAX_FOLLOWING_TAU_S: f64 = 0.05;
+
+/// The largest change of the commanded speed between consecutive sample
+/// intervals around sample `i` (mm/s or deg/s).
+fn speed_change(d: &AxisData, i: usize) -> f64 {
+    let n = d.t.len();
+    let speed = |k: usize| (d.q[k + 1] - d.q[k]) / (d.t[k + 1] - d.t[k]).max(1e-12);
+    (i.saturating_sub(2)..(i + 2).min(n.saturating_sub(2)))
+        .map(|k| (speed(k + 1) - speed(k)).abs())
+        .fold(0.0, f64::max)
 }
 
 /// A joint-level effect family.
@@ -285,7 +336,7 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
     // acceleration, which a running median does not follow).
     let mut bad = vec![false; n];
     for k in 0..n_ax {
-        for i in outliers_1d(&data[k].e, &data[k].dir, sigma[k]) {
+        for i in outliers_1d(&data[k], &data[k].e, sigma[k]) {
             bad[i] = true;
         }
     }
@@ -381,7 +432,7 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
     // Outliers of the (aligned) residual: excluded from every fit.
     let mut flagged: Vec<(usize, usize, f64)> = Vec::new();
     for k in 0..n_ax {
-        for p in outliers_1d(&data[k].e, &data[k].dir, sigma[k]) {
+        for p in outliers_1d(&data[k], &data[k].e, sigma[k]) {
             if data[k].keep[p] {
                 flagged.push((index[p], k, data[k].e[p]));
             }
