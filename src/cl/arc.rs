@@ -148,6 +148,122 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
     }
 }
 
+impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
+    /// CATIA's circular move: `INDIRV/i,j,k` (the direction at the start),
+    /// then `TLON,GOFWD/(CIRCLE/xc,yc,zc,r),ON,(LINE/xc,yc,zc,xe,ye,ze)`:
+    /// along the circle about the tool axis through the centre, starting in
+    /// the `INDIRV` direction, until the tool is on the line (the first
+    /// crossing; `ON,2,INTOF` the second, which makes a whole circle when
+    /// the start is on the line). Lowered as a `CIRCLE` with its `GOTO`.
+    pub(super) fn tlon_gofwd(&mut self, r: &ClRecord, text: &str) -> Result<(), Error> {
+        let refuse = |m: &str| {
+            self.err(r, format!("TLON,GOFWD: {m}; kinpost converts only the form INDIRV/i,j,k then TLON,GOFWD/(CIRCLE/xc,yc,zc,r),ON[,2,INTOF],(LINE/xc,yc,zc,xe,ye,ze)"))
+        };
+        let upper = text.to_ascii_uppercase();
+        let body = upper
+            .trim_start()
+            .strip_prefix(',')
+            .map(str::trim_start)
+            .and_then(|x| x.strip_prefix("GOFWD"))
+            .map(str::trim_start)
+            .and_then(|x| x.strip_prefix('/'));
+        let Some(body) = body else {
+            return Err(refuse("expected GOFWD/ after TLON"));
+        };
+        let toks: Vec<&str> = body
+            .split([',', '(', ')', '/'])
+            .map(str::trim)
+            .filter(|x| !x.is_empty())
+            .collect();
+        let nums = |from: usize, n: usize| -> Option<Vec<f64>> {
+            let v: Option<Vec<f64>> = toks
+                .get(from..from + n)?
+                .iter()
+                .map(|t| t.parse::<f64>().ok().filter(|x| x.is_finite()))
+                .collect();
+            v
+        };
+        if toks.first() != Some(&"CIRCLE") {
+            return Err(refuse("expected (CIRCLE/…) after GOFWD/"));
+        }
+        let Some(circle) = nums(1, 4) else {
+            return Err(refuse("expected CIRCLE/xc,yc,zc,r"));
+        };
+        if toks.get(5) != Some(&"ON") {
+            return Err(refuse("expected ON after the circle"));
+        }
+        let (nth, at_line) = match (toks.get(6), toks.get(7)) {
+            (Some(n), Some(&"INTOF")) => match n.parse::<f64>() {
+                Ok(1.0) => (1, 8),
+                Ok(2.0) => (2, 8),
+                _ => return Err(refuse("expected 1 or 2 before INTOF")),
+            },
+            _ => (1, 6),
+        };
+        if toks.get(at_line) != Some(&"LINE") || toks.len() != at_line + 7 {
+            return Err(refuse("expected (LINE/xc,yc,zc,xe,ye,ze) at the end"));
+        }
+        let Some(line) = nums(at_line + 1, 6) else {
+            return Err(refuse("expected LINE/xc,yc,zc,xe,ye,ze"));
+        };
+        let Some(start) = self.pos else {
+            return Err(refuse("no start position (expected a GOTO before)"));
+        };
+        let Some(dir) = self.indirv else {
+            return Err(refuse("no INDIRV before it gives the direction"));
+        };
+        let centre = [circle[0], circle[1], circle[2]];
+        let radius = circle[3];
+        let a = scale(self.axis, 1.0 / norm(self.axis));
+        let slack = 1e-3 / self.mm_per_unit;
+        let s = sub(start, centre);
+        let hs = dot(s, a);
+        let sp = sub(s, scale(a, hs));
+        if radius <= 0.0 || (norm(sp) - radius).abs() > slack || hs.abs() > slack {
+            return Err(refuse(&format!(
+                "the start point is not on the circle (radius {}, start {} from the centre in its plane, {} off the plane)",
+                num(radius),
+                num(norm(sp)),
+                num(hs)
+            )));
+        }
+        let turn = dot(cross(sp, dir), a);
+        if turn.abs() < 1e-9 * norm(sp) * norm(dir) {
+            return Err(refuse(
+                "INDIRV points along the radius: the direction of turn is not known",
+            ));
+        }
+        let n = scale(a, turn.signum());
+        let e = sub([line[3], line[4], line[5]], [line[0], line[1], line[2]]);
+        let d = sub(e, scale(a, dot(e, a)));
+        if norm(d) < 1e-9 || norm(sub([line[0], line[1], line[2]], centre)) > slack {
+            return Err(refuse("the LINE must run from the centre to the end point"));
+        }
+        let u = scale(sp, 1.0 / norm(sp));
+        let v = cross(n, u);
+        let mut crossings: Vec<(f64, [f64; 3])> = [1.0, -1.0]
+            .iter()
+            .map(|k| {
+                let p = scale(d, k * radius / norm(d));
+                let mut th = dot(p, v).atan2(dot(p, u)).rem_euclid(std::f64::consts::TAU);
+                if th < 1e-9 {
+                    th = std::f64::consts::TAU;
+                }
+                (th, add(centre, add(p, scale(a, hs))))
+            })
+            .collect();
+        crossings.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let end = crossings[nth - 1].1;
+        self.indirv = None;
+        self.circle = Some(Circle {
+            center: centre,
+            normal: n,
+            radius: Some(radius),
+        });
+        self.goto(r, end, None)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use crate::cl::lower::tests::{flat, gotos, near, run};

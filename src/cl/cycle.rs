@@ -5,7 +5,7 @@
 //! is along the machine's Z axis, else as the expansion into moves.
 
 use super::state::{Cycle, CycleKind, Lowered, absurd_feed, feed_statements};
-use super::vec3::{add, norm, num, scale, sub};
+use super::vec3::{add, dot, norm, num, scale, sub};
 use super::{Arg, ClRecord, ClStatement, FeedUnit};
 use crate::error::Error;
 
@@ -77,6 +77,16 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
         let na = norm(self.axis);
         let a = scale(self.axis, 1.0 / na);
         let at = |d: f64| add(top, scale(a, d));
+        // RTRCTO,AUTO: back to the level the tool comes from (at least R).
+        let rtrcto = match (c.rtrcto_auto, self.pos) {
+            (true, Some(p)) => dot(sub(p, top), a).max(c.rapto),
+            (true, None) => c.rapto,
+            (false, _) => c.rtrcto,
+        };
+        let c = &Cycle {
+            rtrcto,
+            ..c.clone()
+        };
         let clear = at(c.rtrcto);
         let r_plane = at(c.rapto);
         // Rapid above the hole at the retract level, then down to RAPTO.
@@ -169,39 +179,72 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
         let Some(first) = args.first() else {
             return Err(self.err(
                 r,
-                "CYCLE expects a cycle type (DRILL, DEEP, BRKCHP, BORE, REAM, OFF, ...)",
+                "CYCLE expects a cycle type (DRILL, DEEP, BRKCHP, BORE, REAM, TAP, ON, OFF, ...)",
             ));
         };
-        let kind = match first.upper().as_str() {
+        let comment = format!("({})", String::from_utf8_lossy(&r.text).trim());
+        let mut k = 1;
+        let mut c = match first.upper().as_str() {
             "OFF" => {
                 self.cycle = None;
                 self.block(r, "G80");
                 return Ok(());
             }
-            "INIT" | "ON" => {
-                self.block(r, format!("({})", String::from_utf8_lossy(&r.text).trim()));
+            "INIT" => {
+                self.block(r, comment);
                 return Ok(());
             }
-            "DRILL" | "FACE" | "CSINK" | "SPOT" => CycleKind::Drill,
-            "DEEP" | "DEEP2" => CycleKind::Deep,
-            "BRKCHP" => CycleKind::BrkChp,
-            "BORE" | "REAM" => CycleKind::Bore,
-            "TAP" => CycleKind::Tap,
-            other => {
-                return Err(self.err(r, format!("CYCLE/{other} is not supported (cycles: DRILL, FACE, CSINK, SPOT, DEEP, DEEP2, BRKCHP, BORE, REAM, TAP); the program is refused rather than drilling wrongly")));
+            "ON" if args.len() == 1 => {
+                self.block(r, comment);
+                return Ok(());
+            }
+            // NX: CYCLE/ON,words changes the cycle in force.
+            "ON" => match self.cycle.clone() {
+                Some(c) => c,
+                None => {
+                    return Err(self.err(
+                        r,
+                        "CYCLE/ON with words changes the cycle in force, but no cycle is in force",
+                    ));
+                }
+            },
+            w => {
+                let kind = match w {
+                    "DRILL" | "FACE" | "CSINK" | "SPOT" => CycleKind::Drill,
+                    "DEEP" | "DEEP2" => CycleKind::Deep,
+                    "BRKCHP" => CycleKind::BrkChp,
+                    "BORE" | "REAM" => CycleKind::Bore,
+                    "TAP" => CycleKind::Tap,
+                    other => {
+                        return Err(self.err(r, format!("CYCLE/{other} is not supported (cycles: DRILL, FACE, CSINK, SPOT, DEEP, DEEP2, BRKCHP, BORE, REAM, TAP); the program is refused rather than drilling wrongly")));
+                    }
+                };
+                Cycle {
+                    kind,
+                    depth: f64::NAN,
+                    rapto: 0.0,
+                    rtrcto: f64::NAN,
+                    rtrcto_auto: false,
+                    feed: None,
+                    dwell: 0.0,
+                    first_peck: 0.0,
+                    sub_peck: 0.0,
+                }
             }
         };
-        let mut c = Cycle {
-            kind,
-            depth: f64::NAN,
-            rapto: 0.0,
-            rtrcto: f64::NAN,
-            feed: None,
-            dwell: 0.0,
-            first_peck: 0.0,
-            sub_peck: 0.0,
-        };
-        let mut k = 1;
+        // NX writes the kind as DRILL followed by a modifier
+        // (CYCLE/DRILL,DEEP,...); BORE,DRAG stops the spindle at the bottom.
+        while let Some(m) = args.get(k) {
+            c.kind = match (c.kind, m.upper().as_str()) {
+                (CycleKind::Drill, "DEEP") => CycleKind::Deep,
+                (CycleKind::Drill, "BRKCHP") => CycleKind::BrkChp,
+                (CycleKind::Drill, "TAP") => CycleKind::Tap,
+                (CycleKind::Drill, "BORE") => CycleKind::Bore,
+                (CycleKind::Bore, "DRAG") => CycleKind::BoreDrag,
+                _ => break,
+            };
+            k += 1;
+        }
         let mut loose = Vec::new();
         while k < args.len() {
             let w = args[k].upper();
@@ -211,14 +254,17 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
                     .ok_or_else(|| self.err(r, format!("CYCLE: expected a number after {w}")))
             };
             match w.as_str() {
-                "DRAG" if c.kind == CycleKind::Bore => {
-                    c.kind = CycleKind::BoreDrag;
-                    k += 1;
-                    continue;
-                }
-                "FEDTO" | "DEPTH" => c.depth = val(k + 1)?,
+                // A signed depth (NX: negative below the point) or a depth
+                // below the point (SolidWorks CAM: positive).
+                "FEDTO" | "DEPTH" => c.depth = val(k + 1)?.abs(),
                 "RAPTO" | "CLEAR" => c.rapto = val(k + 1)?,
-                "RTRCTO" => c.rtrcto = val(k + 1)?,
+                "RTRCTO" if args.get(k + 1).is_some_and(|a| a.is("AUTO")) => {
+                    c.rtrcto_auto = true;
+                }
+                "RTRCTO" => {
+                    c.rtrcto = val(k + 1)?;
+                    c.rtrcto_auto = false;
+                }
                 "DWELL" => c.dwell = val(k + 1)?,
                 "1STPECK" | "STEP" => c.first_peck = val(k + 1)?,
                 "SUBPECK" => c.sub_peck = val(k + 1)?,
@@ -264,7 +310,7 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
         if c.kind == CycleKind::Deep && c.first_peck == 0.0 {
             c.first_peck = c.depth.max(1e-3);
         }
-        self.block(r, format!("({})", String::from_utf8_lossy(&r.text).trim()));
+        self.block(r, comment);
         self.cycle = Some(c);
         Ok(())
     }

@@ -77,6 +77,7 @@ pub fn lower<I: Iterator<Item = Result<ClRecord, Error>>>(
         pos: None,
         axis: [0.0, 0.0, 1.0],
         circle: None,
+        indirv: None,
         cycle: None,
         feed: None,
         tool: None,
@@ -86,7 +87,12 @@ pub fn lower<I: Iterator<Item = Result<ClRecord, Error>>>(
 }
 
 impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
-    fn goto(&mut self, r: &ClRecord, tip: [f64; 3], axis: Option<[f64; 3]>) -> Result<(), Error> {
+    pub(super) fn goto(
+        &mut self,
+        r: &ClRecord,
+        tip: [f64; 3],
+        axis: Option<[f64; 3]>,
+    ) -> Result<(), Error> {
         if !self.units_seen && !self.warned_units {
             self.warned_units = true;
             self.emit(
@@ -148,6 +154,15 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
                 });
             }
             "CYCLE" => self.cycle(r, &args)?,
+            "INDIRV" => {
+                let v = self.numbers(r, &args, "INDIRV")?;
+                if v.len() != 3 || norm([v[0], v[1], v[2]]) < 1e-12 {
+                    return Err(self.err(r, "INDIRV expects a direction i,j,k that is not zero"));
+                }
+                self.indirv = Some([v[0], v[1], v[2]]);
+                self.block(r, format!("({})", String::from_utf8_lossy(&r.text).trim()));
+            }
+            "TLON" => self.tlon_gofwd(r, text)?,
             "CSYS" => {
                 let v = self.numbers(r, &args, "CSYS")?;
                 if v.len() != 12 {

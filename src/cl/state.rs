@@ -40,6 +40,8 @@ pub(super) struct Cycle {
     pub(super) depth: f64,
     pub(super) rapto: f64,
     pub(super) rtrcto: f64,
+    /// `RTRCTO,AUTO` (NX): back to the level the tool came from.
+    pub(super) rtrcto_auto: bool,
     pub(super) feed: Option<(f64, FeedUnit)>,
     pub(super) dwell: f64,
     pub(super) first_peck: f64,
@@ -66,6 +68,8 @@ pub struct Lowered<I> {
     pub(super) pos: Option<[f64; 3]>,
     pub(super) axis: [f64; 3],
     pub(super) circle: Option<Circle>,
+    /// `INDIRV/i,j,k`: the direction the next motion starts in.
+    pub(super) indirv: Option<[f64; 3]>,
     pub(super) cycle: Option<Cycle>,
     pub(super) feed: Option<(f64, FeedUnit)>,
     pub(super) tool: Option<u32>,

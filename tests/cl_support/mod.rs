@@ -212,7 +212,10 @@ pub fn cl_path(text: &str) -> ClPath {
     let mut unit = 1.0;
     let mut pos: Option<V> = None; // set-up frame, mm
     let mut circle: Option<(V, V)> = None;
-    let mut cycle: Option<(f64, f64, f64)> = None;
+    // Depth, RAPTO, RTRCTO (None: AUTO, back to the level the tool came
+    // from).
+    let mut cycle: Option<(f64, f64, Option<f64>)> = None;
+    let mut indirv: Option<V> = None;
     let mut cycle_text = String::new();
     let to_setup = |p: V, r: &[[f64; 3]; 3], t: V| {
         let d = sub(p, t);
@@ -250,19 +253,79 @@ pub fn cl_path(text: &str) -> ClPath {
             }
             "CYCLE" => {
                 let w: Vec<String> = upper.split(',').map(|x| x.trim().to_string()).collect();
+                let val = |k: &str| {
+                    w.iter()
+                        .position(|x| x == k)
+                        .map(|i| w[i + 1].parse::<f64>().map(|v| v * unit).ok())
+                };
                 if w[0] == "OFF" {
                     cycle = None;
-                } else if w[0] != "INIT" && w[0] != "ON" {
-                    let val = |k: &str| {
-                        w.iter()
-                            .position(|x| x == k)
-                            .map(|i| w[i + 1].parse::<f64>().unwrap() * unit)
+                } else if w[0] == "INIT" || w == ["ON"] {
+                } else {
+                    // A new cycle, or CYCLE/ON changing the one in force.
+                    let (mut depth, mut rapto, mut rtrcto) = match (w[0].as_str(), cycle) {
+                        ("ON", Some(c)) => c,
+                        _ => (f64::NAN, 0.0, Some(f64::NAN)),
                     };
-                    let rapto = val("RAPTO").unwrap_or(0.0);
-                    let rtrcto = val("RTRCTO").unwrap_or(rapto);
-                    cycle = Some((val("FEDTO").unwrap(), rapto, rtrcto));
+                    if let Some(d) = val("FEDTO") {
+                        depth = d.unwrap().abs();
+                    }
+                    if let Some(r) = val("RAPTO").or(val("CLEAR")) {
+                        rapto = r.unwrap();
+                    }
+                    if let Some(r) = val("RTRCTO") {
+                        rtrcto = r;
+                    }
+                    let rtrcto = rtrcto.map(|r| if r.is_nan() { rapto } else { r });
+                    cycle = Some((depth, rapto, rtrcto));
                     cycle_text = upper.clone();
                 }
+            }
+            "INDIRV" => {
+                let v = nums(&args);
+                indirv = Some([v[0], v[1], v[2]]);
+            }
+            "TLON,GOFWD" => {
+                // (CIRCLE/xc,yc,zc,r),ON[,2,INTOF],(LINE/xc,yc,zc,xe,ye,ze):
+                // about the tool axis, starting in the INDIRV direction, to
+                // the first (or second) crossing of the line.
+                let tk: Vec<String> = upper
+                    .split([',', '(', ')', '/'])
+                    .map(|x| x.trim().to_string())
+                    .filter(|x| !x.is_empty())
+                    .collect();
+                let f = |i: usize| tk[i].parse::<f64>().unwrap() * unit;
+                let centre = to_setup([f(1), f(2), f(3)], &r, t);
+                let radius = f(4);
+                let nth = if tk[6] == "2" { 2 } else { 1 };
+                let l = tk.len() - 6;
+                let e = to_setup([f(l + 3), f(l + 4), f(l + 5)], &r, t);
+                let a = to_setup(axis, &r, [0.0; 3]);
+                let a = mul(a, 1.0 / len(a));
+                let start = pos.expect("arc start");
+                let sp = sub(start, centre);
+                let dir = to_setup(indirv.take().expect("INDIRV"), &r, [0.0; 3]);
+                let n = mul(a, dot(cross(sp, dir), a).signum());
+                let u = mul(sp, 1.0 / len(sp));
+                let v = cross(n, u);
+                let d = sub(e, centre);
+                let d = mul(d, 1.0 / len(d));
+                let mut sweeps: Vec<f64> = [1.0, -1.0]
+                    .iter()
+                    .map(|k| {
+                        let p = mul(d, *k);
+                        let th = dot(p, v).atan2(dot(p, u)).rem_euclid(std::f64::consts::TAU);
+                        if th < 1e-9 { std::f64::consts::TAU } else { th }
+                    })
+                    .collect();
+                sweeps.sort_by(f64::total_cmp);
+                let sweep = sweeps[nth - 1];
+                out.pieces
+                    .push(Piece::Arc(centre, n, u, radius, sweep, 0.0));
+                pos = Some(add(
+                    centre,
+                    add(mul(u, radius * sweep.cos()), mul(v, radius * sweep.sin())),
+                ));
             }
             "GOTO" | "FROM" => {
                 let v = nums(&args);
@@ -293,6 +356,8 @@ pub fn cl_path(text: &str) -> ClPath {
                     let c = add(c, mul(n, hs));
                     out.pieces.push(Piece::Arc(c, n, u, len(s), sweep, he - hs));
                 } else if let Some((depth, rapto, rtrcto)) = cycle {
+                    let rtrcto = rtrcto
+                        .unwrap_or_else(|| pos.map_or(rapto, |p| dot(sub(p, q), a).max(rapto)));
                     let clear = add(q, mul(a, rtrcto));
                     let bottom = add(q, mul(a, -depth));
                     if let Some(from) = pos {
