@@ -30,6 +30,14 @@ pub trait PoseSolver {
         previous: Option<&[f64]>,
         line: usize,
     ) -> std::result::Result<SolvedPose, String>;
+
+    /// Whether poses that are not written (an arc's centre and points, a
+    /// hole's levels) may be solved to plan a `G2`/`G3` or canned cycle on
+    /// APT CL; `false` for a solver that reports every pose it solves, which
+    /// then gets the moves.
+    fn plans_freely(&self) -> bool {
+        true
+    }
 }
 
 /// The message for a pose whose closest reachable tool axis misses the

@@ -159,3 +159,50 @@ fn motion_not_understood_is_refused() {
         "{nc}"
     );
 }
+
+/// Feeds keep their decimals: `FEDRAT/0.05,MMPR` was written `F0.1`
+/// (twice the feed) and 123.45 mm/min `F123.5` before.
+#[test]
+fn feeds_keep_their_decimals() {
+    let cl = "UNITS/MM\nFEDRAT/0.05,MMPR\nGOTO/1,0,0\nFEDRAT/MMPM,123.45\nGOTO/2,0,0\nFEDRAT/MMPM,800\nGOTO/3,0,0\n";
+    let (code, nc, err) = post_stdin(TRT, &[], cl);
+    assert_eq!(code, 0, "{err}");
+    assert!(nc.contains(" F0.05\n") && nc.contains(" F123.45\n"), "{nc}");
+    assert!(nc.contains(" F800.0\n"), "{nc}");
+}
+
+/// The forms of the arc and cycle blocks on the table-table machine: a
+/// whole circle ends where it starts (I J to the centre, not a zero-length
+/// move), a helix carries its axis word, `--modal-axes` still writes every
+/// axis of an arc, inches are converted (also the peck depth), and
+/// `CYCLE/OFF` is `G80` after which the motion code is written again.
+#[test]
+fn arc_and_cycle_blocks() {
+    let cl = "UNITS/MM\nFEDRAT/MMPM,500\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,1\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,-1\nGOTO/0,-10,-2\nGOTO/5,5,0\n";
+    let (code, nc, err) = post_stdin(TRT, &["--modal-axes"], cl);
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<&str> = nc.lines().collect();
+    assert!(
+        lines.contains(&"G17 G3 X10.0000 Y0.0000 Z0.0000 A0.0000 C0.0000 I-10.0000 J0.0000"),
+        "{nc}"
+    );
+    assert!(
+        lines.contains(&"G2 X0.0000 Y-10.0000 Z-2.0000 A0.0000 C0.0000 I-10.0000 J0.0000"),
+        "{nc}"
+    );
+    assert!(lines.contains(&"G1 X5.0000 Y5.0000 Z0.0000"), "{nc}");
+    let inch = "UNITS/INCHES\nGOTO/1,0,2\nCYCLE/DEEP,FEDTO,0.5,STEP,0.1,RAPTO,0.1,RTRCTO,1,IPM,10\nGOTO/1,0,0\nCYCLE/OFF\nGOTO/0,1,0\nCIRCLE/0,0,0,0,0,1\nGOTO/-1,0,0\n";
+    let (code, nc, err) = post_stdin(TRT, &[], inch);
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<&str> = nc.lines().collect();
+    assert!(
+        lines.contains(&"G17 G98 G83 X25.4000 Y0.0000 Z-12.7000 R2.5400 Q2.5400 F254.0"),
+        "{nc}"
+    );
+    let g80 = lines.iter().position(|l| *l == "G80").unwrap();
+    assert!(lines[g80 + 1].starts_with("G1 X0.0000 Y25.4000"), "{nc}");
+    assert!(
+        lines.contains(&"G3 X-25.4000 Y0.0000 Z0.0000 A0.0000 C0.0000 I0.0000 J-25.4000"),
+        "{nc}"
+    );
+}

@@ -7,7 +7,6 @@ use crate::cl::{ClReader, ClStatement, FeedUnit, SpindleDir};
 use crate::error::{Error, Location, Result};
 use crate::machine::{Machine, Pose};
 use crate::program::Units;
-use crate::program::format::push_fixed;
 use nalgebra::Vector3;
 use std::io::{BufRead, Write};
 
@@ -129,7 +128,7 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                 block.push_str(std::str::from_utf8(words).unwrap_or_default());
                 if motion == 1 && feed.is_some() && feed != feed_written {
                     block.push_str(" F");
-                    push_fixed(&mut block, feed.unwrap_or(0.0), 1);
+                    cl_motion::push_number(&mut block, feed.unwrap_or(0.0));
                     feed_written = feed;
                 }
                 writeln!(out, "{}", block.trim_end()).map_err(io)?;

@@ -91,7 +91,7 @@ pub(super) fn plan_arc(
     scale: f64,
     line: usize,
 ) -> Option<ArcPlan> {
-    if !arc.constant_axis {
+    if !arc.constant_axis || !solver.plans_freely() {
         return None;
     }
     let xyz = xyz_joints(machine)?;
@@ -249,6 +249,9 @@ pub(super) fn plan_hole(
     line: usize,
 ) -> Option<HolePlan> {
     hole.code?;
+    if !solver.plans_freely() {
+        return None;
+    }
     let [_, _, z] = xyz_joints(machine)?;
     let q_clear = solve(solver, opts, hole.clear, hole.axis, scale, previous, line)?;
     let q_r = solve(
@@ -401,6 +404,6 @@ pub(super) fn put_back(
 /// Why a tapping or drag-boring hole is refused: it has no form as moves.
 pub(super) fn not_canned(machine: &str) -> String {
     format!(
-        "this cycle (tapping, or boring with a spindle stop) needs a canned cycle, and on machine {machine} the tool is not along the machine's Z axis here (or the retract level is below R): it cannot be written as moves, so the program is refused"
+        "this cycle (tapping, or boring with a spindle stop) has no form as moves and needs a canned cycle, which kinpost writes only when the tool is along the machine's Z axis and the retract level is not below R (on machine {machine} it is not here), and not under `compensate` (which converts every pose): the program is refused"
     )
 }
