@@ -206,3 +206,36 @@ fn arc_and_cycle_blocks() {
         "{nc}"
     );
 }
+
+/// docs/programs.md names every major word that moves the tool in its
+/// table of CL major words, and the dialect files' comment words.
+#[test]
+fn every_motion_major_is_documented() {
+    let doc = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/programs.md"),
+    )
+    .unwrap();
+    let table = doc
+        .split("### Every CL major word")
+        .nth(1)
+        .and_then(|t| t.split("\n### ").next())
+        .expect("the table of CL major words");
+    let rows: Vec<&str> = table.lines().filter(|l| l.starts_with("| ")).collect();
+    for major in kinpost::cl::MOTION_MAJORS.iter().chain(&[
+        "TOOL PATH",
+        "TLDATA",
+        "MSYS",
+        "PAINT",
+        "END-OF-PATH",
+        "TOOLNO",
+        "TPRINT",
+        "AUTOPS",
+        "MACHIN",
+        "PPRINT",
+    ]) {
+        assert!(
+            rows.iter().any(|r| r.contains(&format!("`{major}"))),
+            "{major} is not in the table of CL major words"
+        );
+    }
+}
