@@ -265,6 +265,11 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
                     c.rtrcto = val(k + 1)?;
                     c.rtrcto_auto = false;
                 }
+                // NX: RTRCTO,r,MANUAL (the level given).
+                "MANUAL" => {
+                    k += 1;
+                    continue;
+                }
                 "DWELL" => c.dwell = val(k + 1)?,
                 "1STPECK" | "STEP" => c.first_peck = val(k + 1)?,
                 "SUBPECK" => c.sub_peck = val(k + 1)?,

@@ -232,6 +232,7 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                         .map_err(|m| Error::input(loc.clone(), m))?;
                         writeln!(out, "{block}").map_err(io)?;
                         feed_written = None;
+                        rapid_next = false;
                         motion_written = hole.code;
                         axis = Vector3::from(hole.axis);
                         stats.poses += 1;
