@@ -239,3 +239,66 @@ fn every_motion_major_is_documented() {
         );
     }
 }
+
+/// A three-axis machine file whose axis `flip` runs the other way.
+fn flipped_machine(flip: &str) -> std::path::PathBuf {
+    let axis = |n: &str, v: [i32; 3]| {
+        let s = if n == flip { -1 } else { 1 };
+        format!(
+            r#"{{"prismatic": {{"name": "{n}", "axis": [{}, {}, {}]}}}}"#,
+            v[0] * s,
+            v[1] * s,
+            v[2] * s
+        )
+    };
+    let json = format!(
+        r#"{{"name": "xyz-flip-{flip}", "description": "test", "source": "test",
+  "chain": [{}, {}, {}],
+  "axes": {{"X": {{}}, "Y": {{}}, "Z": {{}}}}}}"#,
+        axis("X", [1, 0, 0]),
+        axis("Y", [0, 1, 0]),
+        axis("Z", [0, 0, 1])
+    );
+    let dir = std::env::temp_dir().join(format!("kinpost-cl-dialects-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(format!("flip-{flip}.json"));
+    std::fs::write(&path, json).unwrap();
+    path
+}
+
+/// The direction and the tool axis come from the kinematics: on a machine
+/// whose X runs the other way a counter-clockwise CL arc is a `G2`, and on
+/// one whose Z runs the other way (joint Z up moves the tool down) a hole
+/// is not a canned cycle but moves; both paths still agree with the CL.
+#[test]
+fn direction_and_tool_axis_come_from_the_kinematics() {
+    let cl = "UNITS/MM\nFEDRAT/MMPM,300\nGOTO/10,0,5\nCIRCLE/0,0,5,0,0,1\nGOTO/0,10,5\nCYCLE/DRILL,FEDTO,4,RAPTO,2,RTRCTO,10\nGOTO/0,10,0\nCYCLE/OFF\nGOTO/0,10,20\n";
+    let path = cl_path(cl);
+    let cases: [(&str, fn([f64; 5]) -> [f64; 3], &str, bool); 3] = [
+        ("none", |q| [q[0], q[1], q[2]], "G17 G3 ", true),
+        ("X", |q| [-q[0], q[1], q[2]], "G17 G2 ", true),
+        ("Z", |q| [q[0], q[1], -q[2]], "G17 G3 ", false),
+    ];
+    for (flip, forward, arc, canned) in cases {
+        let machine = flipped_machine(flip);
+        let (code, nc, err) = post_stdin(machine.to_str().unwrap(), &[], cl);
+        assert_eq!(code, 0, "{flip}: {err}");
+        assert!(nc.lines().any(|l| l.starts_with(arc)), "{flip}:\n{nc}");
+        assert_eq!(nc.contains(" G81 "), canned, "{flip}:\n{nc}");
+        let (pts, holes) = output_points(&nc, forward);
+        agree(flip, &path, &pts, &holes);
+    }
+}
+
+/// A `RAPID` before a hole written as a canned cycle is used up by the
+/// hole: the move after `CYCLE/OFF` is a feed move (it was a `G0`).
+#[test]
+fn rapid_before_a_canned_hole_is_used_up() {
+    let cl = "UNITS/MM\nFEDRAT/MMPM,300\nGOTO/0,0,10\nCYCLE/DRILL,FEDTO,4,RAPTO,2,RTRCTO,10\nRAPID\nGOTO/0,0,0\nCYCLE/OFF\nGOTO/5,0,10\n";
+    let (code, nc, err) = post_stdin(TRT, &[], cl);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        nc.contains("G98 G81 X0.0000 Y0.0000 Z-4.0000 R2.0000 F300.0\nG80\nG1 X5.0000 "),
+        "{nc}"
+    );
+}
