@@ -18,6 +18,9 @@ const HEAD: &str = "fixtures/machines/xyzac-head.json";
 /// What each file must give on each machine: G2/G3 blocks and canned
 /// cycle blocks (trt, head), and the summary of statements kept as
 /// comments.
+/// Tool tip from the axis words X Y Z A C, by hand.
+type Forward = fn([f64; 5]) -> [f64; 3];
+
 /// (G2/G3 blocks, canned-cycle blocks).
 type Counts = (usize, usize);
 
@@ -79,7 +82,7 @@ fn dialects_post_follows_the_cl_path() {
         .unwrap();
         let cl = cl_path(&text);
         for (machine, forward, (arcs, canned)) in [
-            (TRT, forward_trt as fn([f64; 5]) -> [f64; 3], trt),
+            (TRT, forward_trt as Forward, trt),
             (HEAD, forward_head, head),
         ] {
             let out = kinpost(&["post", "-m", machine, "--units", "mm", &path(name)]);
@@ -274,7 +277,7 @@ fn flipped_machine(flip: &str) -> std::path::PathBuf {
 fn direction_and_tool_axis_come_from_the_kinematics() {
     let cl = "UNITS/MM\nFEDRAT/MMPM,300\nGOTO/10,0,5\nCIRCLE/0,0,5,0,0,1\nGOTO/0,10,5\nCYCLE/DRILL,FEDTO,4,RAPTO,2,RTRCTO,10\nGOTO/0,10,0\nCYCLE/OFF\nGOTO/0,10,20\n";
     let path = cl_path(cl);
-    let cases: [(&str, fn([f64; 5]) -> [f64; 3], &str, bool); 3] = [
+    let cases: [(&str, Forward, &str, bool); 3] = [
         ("none", |q| [q[0], q[1], q[2]], "G17 G3 ", true),
         ("X", |q| [-q[0], q[1], q[2]], "G17 G2 ", true),
         ("Z", |q| [q[0], q[1], -q[2]], "G17 G3 ", false),
