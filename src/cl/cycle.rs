@@ -155,7 +155,7 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
             _ => Vec::new(),
         };
         let hole = HoleMove {
-            code: c.canned_code(),
+            code: c.canned_code().filter(|_| !self.cutcom),
             clear: self.to_setup(clear),
             r_plane: self.to_setup(r_plane),
             bottom: self.to_setup(at(bottom)),
@@ -402,5 +402,27 @@ mod tests {
         // CYCLE/OFF cancels the cycle: G80.
         let s = run("UNITS/MM\nCYCLE/DRILL,FEDTO,5\nCYCLE/OFF\n").unwrap();
         assert!(blocks(&s).contains(&"G80".to_string()));
+    }
+
+    /// Under cutter compensation a hole is moves (controllers refuse a
+    /// canned cycle with G41/G42 on).
+    #[test]
+    fn no_canned_cycle_under_cutter_compensation() {
+        let code = |text: &str| {
+            run(text)
+                .unwrap()
+                .into_iter()
+                .find_map(|s| match s {
+                    ClStatement::Hole(h) => Some(h.code),
+                    _ => None,
+                })
+                .unwrap()
+        };
+        let hole = "CYCLE/DRILL,FEDTO,5\nGOTO/0,0,0\n";
+        assert_eq!(code(&format!("UNITS/MM\nCUTCOM/LEFT\n{hole}")), None);
+        assert_eq!(
+            code(&format!("UNITS/MM\nCUTCOM/LEFT\nCUTCOM/OFF\n{hole}")),
+            Some(81)
+        );
     }
 }

@@ -78,6 +78,7 @@ pub fn lower<I: Iterator<Item = Result<ClRecord, Error>>>(
         axis: [0.0, 0.0, 1.0],
         circle: None,
         indirv: None,
+        cutcom: false,
         cycle: None,
         feed: None,
         tool: None,
@@ -205,12 +206,16 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
             "CUTCOM" => match a(0).as_str() {
                 "LEFT" | "RIGHT" => {
                     let g = if a(0) == "LEFT" { "G41" } else { "G42" };
+                    self.cutcom = true;
                     match self.tool {
                         Some(t) => self.block(r, format!("{g} D{t}")),
                         None => self.block(r, g),
                     }
                 }
-                "OFF" => self.block(r, "G40"),
+                "OFF" => {
+                    self.cutcom = false;
+                    self.block(r, "G40");
+                }
                 w => {
                     return Err(
                         self.err(r, format!("CUTCOM/{w} is not supported (LEFT, RIGHT, OFF)"))

@@ -70,6 +70,9 @@ pub struct Lowered<I> {
     pub(super) circle: Option<Circle>,
     /// `INDIRV/i,j,k`: the direction the next motion starts in.
     pub(super) indirv: Option<[f64; 3]>,
+    /// Cutter compensation is on (`CUTCOM/LEFT|RIGHT`): controllers refuse
+    /// canned cycles then, so holes are moves.
+    pub(super) cutcom: bool,
     pub(super) cycle: Option<Cycle>,
     pub(super) feed: Option<(f64, FeedUnit)>,
     pub(super) tool: Option<u32>,

@@ -404,6 +404,6 @@ pub(super) fn put_back(
 /// Why a tapping or drag-boring hole is refused: it has no form as moves.
 pub(super) fn not_canned(machine: &str) -> String {
     format!(
-        "this cycle (tapping, or boring with a spindle stop) has no form as moves and needs a canned cycle, which kinpost writes only when the tool is along the machine's Z axis and the retract level is not below R (on machine {machine} it is not here), and not under `compensate` (which converts every pose): the program is refused"
+        "this cycle (tapping, or boring with a spindle stop) has no form as moves and needs a canned cycle, which kinpost writes only when the tool is along the machine's Z axis (on machine {machine}), the retract level is not below R and cutter compensation is off, and not under `compensate` (which converts every pose): the program is refused"
     )
 }
