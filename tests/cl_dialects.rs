@@ -305,3 +305,46 @@ fn rapid_before_a_canned_hole_is_used_up() {
         "{nc}"
     );
 }
+
+/// `compensate` converts every pose it solves and reports each: arcs and
+/// holes stay moves there (`post` writes G3 and G81 for the same file), and
+/// the report counts exactly the moves written.
+#[test]
+fn compensate_keeps_arcs_and_holes_as_moves() {
+    let dir = std::env::temp_dir().join(format!("kinpost-cl-comp-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("c.cls");
+    std::fs::write(
+        &file,
+        "UNITS/MM\nFEDRAT/MMPM,300\nGOTO/10,0,5\nCIRCLE/0,0,5,0,0,1\nGOTO/0,10,5\nCYCLE/DRILL,FEDTO,4,RAPTO,2,RTRCTO,10\nGOTO/0,10,0\nCYCLE/OFF\n",
+    )
+    .unwrap();
+    let file = file.to_str().unwrap();
+    let post = kinpost(&["post", "-m", "wang2023-xyzab", file]);
+    let nc = String::from_utf8_lossy(&post.stdout);
+    assert!(nc.contains("G17 G3 ") && nc.contains(" G81 "), "{nc}");
+    let comp = kinpost(&[
+        "compensate",
+        "-m",
+        "wang2023-xyzab",
+        "--errors",
+        "fixtures/errors/wang2023-xyzab.csv",
+        file,
+    ]);
+    let err = String::from_utf8_lossy(&comp.stderr);
+    assert!(comp.status.success(), "{err}");
+    let nc = String::from_utf8_lossy(&comp.stdout);
+    assert!(
+        !nc.contains("G3 ") && !nc.contains("G2 ") && !nc.contains(" G8"),
+        "{nc}"
+    );
+    let moves = nc
+        .lines()
+        .filter(|l| l.starts_with("G0 ") || l.starts_with("G1 ") || l.starts_with('X'))
+        .count();
+    assert!(moves > 20, "{nc}");
+    assert!(
+        err.contains(&format!("{moves} poses")),
+        "{moves} moves: {err}"
+    );
+}
