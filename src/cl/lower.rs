@@ -2,8 +2,9 @@
 //! `CYCLE/`, `CSYS/`, `CUTCOM/`, `LOAD/TOOL`, `SELECT/TOOL`, `UNIT/`,
 //! surface-speed `SPINDL`, `DELAY`, `STOP`, `FROM`, `GODLTA`) into the
 //! plain statements the converter writes: tool-tip `GOTO`s in the set-up
-//! frame, `RAPID`, `FEDRAT`, literal blocks ([`ClStatement::Block`]) and
-//! warnings ([`ClStatement::Warning`]).
+//! frame, `RAPID`, `FEDRAT`, literal blocks ([`ClStatement::Block`]),
+//! warnings ([`ClStatement::Warning`]), arcs ([`ClStatement::Arc`]) and
+//! holes ([`ClStatement::Hole`]).
 //!
 //! Conventions (docs/programs.md, "APT CL"):
 //! - `CSYS/r11,r12,r13,tx,r21,r22,r23,ty,r31,r32,r33,tz` gives the set-up
@@ -13,11 +14,13 @@
 //! - `CIRCLE/xc,yc,zc,i,j,k[,r,...]` followed by `GOTO`: an arc from the
 //!   current position to the `GOTO` point, counter-clockwise about
 //!   `(i,j,k)` (right-hand rule); an end point equal to the start is a full
-//!   circle; an axial difference makes a helix. It is linearised within the
-//!   chord tolerance (1 µm).
+//!   circle; an axial difference makes a helix (`cl/arc.rs`, also CATIA's
+//!   `INDIRV` + `TLON,GOFWD`). It becomes an arc record that carries its
+//!   linearisation within the chord tolerance (1 µm).
 //! - `CYCLE/...` then `GOTO`s: every `GOTO` is a hole whose top is the
 //!   point; `RAPTO` and `RTRCTO` are distances above it along the tool axis,
-//!   `FEDTO` the depth below it. The hole is expanded into moves.
+//!   `FEDTO` the depth below it (`cl/cycle.rs`). Each hole becomes a hole
+//!   record with its canned-cycle code and its expansion into moves.
 
 use std::collections::{BTreeMap, VecDeque};
 

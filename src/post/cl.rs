@@ -18,7 +18,9 @@ use std::io::{BufRead, Write};
 /// `END` → `M2`, `$$` and `PARTNO` → comments. `CIRCLE`, `CYCLE`, `CSYS`,
 /// `CUTCOM`, `LOAD/TOOL` and the other forms CAM systems write are lowered
 /// first ([`crate::cl::lower`]); a statement that moves the tool and is not
-/// converted is an error, any other statement is kept as a comment.
+/// converted is an error, any other statement is kept as a comment. An arc
+/// is a `G2`/`G3` and a hole a canned cycle where the machine's kinematics
+/// allow (`post/cl_motion.rs`, docs/programs.md), else their moves.
 pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
     solver: &mut dyn PoseSolver,
