@@ -42,7 +42,13 @@ use nom::{
 
 use crate::error::{Error, Location};
 
+mod arc;
+mod cycle;
 mod lower;
+mod state;
+mod vec3;
+pub use arc::ArcMove;
+pub use cycle::HoleMove;
 pub use lower::{DEFAULT_ARC_TOLERANCE_MM, Lowered, MOTION_MAJORS, lower};
 
 /// Feed rate units of `FEDRAT`.
@@ -125,6 +131,13 @@ pub enum ClStatement {
     Block(String),
     /// A warning for stderr (made by [`lower`], never by the reader).
     Warning(String),
+    /// An arc (made by [`lower`], never by the reader): `G2`/`G3` when it
+    /// lies in a plane of the machine, else its linearised moves.
+    Arc(Box<ArcMove>),
+    /// A hole of a canned cycle (made by [`lower`], never by the reader):
+    /// `G81`…`G89` when the tool is along the machine's Z axis, else its
+    /// moves.
+    Hole(Box<HoleMove>),
     /// Any other statement: `PARTNO`, `TOOL PATH`, `TLDATA`, `MSYS`, `PAINT`,
     /// `END-OF-PATH`, `CUTTER`, ... and `SPINDL`/`COOLNT` forms not
     /// interpreted above (`SPINDL/SFM,..`).

@@ -434,6 +434,10 @@ impl PoseSolver for Streaming<'_, '_, '_> {
         self.inner.records.clear();
         Ok(solved)
     }
+
+    fn plans_freely(&self) -> bool {
+        false
+    }
 }
 
 /// `WX,WY,WZ`: three finite weights ≥ 0.

@@ -203,6 +203,8 @@ fn cl_kind(s: &ClStatement) -> &'static str {
         ClStatement::Other { .. } => "Other",
         ClStatement::Block(_) => "Block",
         ClStatement::Warning(_) => "Warning",
+        ClStatement::Arc(_) => "Arc",
+        ClStatement::Hole(_) => "Hole",
     }
 }
 

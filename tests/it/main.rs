@@ -6,6 +6,7 @@
 
 mod util;
 
+mod cl_support;
 mod diagnose_support;
 mod gcode_reference;
 mod seed003_tables;
@@ -13,6 +14,7 @@ mod seed003_tables;
 mod architecture;
 mod bad_input;
 mod cl;
+mod cl_dialects;
 mod cl_real;
 mod cli_corpus_echo;
 mod cli_diagnose;

@@ -1,0 +1,198 @@
+//! The state of the lowering iterator ([`Lowered`]) and the helpers every
+//! lowering module uses: errors, emitted records, the set-up frame, feeds.
+
+use std::collections::{BTreeMap, VecDeque};
+
+use super::vec3::sub;
+use super::{Arg, ClRecord, ClStatement, FeedUnit};
+use crate::error::{Error, Location};
+
+/// Largest feed accepted, mm/min (per minute) or mm/rev (per revolution).
+/// A `CIRCLE` waiting for the `GOTO` that ends it (CL frame).
+#[derive(Debug, Clone)]
+pub(super) struct Circle {
+    pub(super) center: [f64; 3],
+    pub(super) normal: [f64; 3],
+    pub(super) radius: Option<f64>,
+}
+
+/// The kinds of hole the cycles make.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) enum CycleKind {
+    /// `DRILL`, `FACE`, `CSINK`, `SPOT`: feed down, (dwell,) rapid out.
+    Drill,
+    /// `DEEP`, `DEEP2`: pecks with full retraction.
+    Deep,
+    /// `BRKCHP`: pecks with a short retraction (chip breaking).
+    BrkChp,
+    /// `BORE`, `REAM`: feed down, (dwell,) feed out.
+    Bore,
+    /// `BORE,DRAG`: feed down, spindle stop, rapid out.
+    BoreDrag,
+    /// `TAP`: tapping (the spindle reverses at the bottom).
+    Tap,
+}
+
+/// The cycle in force (`CYCLE/…` until `CYCLE/OFF`), CL units.
+#[derive(Debug, Clone)]
+pub(super) struct Cycle {
+    pub(super) kind: CycleKind,
+    pub(super) depth: f64,
+    pub(super) rapto: f64,
+    pub(super) rtrcto: f64,
+    /// `RTRCTO,AUTO` (NX): back to the level the tool came from.
+    pub(super) rtrcto_auto: bool,
+    pub(super) feed: Option<(f64, FeedUnit)>,
+    pub(super) dwell: f64,
+    pub(super) first_peck: f64,
+    pub(super) sub_peck: f64,
+}
+
+/// Largest feed accepted, mm/min (per minute) or mm/rev (per revolution).
+pub(super) const MAX_FEED_MM_MIN: f64 = 1e6;
+pub(super) const MAX_FEED_MM_REV: f64 = 100.0;
+
+/// The lowering iterator: wraps a [`super::ClReader`] (or any iterator of
+/// records) and yields records the converter writes directly.
+#[derive(Debug)]
+pub struct Lowered<I> {
+    pub(super) inner: I,
+    pub(super) file: String,
+    pub(super) out: VecDeque<ClRecord>,
+    pub(super) finished: bool,
+    pub(super) tol_mm: f64,
+    pub(super) mm_per_unit: f64,
+    pub(super) units_seen: bool,
+    pub(super) warned_units: bool,
+    pub(super) csys: Option<([[f64; 3]; 3], [f64; 3])>,
+    pub(super) pos: Option<[f64; 3]>,
+    pub(super) axis: [f64; 3],
+    pub(super) circle: Option<Circle>,
+    /// `INDIRV/i,j,k`: the direction the next motion starts in.
+    pub(super) indirv: Option<[f64; 3]>,
+    /// Cutter compensation is on (`CUTCOM/LEFT|RIGHT`): controllers refuse
+    /// canned cycles then, so holes are moves.
+    pub(super) cutcom: bool,
+    pub(super) cycle: Option<Cycle>,
+    pub(super) feed: Option<(f64, FeedUnit)>,
+    pub(super) tool: Option<u32>,
+    pub(super) per_rev: bool,
+    pub(super) commented: BTreeMap<String, usize>,
+}
+
+/// The statements of a feed change: `G95` or `G94` when the feed mode
+/// (`per_rev`) changes, then the feed (per revolution in mm/rev).
+pub(super) fn feed_statements(per_rev: &mut bool, value: f64, unit: FeedUnit) -> Vec<ClStatement> {
+    let mut out = Vec::new();
+    let rev = matches!(unit, FeedUnit::Mmpr | FeedUnit::Ipr);
+    if rev != *per_rev {
+        *per_rev = rev;
+        out.push(ClStatement::Block(if rev { "G95" } else { "G94" }.into()));
+    }
+    let (value, unit) = match unit {
+        FeedUnit::Mmpr => (value, FeedUnit::Mmpm),
+        FeedUnit::Ipr => (value * 25.4, FeedUnit::Mmpm),
+        u => (value, u),
+    };
+    out.push(ClStatement::Fedrat { value, unit });
+    out
+}
+
+/// Whether the feed in `unit` (after units) is absurd.
+pub(super) fn absurd_feed(value: f64, unit: FeedUnit, mm_per_unit: f64) -> bool {
+    match unit {
+        FeedUnit::Mmpm => value > MAX_FEED_MM_MIN,
+        FeedUnit::Ipm => value * 25.4 > MAX_FEED_MM_MIN,
+        FeedUnit::Unspecified => value * mm_per_unit > MAX_FEED_MM_MIN,
+        FeedUnit::Mmpr => value > MAX_FEED_MM_REV,
+        FeedUnit::Ipr => value * 25.4 > MAX_FEED_MM_REV,
+    }
+}
+
+impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
+    pub(super) fn err(&self, r: &ClRecord, message: impl Into<String>) -> Error {
+        Error::input_with(
+            Location::new(self.file.clone(), r.line, r.col),
+            message,
+            String::from_utf8_lossy(&r.text).trim().to_string(),
+        )
+    }
+
+    pub(super) fn emit(&mut self, r: &ClRecord, statement: ClStatement) {
+        self.out.push_back(ClRecord {
+            line: r.line,
+            col: r.col,
+            text: r.text.clone(),
+            statement,
+        });
+    }
+
+    pub(super) fn block(&mut self, r: &ClRecord, b: impl Into<String>) {
+        self.emit(r, ClStatement::Block(b.into()));
+    }
+
+    /// A point of the CL frame in the set-up frame (`CSYS`).
+    pub(super) fn to_setup(&self, p: [f64; 3]) -> [f64; 3] {
+        match &self.csys {
+            Some((_, o)) => self.dir_to_setup(sub(p, *o)),
+            None => p,
+        }
+    }
+
+    /// A direction of the CL frame in the set-up frame (`CSYS`).
+    pub(super) fn dir_to_setup(&self, v: [f64; 3]) -> [f64; 3] {
+        match &self.csys {
+            Some((m, _)) => [
+                m[0][0] * v[0] + m[1][0] * v[1] + m[2][0] * v[2],
+                m[0][1] * v[0] + m[1][1] * v[1] + m[2][1] * v[2],
+                m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2],
+            ],
+            None => v,
+        }
+    }
+
+    /// Emits a move to `tip` (CL frame) with the current tool axis.
+    pub(super) fn go(&mut self, r: &ClRecord, tip: [f64; 3], rapid: bool) {
+        if rapid {
+            self.emit(r, ClStatement::Rapid);
+        }
+        let (t, a) = (self.to_setup(tip), self.dir_to_setup(self.axis));
+        self.emit(
+            r,
+            ClStatement::Goto {
+                tip: t,
+                axis: Some(a),
+            },
+        );
+        self.pos = Some(tip);
+    }
+
+    /// A feed: per revolution as `G95` and the value in mm/rev, back to
+    /// per minute as `G94`.
+    pub(super) fn feed_record(&mut self, r: &ClRecord, value: f64, unit: FeedUnit) {
+        for s in feed_statements(&mut self.per_rev, value, unit) {
+            self.emit(r, s);
+        }
+    }
+
+    pub(super) fn numbers(
+        &self,
+        r: &ClRecord,
+        args: &[Arg],
+        what: &str,
+    ) -> Result<Vec<f64>, Error> {
+        args.iter()
+            .map(|a| {
+                a.number().ok_or_else(|| {
+                    self.err(
+                        r,
+                        format!(
+                            "{what}: expected a finite number, found `{}`",
+                            String::from_utf8_lossy(a.text)
+                        ),
+                    )
+                })
+            })
+            .collect()
+    }
+}

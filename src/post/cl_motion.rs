@@ -1,0 +1,409 @@
+//! `kinpost post` on APT CL: arcs as `G2`/`G3` and holes as canned cycles
+//! (`G81`…`G89`, `G73`), decided through the machine's kinematics.
+//!
+//! An arc ([`ArcMove`]) is written as `G2`/`G3` when every point of its
+//! linearisation, taken through the inverse kinematics, leaves the rotary
+//! (and any other) axes where they are and lies on one circle (or helix)
+//! of the machine's X, Y, Z axes in the XY, ZX or YZ plane, within the arc
+//! tolerance; the centre is the centre point taken through the same
+//! kinematics. A hole ([`HoleMove`]) is a canned cycle when its retract
+//! level, `R` level and bottom differ in the machine's Z axis alone, the
+//! bottom lowest. Otherwise the caller writes the moves.
+
+use super::{AxisWriter, PoseSolver, PostOptions};
+use crate::cl::{ArcMove, ClStatement, HoleMove};
+use crate::machine::chain::JointValues;
+use crate::machine::{JointKind, Machine, Pose};
+use crate::program::Units;
+use crate::program::format::push_fixed;
+use nalgebra::Vector3;
+use std::f64::consts::TAU;
+
+/// Largest change of a joint that is to stay where it is (rad or mm).
+const STILL: f64 = 1e-9;
+
+/// Joint indices of the linear axes named X, Y and Z, when the machine has
+/// all three.
+fn xyz_joints(machine: &Machine) -> Option<[usize; 3]> {
+    let find = |n: &str| {
+        machine
+            .axes
+            .iter()
+            .find(|a| a.name.eq_ignore_ascii_case(n) && a.kind == JointKind::Prismatic)
+            .map(|a| a.joint)
+    };
+    Some([find("X")?, find("Y")?, find("Z")?])
+}
+
+/// Whether `a` and `b` agree on every joint not in `free`.
+fn others_still(a: &[f64], b: &[f64], free: &[usize]) -> bool {
+    a.len() == b.len()
+        && a.iter()
+            .zip(b)
+            .enumerate()
+            .all(|(k, (x, y))| free.contains(&k) || (x - y).abs() <= STILL)
+}
+
+/// Joint values for the tool tip `tip` (CL units, times `scale` for mm)
+/// with tool axis `axis`, continuing from `previous`; `None` if the pose is
+/// not reached within the axis tolerance.
+fn solve(
+    solver: &mut dyn PoseSolver,
+    opts: &PostOptions,
+    tip: [f64; 3],
+    axis: [f64; 3],
+    scale: f64,
+    previous: Option<&[f64]>,
+    line: usize,
+) -> Option<JointValues> {
+    let a = Vector3::from(axis);
+    let n = a.norm();
+    if n.is_nan() || n <= 1e-12 {
+        return None;
+    }
+    let pose = Pose::new(Vector3::from(tip) * scale, a / n);
+    let s = solver.solve(&pose, previous, line).ok()?;
+    (s.axis_miss_rad <= opts.axis_tolerance_rad).then_some(s.q)
+}
+
+/// How an arc is written.
+#[derive(Debug, Clone)]
+pub(super) struct ArcPlan {
+    /// 17, 18 or 19 (`G17` XY, `G18` ZX, `G19` YZ).
+    plane: u8,
+    /// 2 (clockwise) or 3 (counter-clockwise) about the plane's normal.
+    pub(super) motion: u8,
+    /// Joint values at the end.
+    pub(super) q_end: JointValues,
+    /// The centre minus the start, on the plane's two axes: (word, mm).
+    offsets: [(char, f64); 2],
+}
+
+/// The `G2`/`G3` form of `arc`, which starts at the joint values
+/// `previous`, if it has one within `opts.arc_tolerance_mm` (module
+/// documentation).
+pub(super) fn plan_arc(
+    machine: &Machine,
+    solver: &mut dyn PoseSolver,
+    opts: &PostOptions,
+    arc: &ArcMove,
+    previous: &[f64],
+    scale: f64,
+    line: usize,
+) -> Option<ArcPlan> {
+    if !arc.constant_axis || !solver.plans_freely() {
+        return None;
+    }
+    let xyz = xyz_joints(machine)?;
+    let tol = opts.arc_tolerance_mm;
+    let at = |q: &[f64]| [q[xyz[0]], q[xyz[1]], q[xyz[2]]];
+    let qc = solve(
+        solver,
+        opts,
+        arc.centre,
+        arc.tool_axis,
+        scale,
+        Some(previous),
+        line,
+    )?;
+    if !others_still(previous, &qc, &xyz) {
+        return None;
+    }
+    let mut qs: Vec<JointValues> = Vec::with_capacity(arc.moves.len());
+    for m in &arc.moves {
+        let ClStatement::Goto { tip, .. } = m else {
+            return None;
+        };
+        let seed: &[f64] = qs.last().map_or(previous, |q| q.as_slice());
+        let q = solve(solver, opts, *tip, arc.tool_axis, scale, Some(seed), line)?;
+        if !others_still(previous, &q, &xyz) {
+            return None;
+        }
+        qs.push(q);
+    }
+    let (c, s) = (at(&qc), at(previous));
+    let pts: Vec<[f64; 3]> = qs.iter().map(|q| at(q)).collect();
+    let (first, end) = (*pts.first()?, *pts.last()?);
+    let d = |p: [f64; 3]| [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
+    let (ds, d1) = (d(s), d(first));
+    let m = [
+        ds[1] * d1[2] - ds[2] * d1[1],
+        ds[2] * d1[0] - ds[0] * d1[2],
+        ds[0] * d1[1] - ds[1] * d1[0],
+    ];
+    // The plane: the machine axis nearest the rotation's normal.
+    let k = (0..3).max_by(|&i, &j| m[i].abs().total_cmp(&m[j].abs()))?;
+    let (a, b) = match k {
+        2 => (0, 1),
+        1 => (2, 0),
+        _ => (1, 2),
+    };
+    let sense = if m[k] > 0.0 { 1.0 } else { -1.0 };
+    let r_start = ds[a].hypot(ds[b]);
+    if r_start.is_nan() || r_start <= tol {
+        return None;
+    }
+    let angle = |p: [f64; 3]| {
+        let v = d(p);
+        (sense * (v[b].atan2(v[a]) - ds[b].atan2(ds[a]))).rem_euclid(TAU)
+    };
+    let full = arc.sweep_rad >= TAU - 1e-12;
+    let total = if full { TAU } else { angle(end) };
+    if (total - arc.sweep_rad).abs() * r_start > tol {
+        return None;
+    }
+    // A short arc whose written end equals its start would be read as a
+    // full circle.
+    let chord = (end[a] - s[a]).hypot(end[b] - s[b]);
+    if !full && chord < 0.01 {
+        return None;
+    }
+    let mut last = 0.0;
+    for (i, p) in pts.iter().enumerate() {
+        let th = if i + 1 == pts.len() { total } else { angle(*p) };
+        if th < last - 1e-12 || th > total + 1e-12 {
+            return None;
+        }
+        last = th;
+        let v = d(*p);
+        let axial = s[k] + (end[k] - s[k]) * th / total;
+        if (v[a].hypot(v[b]) - r_start).abs() > tol || (p[k] - axial).abs() > tol {
+            return None;
+        }
+    }
+    let word = |j: usize| ['I', 'J', 'K'][j];
+    let mut offsets = [(word(a), -ds[a]), (word(b), -ds[b])];
+    offsets.sort_by_key(|o| o.0);
+    Some(ArcPlan {
+        plane: [19, 18, 17][k],
+        motion: if sense > 0.0 { 3 } else { 2 },
+        q_end: qs.pop()?,
+        offsets,
+    })
+}
+
+/// Decimals written for the machine axis named `name`.
+fn decimals_of(writer: &AxisWriter, name: &str) -> usize {
+    writer
+        .machine
+        .axes
+        .iter()
+        .position(|a| a.name.eq_ignore_ascii_case(name))
+        .map_or(4, |k| writer.decimals[k])
+}
+
+/// The plane code to put before a block, when it is not the one in force.
+fn plane_word(plane: u8, plane_written: &mut Option<u8>) -> String {
+    if *plane_written == Some(plane) {
+        String::new()
+    } else {
+        *plane_written = Some(plane);
+        format!("G{plane} ")
+    }
+}
+
+/// The `G2`/`G3` block of `plan` (without the feed), all axes written.
+pub(super) fn arc_block(
+    writer: &mut AxisWriter,
+    plan: &ArcPlan,
+    plane_written: &mut Option<u8>,
+) -> Result<String, String> {
+    let mut block = plane_word(plan.plane, plane_written);
+    block.push_str(if plan.motion == 2 { "G2 " } else { "G3 " });
+    let words = writer.words(&plan.q_end, Units::Mm, true, false, " ")?;
+    block.push_str(std::str::from_utf8(words).unwrap_or_default());
+    for (w, v) in plan.offsets {
+        let axis = match w {
+            'I' => "X",
+            'J' => "Y",
+            _ => "Z",
+        };
+        block.push(' ');
+        block.push(w);
+        push_fixed(&mut block, v, decimals_of(writer, axis));
+    }
+    Ok(block)
+}
+
+/// Where a canned hole goes, in joint values.
+#[derive(Debug, Clone)]
+pub(super) struct HolePlan {
+    q_clear: JointValues,
+    q_r: JointValues,
+    q_bottom: JointValues,
+    z: usize,
+    /// The tool must first go to the retract level above the hole (it is
+    /// not at that level with the rotaries in place).
+    pub(super) preposition: bool,
+}
+
+/// The canned form of `hole`, when the tool is along the machine's Z axis
+/// (module documentation); `previous`: the joint values before it.
+pub(super) fn plan_hole(
+    machine: &Machine,
+    solver: &mut dyn PoseSolver,
+    opts: &PostOptions,
+    hole: &HoleMove,
+    previous: Option<&[f64]>,
+    scale: f64,
+    line: usize,
+) -> Option<HolePlan> {
+    hole.code?;
+    if !solver.plans_freely() {
+        return None;
+    }
+    let [_, _, z] = xyz_joints(machine)?;
+    let q_clear = solve(solver, opts, hole.clear, hole.axis, scale, previous, line)?;
+    let q_r = solve(
+        solver,
+        opts,
+        hole.r_plane,
+        hole.axis,
+        scale,
+        Some(&q_clear),
+        line,
+    )?;
+    let q_bottom = solve(
+        solver,
+        opts,
+        hole.bottom,
+        hole.axis,
+        scale,
+        Some(&q_r),
+        line,
+    )?;
+    if !others_still(&q_clear, &q_r, &[z]) || !others_still(&q_clear, &q_bottom, &[z]) {
+        return None;
+    }
+    if !(q_bottom[z] < q_r[z] - STILL && q_r[z] <= q_clear[z] + STILL) {
+        return None;
+    }
+    let preposition = previous.is_none_or(|p| {
+        !(others_still(p, &q_clear, &xyz_joints(machine).unwrap_or([z; 3]))
+            && (p[z] - q_clear[z]).abs() <= STILL)
+    });
+    Some(HolePlan {
+        q_clear,
+        q_r,
+        q_bottom,
+        z,
+        preposition,
+    })
+}
+
+/// The canned-cycle block of `hole` once the tool is at the retract level
+/// above it; the writer then holds the position after the cycle. `feed`:
+/// the feed in force (mm/min, or mm/rev under `G95`).
+pub(super) fn hole_block(
+    writer: &mut AxisWriter,
+    hole: &HoleMove,
+    plan: &HolePlan,
+    scale: f64,
+    feed: Option<f64>,
+    plane_written: &mut Option<u8>,
+) -> Result<String, String> {
+    let code = hole.code.unwrap_or(81);
+    let mut block = plane_word(17, plane_written);
+    block.push_str(if hole.retract_to_r { "G99" } else { "G98" });
+    block.push_str(&format!(" G{code}"));
+    let after = if hole.retract_to_r {
+        &plan.q_r
+    } else {
+        &plan.q_clear
+    };
+    let words = writer.words(after, Units::Mm, true, false, " ")?;
+    let words = std::str::from_utf8(words).unwrap_or_default().to_string();
+    for w in words.split(' ') {
+        let name = w.trim_end_matches(|c: char| c.is_ascii_digit() || c == '.' || c == '-');
+        if name.eq_ignore_ascii_case("X") || name.eq_ignore_ascii_case("Y") {
+            block.push(' ');
+            block.push_str(w);
+        }
+    }
+    let dz = decimals_of(writer, "Z");
+    block.push_str(" Z");
+    push_fixed(&mut block, plan.q_bottom[plan.z], dz);
+    block.push_str(" R");
+    push_fixed(&mut block, plan.q_r[plan.z], dz);
+    if matches!(code, 83 | 73) {
+        block.push_str(" Q");
+        push_fixed(&mut block, hole.peck * scale, dz);
+    }
+    if matches!(code, 82 | 84 | 86 | 89) && hole.dwell_s > 0.0 {
+        block.push_str(" P");
+        push_number(&mut block, hole.dwell_s);
+    }
+    if let Some(f) = feed {
+        block.push_str(" F");
+        push_number(&mut block, f);
+    }
+    Ok(block)
+}
+
+/// A number with one decimal, or up to four when one is not enough (a
+/// feed of 0.05 mm/rev stays 0.05).
+pub(super) fn push_number(out: &mut String, v: f64) {
+    if ((v * 10.0).round() - v * 10.0).abs() < 1e-9 {
+        push_fixed(out, v, 1);
+    } else {
+        let mut s = String::new();
+        push_fixed(&mut s, v, 4);
+        out.push_str(s.trim_end_matches('0'));
+    }
+}
+
+impl HolePlan {
+    /// Joint values after the cycle: at `R` (`G99`) or the retract level.
+    pub(super) fn q_after(&self, hole: &HoleMove) -> JointValues {
+        if hole.retract_to_r {
+            self.q_r.clone()
+        } else {
+            self.q_clear.clone()
+        }
+    }
+}
+
+/// The steps of a canned hole: its feed, a rapid move to the retract level
+/// above it when needed, the hole again (marked positioned: the canned
+/// block), then the feed back.
+pub(super) fn canned_steps(hole: &HoleMove, preposition: bool) -> Vec<ClStatement> {
+    let mut steps = hole.feed_before.clone();
+    if preposition {
+        steps.push(ClStatement::Rapid);
+        steps.push(ClStatement::Goto {
+            tip: hole.clear,
+            axis: Some(hole.axis),
+        });
+    }
+    let mut again = hole.clone();
+    again.positioned = true;
+    again.feed_before.clear();
+    let after = std::mem::take(&mut again.feed_after);
+    steps.push(ClStatement::Hole(Box::new(again)));
+    steps.extend(after);
+    steps
+}
+
+/// Puts `steps` before the other pending statements, each with the
+/// location of `record`.
+pub(super) fn put_back(
+    pending: &mut std::collections::VecDeque<crate::cl::ClRecord>,
+    record: &crate::cl::ClRecord,
+    steps: impl DoubleEndedIterator<Item = ClStatement>,
+) {
+    for statement in steps.rev() {
+        pending.push_front(crate::cl::ClRecord {
+            line: record.line,
+            col: record.col,
+            text: record.text.clone(),
+            statement,
+        });
+    }
+}
+
+/// Why a tapping or drag-boring hole is refused: it has no form as moves.
+pub(super) fn not_canned(machine: &str) -> String {
+    format!(
+        "this cycle (tapping, or boring with a spindle stop) has no form as moves and needs a canned cycle, which kinpost writes only when the tool is along the machine's Z axis (on machine {machine}), the retract level is not below R and cutter compensation is off, and not under `compensate` (which converts every pose): the program is refused"
+    )
+}

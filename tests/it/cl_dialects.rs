@@ -1,0 +1,351 @@
+//! APT CL in the shapes other CAM systems write (test programs written for
+//! kinpost in tests/it/cl_dialects/, modelled on the statements of Siemens NX
+//! CLSF, CATIA V5 APT, neutral Mastercam/PowerMill CL and Creo/NCL CL):
+//! `parse --echo` gives each file back byte for byte; `post` on a
+//! table-table and a head-head machine exits 0, and the programmed path,
+//! evaluated on its own (G2/G3 sampled, canned cycles drilled, forward
+//! kinematics by hand), agrees with the CL path, evaluated on its own, within
+//! 5 µm both ways. Arcs in a plane of the machine come out as G2/G3, holes
+//! with the tool along the machine's Z as canned cycles. Statements that move
+//! the tool and are not understood are refused with file:line:col.
+
+use crate::cl_support::{
+    agree, cl_path, forward_head, forward_trt, kinpost, output_points, post_stdin,
+};
+
+const TRT: &str = "fixtures/machines/xyzac-trt.json";
+const HEAD: &str = "fixtures/machines/xyzac-head.json";
+
+/// What each file must give on each machine: G2/G3 blocks and canned
+/// cycle blocks (trt, head), and the summary of statements kept as
+/// comments.
+/// Tool tip from the axis words X Y Z A C, by hand.
+type Forward = fn([f64; 5]) -> [f64; 3];
+
+/// (G2/G3 blocks, canned-cycle blocks).
+type Counts = (usize, usize);
+
+const FILES: &[(&str, Counts, Counts, &str)] = &[
+    (
+        "nx-clsf.cls",
+        // Six arcs, of which the one about the tilted tool axis is in no
+        // plane of the head machine; five holes, one a DRILL,DEEP with
+        // CYCLE/ON changing its depth.
+        (6, 5),
+        (5, 5),
+        "18 CL statements that do not move the tool kept as comments (END-OF-PATH 3, MSYS 2, PAINT 7, TLDATA 3, TOOL PATH 3)",
+    ),
+    (
+        "catia-v5.aptsource",
+        (3, 0),
+        (3, 0),
+        "7 CL statements that do not move the tool kept as comments (AUTOPS 1, CUTTER 1, MULTAX 2, PARTNO 1, TOOLNO 1, TPRINT 1)",
+    ),
+    (
+        "neutral.cl",
+        (1, 3),
+        (1, 3),
+        "8 CL statements that do not move the tool kept as comments (CUTTER 1, INSERT 1, MULTAX 1, PARTNO 1, PPRINT 4)",
+    ),
+    (
+        "creo.ncl",
+        (1, 0),
+        (1, 0),
+        "2 CL statements that do not move the tool kept as comments (MACHIN 1, PARTNO 1)",
+    ),
+];
+
+fn path(name: &str) -> String {
+    format!("tests/it/cl_dialects/{name}")
+}
+
+#[test]
+fn dialects_parse_echo_is_byte_identical() {
+    for (name, ..) in FILES {
+        let out = kinpost(&["parse", "--echo", &path(name)]);
+        assert!(
+            out.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let file = std::fs::read(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(path(name)))
+            .unwrap();
+        assert!(out.stdout == file, "{name}");
+    }
+}
+
+#[test]
+fn dialects_post_follows_the_cl_path() {
+    for (name, trt, head, summary) in FILES {
+        let text = std::fs::read_to_string(
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(path(name)),
+        )
+        .unwrap();
+        let cl = cl_path(&text);
+        for (machine, forward, (arcs, canned)) in [
+            (TRT, forward_trt as Forward, trt),
+            (HEAD, forward_head, head),
+        ] {
+            let out = kinpost(&["post", "-m", machine, "--units", "mm", &path(name)]);
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            assert!(out.status.success(), "{name} on {machine}: {stderr}");
+            assert!(stderr.contains(summary), "{name} on {machine}: {stderr}");
+            let nc = String::from_utf8(out.stdout).unwrap();
+            let count = |f: &dyn Fn(&str) -> bool| nc.lines().filter(|l| f(l)).count();
+            let g23 = count(&|l| l.contains("G2 ") || l.contains("G3 "));
+            let g8x = count(&|l| l.contains(" G8") || l.contains(" G73 "));
+            assert_eq!((g23, g8x), (*arcs, *canned), "{name} on {machine}:\n{nc}");
+            let (pts, holes) = output_points(&nc, forward);
+            let (worst_out, worst_cl) = agree(name, &cl, &pts, &holes);
+            println!(
+                "{name} on {machine}: {} CL pieces, {} holes, {g23} G2/G3, {g8x} canned; worst output→CL {:.4} µm, CL→output {:.4} µm",
+                cl.pieces.len(),
+                cl.holes.len(),
+                worst_out * 1e3,
+                worst_cl * 1e3
+            );
+        }
+    }
+}
+
+/// Statements that move the tool in forms kinpost does not convert are
+/// refused with the file, line and column, and nothing is written.
+#[test]
+fn motion_not_understood_is_refused() {
+    let start = "UNITS/MM\nGOTO/10,0,0\n";
+    let cases = [
+        ("GOFWD/(LINE/0,0,0,1,0,0),TO,(PLANE/1,0,0,5)\n", "GOFWD"),
+        ("INDIRP/0,1,0\n", "INDIRP"),
+        (
+            "INDIRV/0,1,0\nTLON,GOFWD/(CIRCLE/CANON,0,0,0,10)\n",
+            "TLON,GOFWD",
+        ),
+        (
+            "TLON,GOFWD/(CIRCLE/0,0,0,10),ON,(LINE/0,0,0,0,10,0)\n",
+            "no INDIRV",
+        ),
+        (
+            "INDIRV/1,0,0\nTLON,GOFWD/(CIRCLE/0,0,0,10),ON,(LINE/0,0,0,0,10,0)\n",
+            "along the radius",
+        ),
+        (
+            "INDIRV/0,1,0\nTLON,GOFWD/(CIRCLE/0,0,0,12),ON,(LINE/0,0,0,0,10,0)\n",
+            "not on the circle",
+        ),
+        ("CYCLE/ON,FEDTO,-5\n", "no cycle is in force"),
+        ("CYCLE/MILL,FEDTO,-5\n", "CYCLE/MILL"),
+        ("CYCLE/DRILL,FEDTO,-5,RTRCTO,HIGH\n", "RTRCTO"),
+        ("GOHOME\n", "GOHOME"),
+    ];
+    for (tail, what) in cases {
+        let program = format!("{start}{tail}");
+        let (code, nc, err) = post_stdin(TRT, &[], &program);
+        let line = program.lines().count();
+        assert_eq!(code, 1, "{tail}: {err}");
+        assert!(err.contains(&format!("<stdin>:{line}:1")), "{tail}: {err}");
+        assert!(err.contains(what), "{tail}: {err}");
+        assert!(!nc.contains('X'), "{tail}: {nc}");
+    }
+    // Tapping with the tool not along the machine's Z axis (a head tilted
+    // by 30°) cannot be moves: refused at the hole.
+    let tap = "UNITS/MM\nGOTO/0,0,30,0,-0.5,0.8660254\nCYCLE/TAP,FEDTO,10,MMPR,1.5,RAPTO,3\nGOTO/0,0,0\nCYCLE/OFF\n";
+    let (code, _, err) = post_stdin(HEAD, &[], tap);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("<stdin>:4:1") && err.contains("tapping"),
+        "{err}"
+    );
+    // On the table-table machine the tool is always along Z: G84.
+    let (code, nc, err) = post_stdin(TRT, &[], tap);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        nc.contains("G99 G84 ") && nc.contains(" F1.5\n") && nc.contains("G95"),
+        "{nc}"
+    );
+}
+
+/// Feeds keep their decimals: `FEDRAT/0.05,MMPR` was written `F0.1`
+/// (twice the feed) and 123.45 mm/min `F123.5` before.
+#[test]
+fn feeds_keep_their_decimals() {
+    let cl = "UNITS/MM\nFEDRAT/0.05,MMPR\nGOTO/1,0,0\nFEDRAT/MMPM,123.45\nGOTO/2,0,0\nFEDRAT/MMPM,800\nGOTO/3,0,0\n";
+    let (code, nc, err) = post_stdin(TRT, &[], cl);
+    assert_eq!(code, 0, "{err}");
+    assert!(nc.contains(" F0.05\n") && nc.contains(" F123.45\n"), "{nc}");
+    assert!(nc.contains(" F800.0\n"), "{nc}");
+}
+
+/// The forms of the arc and cycle blocks on the table-table machine: a
+/// whole circle ends where it starts (I J to the centre, not a zero-length
+/// move), a helix carries its axis word, `--modal-axes` still writes every
+/// axis of an arc, inches are converted (also the peck depth), and
+/// `CYCLE/OFF` is `G80` after which the motion code is written again.
+#[test]
+fn arc_and_cycle_blocks() {
+    let cl = "UNITS/MM\nFEDRAT/MMPM,500\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,1\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,-1\nGOTO/0,-10,-2\nGOTO/5,5,0\n";
+    let (code, nc, err) = post_stdin(TRT, &["--modal-axes"], cl);
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<&str> = nc.lines().collect();
+    assert!(
+        lines.contains(&"G17 G3 X10.0000 Y0.0000 Z0.0000 A0.0000 C0.0000 I-10.0000 J0.0000"),
+        "{nc}"
+    );
+    assert!(
+        lines.contains(&"G2 X0.0000 Y-10.0000 Z-2.0000 A0.0000 C0.0000 I-10.0000 J0.0000"),
+        "{nc}"
+    );
+    assert!(lines.contains(&"G1 X5.0000 Y5.0000 Z0.0000"), "{nc}");
+    let inch = "UNITS/INCHES\nGOTO/1,0,2\nCYCLE/DEEP,FEDTO,0.5,STEP,0.1,RAPTO,0.1,RTRCTO,1,IPM,10\nGOTO/1,0,0\nCYCLE/OFF\nGOTO/0,1,0\nCIRCLE/0,0,0,0,0,1\nGOTO/-1,0,0\n";
+    let (code, nc, err) = post_stdin(TRT, &[], inch);
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<&str> = nc.lines().collect();
+    assert!(
+        lines.contains(&"G17 G98 G83 X25.4000 Y0.0000 Z-12.7000 R2.5400 Q2.5400 F254.0"),
+        "{nc}"
+    );
+    let g80 = lines.iter().position(|l| *l == "G80").unwrap();
+    assert!(lines[g80 + 1].starts_with("G1 X0.0000 Y25.4000"), "{nc}");
+    assert!(
+        lines.contains(&"G3 X-25.4000 Y0.0000 Z0.0000 A0.0000 C0.0000 I0.0000 J-25.4000"),
+        "{nc}"
+    );
+}
+
+/// docs/programs.md names every major word that moves the tool in its
+/// table of CL major words, and the dialect files' comment words.
+#[test]
+fn every_motion_major_is_documented() {
+    let doc = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/programs.md"),
+    )
+    .unwrap();
+    let table = doc
+        .split("### Every CL major word")
+        .nth(1)
+        .and_then(|t| t.split("\n### ").next())
+        .expect("the table of CL major words");
+    let rows: Vec<&str> = table.lines().filter(|l| l.starts_with("| ")).collect();
+    for major in kinpost::cl::MOTION_MAJORS.iter().chain(&[
+        "TOOL PATH",
+        "TLDATA",
+        "MSYS",
+        "PAINT",
+        "END-OF-PATH",
+        "TOOLNO",
+        "TPRINT",
+        "AUTOPS",
+        "MACHIN",
+        "PPRINT",
+    ]) {
+        assert!(
+            rows.iter().any(|r| r.contains(&format!("`{major}"))),
+            "{major} is not in the table of CL major words"
+        );
+    }
+}
+
+/// A three-axis machine file whose axis `flip` runs the other way.
+fn flipped_machine(flip: &str) -> std::path::PathBuf {
+    let axis = |n: &str, v: [i32; 3]| {
+        let s = if n == flip { -1 } else { 1 };
+        format!(
+            r#"{{"prismatic": {{"name": "{n}", "axis": [{}, {}, {}]}}}}"#,
+            v[0] * s,
+            v[1] * s,
+            v[2] * s
+        )
+    };
+    let json = format!(
+        r#"{{"name": "xyz-flip-{flip}", "description": "test", "source": "test",
+  "chain": [{}, {}, {}],
+  "axes": {{"X": {{}}, "Y": {{}}, "Z": {{}}}}}}"#,
+        axis("X", [1, 0, 0]),
+        axis("Y", [0, 1, 0]),
+        axis("Z", [0, 0, 1])
+    );
+    let dir = std::env::temp_dir().join(format!("kinpost-cl-dialects-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(format!("flip-{flip}.json"));
+    std::fs::write(&path, json).unwrap();
+    path
+}
+
+/// The direction and the tool axis come from the kinematics: on a machine
+/// whose X runs the other way a counter-clockwise CL arc is a `G2`, and on
+/// one whose Z runs the other way (joint Z up moves the tool down) a hole
+/// is not a canned cycle but moves; both paths still agree with the CL.
+#[test]
+fn direction_and_tool_axis_come_from_the_kinematics() {
+    let cl = "UNITS/MM\nFEDRAT/MMPM,300\nGOTO/10,0,5\nCIRCLE/0,0,5,0,0,1\nGOTO/0,10,5\nCYCLE/DRILL,FEDTO,4,RAPTO,2,RTRCTO,10\nGOTO/0,10,0\nCYCLE/OFF\nGOTO/0,10,20\n";
+    let path = cl_path(cl);
+    let cases: [(&str, Forward, &str, bool); 3] = [
+        ("none", |q| [q[0], q[1], q[2]], "G17 G3 ", true),
+        ("X", |q| [-q[0], q[1], q[2]], "G17 G2 ", true),
+        ("Z", |q| [q[0], q[1], -q[2]], "G17 G3 ", false),
+    ];
+    for (flip, forward, arc, canned) in cases {
+        let machine = flipped_machine(flip);
+        let (code, nc, err) = post_stdin(machine.to_str().unwrap(), &[], cl);
+        assert_eq!(code, 0, "{flip}: {err}");
+        assert!(nc.lines().any(|l| l.starts_with(arc)), "{flip}:\n{nc}");
+        assert_eq!(nc.contains(" G81 "), canned, "{flip}:\n{nc}");
+        let (pts, holes) = output_points(&nc, forward);
+        agree(flip, &path, &pts, &holes);
+    }
+}
+
+/// A `RAPID` before a hole written as a canned cycle is used up by the
+/// hole: the move after `CYCLE/OFF` is a feed move (it was a `G0`).
+#[test]
+fn rapid_before_a_canned_hole_is_used_up() {
+    let cl = "UNITS/MM\nFEDRAT/MMPM,300\nGOTO/0,0,10\nCYCLE/DRILL,FEDTO,4,RAPTO,2,RTRCTO,10\nRAPID\nGOTO/0,0,0\nCYCLE/OFF\nGOTO/5,0,10\n";
+    let (code, nc, err) = post_stdin(TRT, &[], cl);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        nc.contains("G98 G81 X0.0000 Y0.0000 Z-4.0000 R2.0000 F300.0\nG80\nG1 X5.0000 "),
+        "{nc}"
+    );
+}
+
+/// `compensate` converts every pose it solves and reports each: arcs and
+/// holes stay moves there (`post` writes G3 and G81 for the same file), and
+/// the report counts exactly the moves written.
+#[test]
+fn compensate_keeps_arcs_and_holes_as_moves() {
+    let dir = std::env::temp_dir().join(format!("kinpost-cl-comp-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("c.cls");
+    std::fs::write(
+        &file,
+        "UNITS/MM\nFEDRAT/MMPM,300\nGOTO/10,0,5\nCIRCLE/0,0,5,0,0,1\nGOTO/0,10,5\nCYCLE/DRILL,FEDTO,4,RAPTO,2,RTRCTO,10\nGOTO/0,10,0\nCYCLE/OFF\n",
+    )
+    .unwrap();
+    let file = file.to_str().unwrap();
+    let post = kinpost(&["post", "-m", "wang2023-xyzab", file]);
+    let nc = String::from_utf8_lossy(&post.stdout);
+    assert!(nc.contains("G17 G3 ") && nc.contains(" G81 "), "{nc}");
+    let comp = kinpost(&[
+        "compensate",
+        "-m",
+        "wang2023-xyzab",
+        "--errors",
+        "fixtures/errors/wang2023-xyzab.csv",
+        file,
+    ]);
+    let err = String::from_utf8_lossy(&comp.stderr);
+    assert!(comp.status.success(), "{err}");
+    let nc = String::from_utf8_lossy(&comp.stdout);
+    assert!(
+        !nc.contains("G3 ") && !nc.contains("G2 ") && !nc.contains(" G8"),
+        "{nc}"
+    );
+    let moves = nc
+        .lines()
+        .filter(|l| l.starts_with("G0 ") || l.starts_with("G1 ") || l.starts_with('X'))
+        .count();
+    assert!(moves > 20, "{nc}");
+    assert!(
+        err.contains(&format!("{moves} poses")),
+        "{moves} moves: {err}"
+    );
+}
