@@ -112,7 +112,12 @@ pub fn program_poses<R: BufRead>(
     }
 }
 
-/// Reads the poses of APT CL data.
+/// Reads the poses of APT CL data, lowered as `post` lowers them
+/// ([`crate::cl::lower`]): `CSYS` set-ups applied, `CIRCLE` arcs as their
+/// points within the default chord tolerance (1 µm), `CYCLE` holes as
+/// their moves (a hole moves cannot say, such as tapping, as the straight
+/// path down to its bottom and back), so that what is analysed is the
+/// path `post` writes.
 pub fn cl_poses<R: BufRead>(
     input: R,
     file: &str,
@@ -122,8 +127,43 @@ pub fn cl_poses<R: BufRead>(
     let mut units = Units::Mm;
     let mut feed = None;
     let mut rapid = false;
-    for record in ClReader::new(input, file) {
+    let mut records = crate::cl::lower(
+        ClReader::new(input, file),
+        file,
+        crate::cl::DEFAULT_ARC_TOLERANCE_MM,
+        None,
+    );
+    // Moves an arc or a hole stands for, read before the next record.
+    let mut pending: std::collections::VecDeque<crate::cl::ClRecord> = Default::default();
+    while let Some(record) = pending.pop_front().map(Ok).or_else(|| records.next()) {
         let record = record?;
+        let steps: Option<Vec<ClStatement>> = match &record.statement {
+            ClStatement::Arc(arc) => Some(arc.moves.clone()),
+            ClStatement::Hole(hole) => Some(hole.moves.clone().unwrap_or_else(|| {
+                [hole.clear, hole.r_plane, hole.bottom, hole.clear]
+                    .into_iter()
+                    .map(|tip| ClStatement::Goto {
+                        tip,
+                        axis: Some(hole.axis),
+                    })
+                    .collect()
+            })),
+            _ => None,
+        };
+        if let Some(steps) = steps {
+            for (k, statement) in steps.into_iter().enumerate() {
+                pending.insert(
+                    k,
+                    crate::cl::ClRecord {
+                        line: record.line,
+                        col: record.col,
+                        text: record.text.clone(),
+                        statement,
+                    },
+                );
+            }
+            continue;
+        }
         match record.statement {
             ClStatement::Goto { tip, axis: a } => {
                 if let Some(a) = a {
@@ -350,7 +390,46 @@ pub fn looks_like_poses(head: &[u8]) -> bool {
 
 #[cfg(test)]
 mod tests {
-    use super::looks_like_poses;
+    use super::{cl_poses, looks_like_poses};
+
+    /// The tool tips of the poses `cl_poses` reads from `text`.
+    fn tips(text: &str) -> Vec<[f64; 3]> {
+        let mut v = Vec::new();
+        cl_poses(text.as_bytes(), "t.cls", |e| {
+            v.push([e.pose.tip.x, e.pose.tip.y, e.pose.tip.z]);
+            Ok(())
+        })
+        .unwrap();
+        v
+    }
+
+    #[test]
+    fn cl_poses_follow_arcs_set_ups_and_holes_as_post_does() {
+        // A quarter circle of radius 10 about Z: its points, each on the
+        // circle (checked here, not by the lowering's own geometry), not
+        // the chord from (10,0,0) to (0,10,0) that the reader used to give.
+        let arc = tips("UNITS/MM\nGOTO/10,0,0\nCIRCLE/0,0,0,0,0,1,10\nGOTO/0,10,0\n");
+        assert!(arc.len() > 10, "{arc:?}");
+        for p in &arc {
+            let r = p[0].hypot(p[1]);
+            assert!((r - 10.0).abs() < 1e-9 && p[2] == 0.0, "{p:?}");
+        }
+        // The arc's middle lies 10 − 5√2 = 2.93 mm beyond the chord x + y = 10.
+        let beyond_chord = arc
+            .iter()
+            .map(|p| (p[0] + p[1] - 10.0) / std::f64::consts::SQRT_2)
+            .fold(0.0, f64::max);
+        assert!(beyond_chord > 2.9, "{beyond_chord}");
+        // A set-up shifted by (100, 0, 0): points are written in it.
+        let set_up = tips("UNITS/MM\nCSYS/1,0,0,100,0,1,0,0,0,0,1,0\nGOTO/105,0,0\n");
+        assert_eq!(set_up, vec![[5.0, 0.0, 0.0]]);
+        // A drilled hole 5 deep goes down to its bottom and back up.
+        let hole = tips(
+            "UNITS/MM\nGOTO/0,0,30\nCYCLE/DRILL,FEDTO,5,MMPM,100,RAPTO,2,RTRCTO,30\nGOTO/7,8,0\nCYCLE/OFF\n",
+        );
+        assert!(hole.contains(&[7.0, 8.0, -5.0]), "{hole:?}");
+        assert!(hole.contains(&[7.0, 8.0, 30.0]), "{hole:?}");
+    }
 
     #[test]
     fn arc_centres_are_not_tool_vectors() {
