@@ -489,8 +489,8 @@ fn diagnose_feedback_file(
         }
         e => e,
     })?;
-    if a.svg.is_some() {
-        eprintln!("kinpost diagnose: no plot for a joint-feedback trace yet; --svg ignored");
+    if let Some(svg) = &a.svg {
+        write_feedback_plot(svg, &report)?;
     }
     if let Some(out) = &a.write_model {
         let improved = report.improved_model(model);
@@ -508,4 +508,49 @@ fn diagnose_feedback_file(
         report.to_text()
     };
     writeln!(o, "{}", text.trim_end()).map_err(|e| Error::io("<stdout>", e))
+}
+
+/// The plot of a joint-feedback diagnosis: one panel per axis, `fb −
+/// command` against time before the fit and what the fit leaves (µm on a
+/// linear axis, arcsec on a rotary one).
+fn write_feedback_plot(
+    path: &std::path::Path,
+    report: &crate::diagnose::feedback::FeedbackReport,
+) -> Result<()> {
+    use crate::report::svg::{Panel, write_panels};
+    let labels: Vec<String> = report
+        .axes
+        .iter()
+        .map(|ax| {
+            let unit = if ax.unit == "deg" { "arcsec" } else { "µm" };
+            format!("{} fb − command [{unit}]", ax.axis)
+        })
+        .collect();
+    let panels: Vec<Panel<'_>> = report
+        .axes
+        .iter()
+        .zip(&labels)
+        .map(|(ax, label)| {
+            let k = if ax.unit == "deg" { 3600.0 } else { 1e3 };
+            let pick = |f: fn(&(f64, f64, f64)) -> f64| {
+                ax.series
+                    .iter()
+                    .map(|p| (p.0, f(p) * k))
+                    .collect::<Vec<_>>()
+            };
+            Panel {
+                y_label: label,
+                series: vec![
+                    ("before the fit", pick(|p| p.1)),
+                    ("after the fit", pick(|p| p.2)),
+                ],
+            }
+        })
+        .collect();
+    write_panels(
+        path,
+        "kinpost diagnose: joint feedback against command",
+        "time t [s]",
+        &panels,
+    )
 }

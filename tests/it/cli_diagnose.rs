@@ -331,3 +331,47 @@ fn a_joint_feedback_trace_without_time_is_diagnosed_at_its_sample_rate() {
     assert!((tau - 0.004).abs() < 0.001, "{tau}");
     assert_eq!(v["findings"].as_array().unwrap().len(), 1, "{v}");
 }
+
+/// `diagnose --svg` on a joint-feedback trace draws one panel per axis of
+/// `fb − command` before and after the fit (before: "--svg ignored").
+#[test]
+fn a_joint_feedback_trace_is_plotted_per_axis() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = dir.path().join("fb.csv");
+    let svg = dir.path().join("fb.svg");
+    kinpost(&[
+        "simulate",
+        "--machine",
+        "zhao2022-xzbc",
+        "--program",
+        &repo_file("fixtures/programs/zhao2022-xzbc-exercise.nc"),
+        "--feedback",
+        "--noise",
+        "0.0005",
+        "--inject",
+        "servo_lag:X=0.004",
+        "-o",
+        trace.to_str().unwrap(),
+    ]);
+    kinpost(&[
+        "diagnose",
+        "--machine",
+        "zhao2022-xzbc",
+        "--recording",
+        trace.to_str().unwrap(),
+        "--svg",
+        svg.to_str().unwrap(),
+    ]);
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(text.starts_with("<svg"), "{}", &text[..text.len().min(80)]);
+    for label in [
+        "X fb − command [µm]",
+        "Z fb − command [µm]",
+        "B fb − command [arcsec]",
+        "C fb − command [arcsec]",
+        "before the fit",
+        "after the fit",
+    ] {
+        assert!(text.contains(label), "no {label}");
+    }
+}

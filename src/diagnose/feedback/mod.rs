@@ -617,6 +617,20 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
             lin_floor += s2;
             lin_n += 1;
         }
+        let kept: Vec<usize> = (0..d.t.len()).filter(|&i| d.keep[i]).collect();
+        let step = (kept.len() / super::feedback::report::PLOT_POINTS).max(1);
+        let series = kept
+            .iter()
+            .step_by(step)
+            .map(|&i| {
+                let model: f64 = terms
+                    .iter()
+                    .zip(&beta)
+                    .map(|(f, b)| column(d, *f, i) * b)
+                    .sum();
+                (d.t[i], d.e[i], d.e[i] - model)
+            })
+            .collect();
         axes.push(AxisSummary {
             axis: rec.axes[k].clone(),
             unit: if rec.rotary[k] { "deg" } else { "mm" }.into(),
@@ -625,6 +639,7 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
             rms_after: ra,
             holdout_rms: [hb, ha],
             resolution: res_fb[k],
+            series,
         });
     }
     findings.sort_by(|a, b| {

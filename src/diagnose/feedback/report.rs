@@ -25,7 +25,15 @@ pub struct AxisSummary {
     pub holdout_rms: [f64; 2],
     /// Resolution of the feedback values, when rounded.
     pub resolution: Option<f64>,
+    /// For the plot: time (s), `fb − command` and what the fit leaves, per
+    /// fitted sample (in this axis's unit), thinned to at most
+    /// [`PLOT_POINTS`] samples.
+    #[serde(skip)]
+    pub series: Vec<(f64, f64, f64)>,
 }
+
+/// Largest number of samples per axis kept for the plot of a joint trace.
+pub const PLOT_POINTS: usize = 1500;
 
 /// A joint-level finding (`formats.md` §3 shape).
 #[derive(Debug, Clone, PartialEq, Serialize)]
