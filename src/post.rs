@@ -5,16 +5,20 @@
 //! and the emitter, which rewrites only the axis words of converted blocks.
 //! Everything else leaves byte for byte as it came.
 
-use crate::cl::{ClReader, ClStatement, FeedUnit, SpindleDir};
+mod cl;
+pub mod pipeline;
+
 use crate::error::{Error, Location, Result};
-use crate::gcode::{ItemKind, Line, LineReader};
+use crate::gcode::{ItemKind, Line};
 use crate::machine::{IkSolver, Machine, Pose};
 use crate::program::format::{push_fixed, push_scaled, scaled_integer};
 use crate::program::modal::Motion;
 use crate::program::opaque::opaque_in_pose_block;
 pub use crate::program::rewrite::rewrite;
 use crate::program::{ModalState, PoseStart, Units, WordRef};
+pub use cl::{convert_cl, post_cl};
 use nalgebra::Vector3;
+use pipeline::{Format, Stage, Whole};
 use std::io::{BufRead, Write};
 
 /// Turns a tool pose into joint values (chain order, internal units).
@@ -281,7 +285,6 @@ pub struct Converted {
 /// `compensate`, reused by `linkage` on pose programs.
 pub struct GcodeConverter<'a> {
     machine: &'a Machine,
-    solver: &'a mut dyn PoseSolver,
     opts: &'a PostOptions,
     modal: ModalState,
     writer: AxisWriter<'a>,
@@ -302,15 +305,13 @@ pub struct GcodeConverter<'a> {
 }
 
 impl<'a> GcodeConverter<'a> {
-    /// A converter for `machine` using `solver`.
-    pub fn new(
-        machine: &'a Machine,
-        solver: &'a mut dyn PoseSolver,
-        opts: &'a PostOptions,
-    ) -> Self {
+    /// A converter for `machine`. It does not solve poses: a driver solves
+    /// each pose [`GcodeConverter::begin`] gives and hands the joint values
+    /// to [`GcodeConverter::finish`] ([`GcodeConverter::convert`] does both
+    /// with a [`PoseSolver`]).
+    pub fn new(machine: &'a Machine, opts: &'a PostOptions) -> Self {
         GcodeConverter {
             machine,
-            solver,
             opts,
             modal: ModalState::new(opts.pose_start),
             writer: AxisWriter::new(machine, opts.decimals),
@@ -323,14 +324,18 @@ impl<'a> GcodeConverter<'a> {
         }
     }
 
-    /// Converts one line, appending the bytes to write to `out`; returns the
-    /// joint values when the line was a pose.
-    pub fn convert(&mut self, line: &Line, out: &mut Vec<u8>) -> Result<Option<Converted>> {
+    /// Converts one line with `solver`, appending the bytes to write to
+    /// `out`; returns the joint values when the line was a pose.
+    pub fn convert(
+        &mut self,
+        line: &Line,
+        solver: &mut dyn PoseSolver,
+        out: &mut Vec<u8>,
+    ) -> Result<Option<Converted>> {
         let Some(pending) = self.begin(line, out)? else {
             return Ok(None);
         };
-        let solved = self
-            .solver
+        let solved = solver
             .solve(&pending.pose, self.previous.as_deref(), line.number)
             .map_err(|m| self.solve_error(line, &pending, m))?;
         self.finish(line, &pending, &solved, out)?;
@@ -649,32 +654,123 @@ pub struct PendingPose {
     pub meaning: crate::program::BlockMeaning,
 }
 
-/// Converts a G-code pose program, writing the machine program to `out`.
+/// Converts a G-code pose program, writing the machine program to `out`,
+/// with `solver` solving each pose in order (on this thread), the lines
+/// parsed on the pool ([`pipeline::drive`]).
 pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
     solver: &mut dyn PoseSolver,
     input: R,
     out: &mut W,
     opts: &PostOptions,
-    mut progress: impl FnMut(u64),
+    progress: impl FnMut(u64),
 ) -> Result<PostStats> {
-    let mut conv = GcodeConverter::new(machine, solver, opts);
-    let mut bytes_read = 0u64;
-    let mut buf = Vec::with_capacity(256);
-    let mut lines = LineReader::new(input);
-    while let Some(line) = lines.next_line() {
-        let line = line.map_err(|e| Error::io(&opts.file_name, e))?;
-        bytes_read += line.bytes.len() as u64;
-        progress(bytes_read);
-        buf.clear();
-        conv.convert(line, &mut buf)?;
-        out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
+    convert_gcode(
+        machine,
+        &mut Whole(solver),
+        &|_, j| match *j {},
+        input,
+        out,
+        opts,
+        progress,
+    )
+}
+
+/// Converts a G-code pose program with `stage` doing each pose and `work`
+/// on the stage's jobs in parallel ([`pipeline::drive`]).
+pub fn convert_gcode<S: Stage, R: BufRead, W: Write + ?Sized>(
+    machine: &Machine,
+    stage: &mut S,
+    work: &(dyn Fn(&Pose, &mut S::Job) + Sync),
+    input: R,
+    out: &mut W,
+    opts: &PostOptions,
+    progress: impl FnMut(u64),
+) -> Result<PostStats> {
+    let format = GcodeFormat {
+        conv: GcodeConverter::new(machine, opts),
+        input,
+        number: 0,
+    };
+    pipeline::drive(format, stage, work, out, progress)
+}
+
+/// A G-code line for [`pipeline::drive`]: its bytes as read, then parsed.
+#[derive(Default)]
+pub struct GcodeUnit {
+    /// The bytes read (after parsing: a spare buffer).
+    raw: Vec<u8>,
+    /// The parsed line.
+    line: Line,
+}
+
+/// G-code as a [`Format`]: lines read from `input`, parsed on the pool,
+/// converted by a [`GcodeConverter`].
+struct GcodeFormat<'a, R> {
+    conv: GcodeConverter<'a>,
+    input: R,
+    /// Lines read.
+    number: usize,
+}
+
+impl<'a, R: BufRead> Format for GcodeFormat<'a, R> {
+    type Unit = GcodeUnit;
+    type Pending = PendingPose;
+    fn read(&mut self, unit: &mut GcodeUnit) -> Result<bool> {
+        unit.raw.clear();
+        match self.input.read_until(b'\n', &mut unit.raw) {
+            Ok(0) => Ok(false),
+            Ok(_) => {
+                self.number += 1;
+                unit.line.number = self.number;
+                Ok(true)
+            }
+            Err(e) => Err(Error::io(&self.conv.opts.file_name, e)),
+        }
     }
-    if let Some(end) = conv.feed.end() {
-        out.write_all(end.as_bytes())
-            .map_err(|e| Error::io("<output>", e))?;
+    fn prepare(unit: &mut GcodeUnit) {
+        let number = unit.line.number;
+        crate::gcode::parse_line_swap(&mut unit.raw, number, &mut unit.line);
     }
-    Ok(conv.stats)
+    fn prefetch(unit: &GcodeUnit) {
+        pipeline::prefetch_bytes(unit.line.items.as_slice());
+        pipeline::prefetch_bytes(unit.line.bytes.as_slice());
+    }
+    fn size(unit: &GcodeUnit) -> usize {
+        unit.line.bytes.len()
+    }
+    fn line(unit: &GcodeUnit) -> usize {
+        unit.line.number
+    }
+    fn begin(&mut self, unit: &mut GcodeUnit, out: &mut Vec<u8>) -> Result<Option<PendingPose>> {
+        self.conv.begin(&unit.line, out)
+    }
+    fn pose(pending: &PendingPose) -> &Pose {
+        &pending.pose
+    }
+    fn previous(&self) -> Option<&[f64]> {
+        self.conv.previous.as_deref()
+    }
+    fn solve_error(&self, unit: &GcodeUnit, pending: &PendingPose, message: String) -> Error {
+        self.conv.solve_error(&unit.line, pending, message)
+    }
+    fn finish(
+        &mut self,
+        unit: &GcodeUnit,
+        pending: &PendingPose,
+        solved: &SolvedPose,
+        out: &mut Vec<u8>,
+    ) -> Result<()> {
+        self.conv.finish(&unit.line, pending, solved, out)
+    }
+    fn end(&mut self, out: &mut Vec<u8>) {
+        if let Some(end) = self.conv.feed.end() {
+            out.extend_from_slice(end.as_bytes());
+        }
+    }
+    fn stats(self) -> PostStats {
+        self.conv.stats
+    }
 }
 
 /// `v` emptied, keeping its allocation, as a vector whose elements borrow
@@ -700,194 +796,6 @@ fn separator(line: &Line, replace: &[usize]) -> &'static str {
         Some(&i) if i > 0 && !matches!(line.items[i - 1].kind, ItemKind::Space) => "",
         _ => " ",
     }
-}
-
-/// Converts APT CL data to a G-code program for `machine`.
-///
-/// Statements are translated: `GOTO` → `G0`/`G1` with the machine's axes,
-/// `FEDRAT` → `F`, `RAPID` → `G0` for the next `GOTO`, `LOADTL` → `T.. M6`,
-/// `SPINDL` → `S.. M3/M4/M5`, `COOLNT` → `M7/M8/M9`, `FINI` → `M30`,
-/// `END` → `M2`, `$$` and `PARTNO` → comments. `CIRCLE`, `CYCLE`, `CSYS`,
-/// `CUTCOM`, `LOAD/TOOL` and the other forms CAM systems write are lowered
-/// first ([`crate::cl::lower`]); a statement that moves the tool and is not
-/// converted is an error, any other statement is kept as a comment.
-pub fn post_cl<R: BufRead, W: Write + ?Sized>(
-    machine: &Machine,
-    solver: &mut dyn PoseSolver,
-    input: R,
-    out: &mut W,
-    opts: &PostOptions,
-    mut progress: impl FnMut(u64),
-) -> Result<PostStats> {
-    let io = |e: std::io::Error| Error::io("<output>", e);
-    let mut stats = PostStats::default();
-    let mut writer = AxisWriter::new(machine, opts.decimals);
-    let mut previous: Option<crate::machine::chain::JointValues> = None;
-    let mut axis = Vector3::z();
-    let mut rapid_next = false;
-    let mut units = Units::Mm;
-    let mut feed: Option<f64> = None;
-    let mut feed_written: Option<f64> = None;
-    let mut motion_written: Option<u8> = None;
-    let mut bytes_read = 0u64;
-    writeln!(
-        out,
-        "(kinpost: APT CL {} for machine {})",
-        sanitize_comment(&opts.file_name),
-        sanitize_comment(&machine.name)
-    )
-    .map_err(io)?;
-    writeln!(out, "G21 G90 G94").map_err(io)?;
-    let records = crate::cl::lower(
-        ClReader::new(input, &opts.file_name),
-        &opts.file_name,
-        opts.arc_tolerance_mm,
-        opts.cl_units,
-    );
-    for record in records {
-        let record = record?;
-        stats.lines += 1;
-        bytes_read += record.text.len() as u64;
-        progress(bytes_read);
-        let loc = Location::new(&opts.file_name, record.line, record.col);
-        let text = String::from_utf8_lossy(&record.text).trim().to_string();
-        match &record.statement {
-            ClStatement::Goto { tip, axis: a } => {
-                let scale = units.mm_per_unit();
-                let tip = Vector3::new(tip[0], tip[1], tip[2]) * scale;
-                if let Some(a) = a {
-                    axis = Vector3::new(a[0], a[1], a[2]);
-                }
-                let norm = axis.norm();
-                if norm.is_nan()
-                    || norm <= 1e-12
-                    || (norm - 1.0).abs() > crate::program::modal::TOOL_VECTOR_TOLERANCE
-                {
-                    return Err(Error::input_with(
-                        loc,
-                        format!(
-                            "tool axis of length {norm:.6}, not 1 (tolerance {}): expected a unit vector",
-                            crate::program::modal::TOOL_VECTOR_TOLERANCE
-                        ),
-                        text,
-                    ));
-                }
-                stats.max_vector_deviation = stats.max_vector_deviation.max((norm - 1.0).abs());
-                if (norm - 1.0).abs() > crate::program::modal::QUIET_NORMALISATION {
-                    stats.warnings.push(format!(
-                        "{loc}: tool axis of length {norm:.9} normalised to unit length"
-                    ));
-                }
-                let pose = Pose::new(tip, axis / norm);
-                let solved = solver
-                    .solve(&pose, previous.as_deref(), record.line)
-                    .map_err(|m| Error::input_with(loc.clone(), m, text.clone()))?;
-                if solved.axis_miss_rad > opts.axis_tolerance_rad {
-                    return Err(Error::input_with(
-                        loc,
-                        unreachable_axis(
-                            &machine.name,
-                            solved.axis_miss_rad,
-                            opts.axis_tolerance_rad,
-                        ),
-                        text,
-                    ));
-                }
-                stats.max_axis_miss_rad = stats.max_axis_miss_rad.max(solved.axis_miss_rad);
-                stats.poses += 1;
-                if let Some(prev) = &previous
-                    && let Some(w) = crate::machine::midblock::branch_change_warning(
-                        machine, prev, &solved.q, &pose,
-                    )
-                {
-                    stats.warnings.push(format!("{loc}: {w}"));
-                }
-                let words = writer
-                    .words(&solved.q, Units::Mm, true, opts.modal_axes, " ")
-                    .map_err(|m| Error::input(loc.clone(), m))?;
-                let motion = if rapid_next { 0 } else { 1 };
-                rapid_next = false;
-                let mut block = String::new();
-                if motion_written != Some(motion) {
-                    block.push_str(if motion == 0 { "G0 " } else { "G1 " });
-                    motion_written = Some(motion);
-                }
-                // Axis names and digits: ASCII.
-                block.push_str(std::str::from_utf8(words).unwrap_or_default());
-                if motion == 1 && feed.is_some() && feed != feed_written {
-                    block.push_str(" F");
-                    push_fixed(&mut block, feed.unwrap_or(0.0), 1);
-                    feed_written = feed;
-                }
-                writeln!(out, "{}", block.trim_end()).map_err(io)?;
-                previous = Some(solved.q);
-            }
-            ClStatement::Fedrat { value, unit } => {
-                feed = Some(match unit {
-                    FeedUnit::Ipm => value * 25.4,
-                    FeedUnit::Unspecified => value * units.mm_per_unit(),
-                    _ => *value,
-                });
-                if matches!(unit, FeedUnit::Mmpr | FeedUnit::Ipr) {
-                    writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?;
-                }
-            }
-            ClStatement::Rapid => rapid_next = true,
-            ClStatement::TlAxis(a) => axis = Vector3::new(a[0], a[1], a[2]),
-            ClStatement::LoadTl(n) => writeln!(out, "T{n} M6").map_err(io)?,
-            ClStatement::Spindle { rpm, dir, off } => {
-                if *off {
-                    writeln!(out, "M5").map_err(io)?;
-                } else {
-                    let m = match dir {
-                        Some(SpindleDir::CounterClockwise) => "M4",
-                        _ => "M3",
-                    };
-                    match rpm {
-                        Some(s) => writeln!(out, "S{} {m}", crate::program::format::fixed(*s, 0))
-                            .map_err(io)?,
-                        None => writeln!(out, "{m}").map_err(io)?,
-                    }
-                }
-            }
-            ClStatement::Coolant(on) => {
-                writeln!(out, "{}", if *on { "M8" } else { "M9" }).map_err(io)?
-            }
-            ClStatement::Units(u) => {
-                units = match u {
-                    crate::cl::ClUnits::Inches => Units::Inch,
-                    crate::cl::ClUnits::Mm => Units::Mm,
-                };
-                writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?;
-            }
-            ClStatement::Comment(c) => {
-                writeln!(out, "({})", sanitize_comment(c.trim())).map_err(io)?
-            }
-            ClStatement::End => {
-                let t = text.to_ascii_uppercase();
-                writeln!(out, "{}", if t.starts_with("FINI") { "M30" } else { "M2" }).map_err(io)?
-            }
-            ClStatement::Multax(_) | ClStatement::Other { .. } => {
-                writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?
-            }
-            ClStatement::Block(b) => writeln!(out, "{b}").map_err(io)?,
-            ClStatement::Warning(w) => stats.warnings.push(w.clone()),
-        }
-    }
-    Ok(stats)
-}
-
-/// Makes text safe inside a `( )` comment: parentheses become brackets and
-/// line breaks become spaces.
-fn sanitize_comment(s: &str) -> String {
-    s.chars()
-        .map(|c| match c {
-            '(' => '[',
-            ')' => ']',
-            '\r' | '\n' => ' ',
-            c => c,
-        })
-        .collect()
 }
 
 #[cfg(test)]
