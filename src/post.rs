@@ -655,11 +655,11 @@ pub struct PendingPose {
 }
 
 /// Converts a G-code pose program, writing the machine program to `out`,
-/// with `solver` solving each pose in order (on this thread), the lines
+/// with `solver` solving each pose in order (a pool task), the lines
 /// parsed on the pool ([`pipeline::drive`]).
 pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
-    solver: &mut dyn PoseSolver,
+    solver: &mut (dyn PoseSolver + Send),
     input: R,
     out: &mut W,
     opts: &PostOptions,
@@ -669,6 +669,7 @@ pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
         machine,
         &mut Whole(solver),
         &|_, j| match *j {},
+        |_| Ok(()),
         input,
         out,
         opts,
@@ -676,23 +677,37 @@ pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
     )
 }
 
-/// Converts a G-code pose program with `stage` doing each pose and `work`
-/// on the stage's jobs in parallel ([`pipeline::drive`]).
+/// Converts a G-code pose program with `stage` doing each pose, `work` on
+/// the stage's jobs in parallel and `after_chunk` after each chunk is
+/// written ([`pipeline::drive`]).
+#[allow(clippy::too_many_arguments)]
 pub fn convert_gcode<S: Stage, R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
     stage: &mut S,
     work: &(dyn Fn(&Pose, &mut S::Job) + Sync),
-    input: R,
+    after_chunk: impl FnMut(&mut S) -> Result<()>,
+    mut input: R,
     out: &mut W,
     opts: &PostOptions,
     progress: impl FnMut(u64),
 ) -> Result<PostStats> {
     let format = GcodeFormat {
         conv: GcodeConverter::new(machine, opts),
-        input,
-        number: 0,
     };
-    pipeline::drive(format, stage, work, out, progress)
+    let mut number = 0;
+    let read = |unit: &mut GcodeUnit| -> Result<Option<usize>> {
+        unit.raw.clear();
+        match input.read_until(b'\n', &mut unit.raw) {
+            Ok(0) => Ok(None),
+            Ok(n) => {
+                number += 1;
+                unit.line.number = number;
+                Ok(Some(n))
+            }
+            Err(e) => Err(Error::io(&opts.file_name, e)),
+        }
+    };
+    pipeline::drive(format, read, stage, work, after_chunk, out, progress)
 }
 
 /// A G-code line for [`pipeline::drive`]: its bytes as read, then parsed.
@@ -704,30 +719,15 @@ pub struct GcodeUnit {
     line: Line,
 }
 
-/// G-code as a [`Format`]: lines read from `input`, parsed on the pool,
-/// converted by a [`GcodeConverter`].
-struct GcodeFormat<'a, R> {
+/// G-code as a [`Format`]: lines parsed on the pool, converted by a
+/// [`GcodeConverter`].
+struct GcodeFormat<'a> {
     conv: GcodeConverter<'a>,
-    input: R,
-    /// Lines read.
-    number: usize,
 }
 
-impl<'a, R: BufRead> Format for GcodeFormat<'a, R> {
+impl Format for GcodeFormat<'_> {
     type Unit = GcodeUnit;
     type Pending = PendingPose;
-    fn read(&mut self, unit: &mut GcodeUnit) -> Result<bool> {
-        unit.raw.clear();
-        match self.input.read_until(b'\n', &mut unit.raw) {
-            Ok(0) => Ok(false),
-            Ok(_) => {
-                self.number += 1;
-                unit.line.number = self.number;
-                Ok(true)
-            }
-            Err(e) => Err(Error::io(&self.conv.opts.file_name, e)),
-        }
-    }
     fn prepare(unit: &mut GcodeUnit) {
         let number = unit.line.number;
         crate::gcode::parse_line_swap(&mut unit.raw, number, &mut unit.line);
@@ -735,9 +735,6 @@ impl<'a, R: BufRead> Format for GcodeFormat<'a, R> {
     fn prefetch(unit: &GcodeUnit) {
         pipeline::prefetch_bytes(unit.line.items.as_slice());
         pipeline::prefetch_bytes(unit.line.bytes.as_slice());
-    }
-    fn size(unit: &GcodeUnit) -> usize {
-        unit.line.bytes.len()
     }
     fn line(unit: &GcodeUnit) -> usize {
         unit.line.number

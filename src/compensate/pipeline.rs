@@ -17,17 +17,14 @@ struct Job {
 }
 
 /// The stage of `compensate`: [`CompensatingSolver`] split around the
-/// refinement, with the records handed on after each chunk.
-struct Compensating<'s, 'm, K> {
+/// refinement.
+struct Compensating<'s, 'm> {
     solver: &'s mut CompensatingSolver<'m>,
     /// The theoretical joint values of the previous pose.
     previous_th: Option<JointValues>,
-    records: K,
 }
 
-impl<K: FnMut(&mut Vec<BlockRecord>) -> crate::error::Result<()>> Stage
-    for Compensating<'_, '_, K>
-{
+impl Stage for Compensating<'_, '_> {
     type Job = Job;
     fn first(
         &mut self,
@@ -47,9 +44,6 @@ impl<K: FnMut(&mut Vec<BlockRecord>) -> crate::error::Result<()>> Stage
     ) -> std::result::Result<SolvedPose, String> {
         let refined = job.refined.as_ref().expect("refined in parallel");
         self.solver.commit(pose, &job.th, refined, line)
-    }
-    fn chunk_written(&mut self) -> crate::error::Result<()> {
-        (self.records)(&mut self.solver.records)
     }
 }
 
@@ -113,7 +107,7 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
     out: &mut W,
     opts: &PostOptions,
     progress: impl FnMut(u64),
-    records: impl FnMut(&mut Vec<BlockRecord>) -> crate::error::Result<()>,
+    mut records: impl FnMut(&mut Vec<BlockRecord>) -> crate::error::Result<()>,
 ) -> crate::error::Result<PostStats> {
     // What the refinements need, apart from the solver's in-order state.
     let chain = solver.actual_chain.clone();
@@ -125,14 +119,15 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
     let mut stage = Compensating {
         solver,
         previous_th: None,
-        records,
     };
+    // The records go on after each chunk, on this thread.
+    let after = |s: &mut Compensating<'_, '_>| records(&mut s.solver.records);
     match kind {
-        Input::Gcode => {
-            crate::post::convert_gcode(machine, &mut stage, &work, input, out, opts, progress)
-        }
-        Input::Cl => {
-            crate::post::convert_cl(machine, &mut stage, &work, input, out, opts, progress)
-        }
+        Input::Gcode => crate::post::convert_gcode(
+            machine, &mut stage, &work, after, input, out, opts, progress,
+        ),
+        Input::Cl => crate::post::convert_cl(
+            machine, &mut stage, &work, after, input, out, opts, progress,
+        ),
     }
 }

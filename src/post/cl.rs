@@ -24,7 +24,7 @@ use std::io::{BufRead, Write};
 /// converted is an error, any other statement is kept as a comment.
 pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
-    solver: &mut dyn PoseSolver,
+    solver: &mut (dyn PoseSolver + Send),
     input: R,
     out: &mut W,
     opts: &PostOptions,
@@ -34,6 +34,7 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
         machine,
         &mut Whole(solver),
         &|_, j| match *j {},
+        |_| Ok(()),
         input,
         out,
         opts,
@@ -41,12 +42,16 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     )
 }
 
-/// Converts APT CL data as [`post_cl`] does, with `stage` doing each pose
-/// and `work` on the stage's jobs in parallel ([`super::pipeline::drive`]).
+/// Converts APT CL data as [`post_cl`] does, with `stage` doing each pose,
+/// `work` on the stage's jobs in parallel and `after_chunk` after each
+/// chunk is written ([`super::pipeline::drive`]). The statements are read
+/// and lowered on this thread, the moves converted on the pool.
+#[allow(clippy::too_many_arguments)]
 pub fn convert_cl<S: Stage, R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
     stage: &mut S,
     work: &(dyn Fn(&Pose, &mut S::Job) + Sync),
+    after_chunk: impl FnMut(&mut S) -> Result<()>,
     input: R,
     out: &mut W,
     opts: &PostOptions,
@@ -61,7 +66,7 @@ pub fn convert_cl<S: Stage, R: BufRead, W: Write + ?Sized>(
     )
     .map_err(io)?;
     writeln!(out, "G21 G90 G94").map_err(io)?;
-    let records = crate::cl::lower(
+    let mut records = crate::cl::lower(
         ClReader::new(input, &opts.file_name),
         &opts.file_name,
         opts.arc_tolerance_mm,
@@ -70,7 +75,6 @@ pub fn convert_cl<S: Stage, R: BufRead, W: Write + ?Sized>(
     let format = ClFormat {
         machine,
         opts,
-        records,
         stats: PostStats::default(),
         writer: AxisWriter::new(machine, opts.decimals),
         previous: None,
@@ -81,7 +85,13 @@ pub fn convert_cl<S: Stage, R: BufRead, W: Write + ?Sized>(
         feed_written: None,
         motion_written: None,
     };
-    super::pipeline::drive(format, stage, work, out, progress)
+    let read = |unit: &mut Option<Result<ClRecord>>| -> Result<Option<usize>> {
+        *unit = records.next();
+        Ok(unit
+            .as_ref()
+            .map(|r| r.as_ref().map_or(0, |r| r.text.len())))
+    };
+    super::pipeline::drive(format, read, stage, work, after_chunk, out, progress)
 }
 
 /// A `GOTO` between [`Format::begin`] and [`Format::finish`], with the
@@ -94,13 +104,12 @@ pub struct ClPending {
     feed: Option<f64>,
 }
 
-/// APT CL as a [`Format`]: the lowered statements, read in order on the
-/// driver's thread (the reader and the lowering keep state from statement
+/// APT CL as a [`Format`]: the lowered statements (read in order on the
+/// driver's thread: the reader and the lowering keep state from statement
 /// to statement), converted in order.
-struct ClFormat<'a, I> {
+struct ClFormat<'a> {
     machine: &'a Machine,
     opts: &'a PostOptions,
-    records: I,
     stats: PostStats,
     writer: AxisWriter<'a>,
     /// Joint values of the last `GOTO` written.
@@ -130,20 +139,10 @@ fn record(unit: &Option<Result<ClRecord>>) -> &ClRecord {
     }
 }
 
-impl<I: Iterator<Item = Result<ClRecord>>> Format for ClFormat<'_, I> {
+impl Format for ClFormat<'_> {
     type Unit = Option<Result<ClRecord>>;
     type Pending = ClPending;
-    fn read(&mut self, unit: &mut Self::Unit) -> Result<bool> {
-        *unit = self.records.next();
-        Ok(unit.is_some())
-    }
     fn prepare(_: &mut Self::Unit) {}
-    fn size(unit: &Self::Unit) -> usize {
-        match unit {
-            Some(Ok(r)) => r.text.len(),
-            _ => 0,
-        }
-    }
     fn line(unit: &Self::Unit) -> usize {
         match unit {
             Some(Ok(r)) => r.line,

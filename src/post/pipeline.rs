@@ -39,17 +39,16 @@ pub fn prefetch_bytes<T: ?Sized>(x: &T) {
     let _ = x;
 }
 
-/// A program format the driver converts: read in order, prepared on any
-/// thread, converted in order in two halves around the solve.
-pub trait Format {
+/// A program format the driver converts: prepared on any thread,
+/// converted in order in two halves around the solve. (Its units are read
+/// by the driver's caller, on the driver's thread: the input need not be
+/// [`Send`]; the conversion runs on a pool thread.)
+pub trait Format: Send {
     /// One unit of the program (a line, a statement), reused from chunk to
     /// chunk.
     type Unit: Send + Default;
     /// A pose between [`Format::begin`] and [`Format::finish`].
     type Pending: Send;
-    /// Reads the next unit into `unit` (this thread, in order); false at
-    /// the end of the program.
-    fn read(&mut self, unit: &mut Self::Unit) -> Result<bool>;
     /// Prepares a read unit (any thread; G-code: parsing).
     fn prepare(unit: &mut Self::Unit);
     /// Asks the processor for the memory of a prepared unit (the pool
@@ -57,8 +56,6 @@ pub trait Format {
     fn prefetch(unit: &Self::Unit) {
         prefetch_bytes(unit);
     }
-    /// Bytes of input the unit took (for progress).
-    fn size(unit: &Self::Unit) -> usize;
     /// The 1-based line of the unit.
     fn line(unit: &Self::Unit) -> usize;
     /// In order: the modal state of the unit. A unit that is not a pose
@@ -95,8 +92,9 @@ pub enum Step<J> {
     Later(J),
 }
 
-/// What the driver does with each pose.
-pub trait Stage {
+/// What the driver does with each pose (in order on a pool thread, so
+/// [`Send`]).
+pub trait Stage: Send {
     /// A pose's work between the passes.
     type Job: Send;
     /// In order: solves `pose` (line `line`), continuing from `previous`
@@ -115,16 +113,12 @@ pub trait Stage {
         job: &Self::Job,
         line: usize,
     ) -> std::result::Result<SolvedPose, String>;
-    /// After each chunk is written.
-    fn chunk_written(&mut self) -> Result<()> {
-        Ok(())
-    }
 }
 
 /// The stage of `post`: a [`PoseSolver`] solves each pose in order, so
 /// branch choice and rotary unwinding see the poses in order, and every
 /// solver works (a compensating solver block by block, one IK per tool).
-pub struct Whole<'s>(pub &'s mut dyn PoseSolver);
+pub struct Whole<'s>(pub &'s mut (dyn PoseSolver + Send));
 
 impl Stage for Whole<'_> {
     type Job = std::convert::Infallible;
@@ -190,31 +184,39 @@ impl<F: Format, J> Default for Chunk<F, J> {
     }
 }
 
-/// Converts a program with `format`, doing `stage` for each pose and
-/// `work` on each of the stage's jobs in parallel, writing to `out`; the
-/// result is the same for any number of threads.
+/// Converts a program with `format`, its units read by `read` (in order,
+/// on this thread; the unit's size in bytes, `None` at the end), doing
+/// `stage` for each pose and `work` on each of the stage's jobs in
+/// parallel, writing to `out`; the result is the same for any number of
+/// threads. `after_chunk` runs on this thread after each chunk is written
+/// (`compensate` hands its records on there); `progress` gets the bytes read.
 ///
 /// The program goes through in chunks of [`CHUNK_UNITS`] units, each in
 /// four stages:
 ///
-/// 1. its units are read (this thread) and prepared (a pool task; G-code
-///    lines are parsed);
-/// 2. one pass in order applies the modal state and runs
+/// 1. its units are read (this thread: the input and, for APT CL, the
+///    reader and lowering keep state from unit to unit) and prepared (a pool
+///    task; G-code lines are parsed);
+/// 2. one pass in order (a pool task) applies the modal state and runs
 ///    [`Stage::first`] on each pose (branch choice and rotary unwinding
-///    need the order); a pose solved there is written at once;
+///    need the order); a pose solved there is converted at once;
 /// 3. `work` runs on the stage's jobs, independent per pose, in parallel;
-/// 4. a last pass in order commits the jobs ([`Stage::commit`]) and writes
-///    the chunk.
+/// 4. a last pass in order (the same task as stage 2, before it) commits
+///    the jobs ([`Stage::commit`]) and converts them; this thread writes the
+///    chunk.
 ///
 /// The stages are pipelined: while the pool works on chunk *k* (stage 3)
-/// and prepares chunk *k + 2* (stage 1), this thread writes chunk *k − 1*
-/// (stage 4), runs the first pass of chunk *k + 1* (stage 2) and reads the
-/// units after, so the in-order work overlaps the parallel work; at most
-/// four chunks are alive.
+/// and prepares chunk *k + 2* (stage 1), one pool task converts chunk
+/// *k − 1* (stage 4) and runs the first pass of chunk *k + 1* (stage 2),
+/// and this thread reads chunk *k + 3*, then joins the pool; at most five
+/// chunks are alive.
+#[allow(clippy::too_many_arguments)]
 pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
     mut format: F,
+    mut read: impl FnMut(&mut F::Unit) -> Result<Option<usize>>,
     stage: &mut S,
     work: &(dyn Fn(&Pose, &mut S::Job) + Sync),
+    mut after_chunk: impl FnMut(&mut S) -> Result<()>,
     out: &mut W,
     mut progress: impl FnMut(u64),
 ) -> Result<PostStats> {
@@ -223,115 +225,65 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
     let mut buf = Vec::new();
     let mut eof = false;
     // Reads the next chunk's units into `c` (this thread).
-    let mut read = |format: &mut F, c: &mut Chunk<F, S::Job>| -> Result<()> {
+    let mut read_chunk = |c: &mut Chunk<F, S::Job>| -> Result<()> {
         c.count = 0;
         while c.count < CHUNK_UNITS && !eof {
             if c.units.len() == c.count {
                 c.units.push(Default::default());
             }
-            if format.read(&mut c.units[c.count])? {
-                c.count += 1;
-            } else {
-                eof = true;
+            match read(&mut c.units[c.count])? {
+                Some(n) => {
+                    c.count += 1;
+                    bytes_read += n as u64;
+                }
+                None => eof = true,
             }
         }
+        progress(bytes_read);
         Ok(())
-    };
-    // Stage 2 of a prepared chunk.
-    let mut first_pass = |format: &mut F, stage: &mut S, c: &mut Chunk<F, S::Job>| {
-        for i in 0..c.count {
-            if let Some(ahead) = c.units[..c.count].get(i + PREFETCH_AHEAD) {
-                F::prefetch(ahead);
-            }
-            let unit = &mut c.units[i];
-            bytes_read += F::size(unit) as u64;
-            progress(bytes_read);
-            let start = c.text.len();
-            let pending = match format.begin(unit, &mut c.text) {
-                Err(e) => {
-                    c.stop = Some(e);
-                    return;
-                }
-                Ok(None) => {
-                    c.entries.push(Entry::Text(start, c.text.len()));
-                    continue;
-                }
-                Ok(Some(p)) => p,
-            };
-            let unit = &c.units[i];
-            let step = stage.first(F::pose(&pending), format.previous(), F::line(unit));
-            let done = match step {
-                Err(m) => Err(format.solve_error(unit, &pending, m)),
-                Ok(Step::Done(solved)) => format.finish(unit, &pending, &solved, &mut c.text),
-                Ok(Step::Later(job)) => {
-                    c.entries.push(Entry::Pose);
-                    c.jobs.push(Job {
-                        unit: i,
-                        pending,
-                        job,
-                    });
-                    continue;
-                }
-            };
-            match done {
-                Ok(()) => c.entries.push(Entry::Text(start, c.text.len())),
-                Err(e) => {
-                    c.stop = Some(e);
-                    return;
-                }
-            }
-        }
-    };
-    // Stage 4 of a worked chunk; its first-pass error, if any, after its
-    // units are written. The chunk's buffers are kept for the next.
-    let mut write = |format: &mut F, stage: &mut S, c: &mut Chunk<F, S::Job>| -> Result<()> {
-        buf.clear();
-        let mut jobs = c.jobs.iter().enumerate();
-        for entry in &c.entries {
-            match *entry {
-                Entry::Text(a, b) => buf.extend_from_slice(&c.text[a..b]),
-                Entry::Pose => {
-                    let (j, job) = jobs.next().expect("one job per pose entry");
-                    // The work was done on other cores.
-                    if let Some(ahead) = c.jobs.get(j + PREFETCH_AHEAD) {
-                        prefetch_bytes(ahead);
-                    }
-                    let unit = &c.units[job.unit];
-                    let solved = stage
-                        .commit(F::pose(&job.pending), &job.job, F::line(unit))
-                        .map_err(|m| format.solve_error(unit, &job.pending, m))?;
-                    format.finish(unit, &job.pending, &solved, &mut buf)?;
-                }
-            }
-        }
-        out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
-        stage.chunk_written()?;
-        c.text.clear();
-        c.entries.clear();
-        c.jobs.clear();
-        match c.stop.take() {
-            Some(e) => Err(e),
-            None => Ok(()),
-        }
     };
 
     let mut spare: Vec<Chunk<F, S::Job>> = Vec::new();
     let mut reading: Chunk<F, S::Job> = Chunk::default();
-    read(&mut format, &mut reading)?;
+    read_chunk(&mut reading)?;
     let mut prepared: Option<Chunk<F, S::Job>> = (reading.count > 0).then(|| {
         reading.units[..reading.count]
             .iter_mut()
             .for_each(F::prepare);
         std::mem::take(&mut reading)
     });
-    read(&mut format, &mut reading)?;
+    read_chunk(&mut reading)?;
     let mut current: Option<Chunk<F, S::Job>> = None;
     let mut previous: Option<Chunk<F, S::Job>> = None;
     let mut stopped = false;
     while prepared.is_some() || current.is_some() || previous.is_some() {
         let mut to_prepare = (reading.count > 0 && !stopped).then(|| std::mem::take(&mut reading));
         let mut next_reading = spare.pop().unwrap_or_default();
-        let result = rayon::in_place_scope(|scope| {
+        let mut written: Result<()> = Ok(());
+        let mut next: Option<Chunk<F, S::Job>> = None;
+        let mut read_result: Result<()> = Ok(());
+        buf.clear();
+        rayon::in_place_scope(|scope| {
+            // The in-order task first: it is the pipeline's critical path,
+            // and the pool's other threads take the oldest task first.
+            {
+                let (format, stage, buf) = (&mut format, &mut *stage, &mut buf);
+                let (previous, prepared) = (&mut previous, &mut prepared);
+                let (written, next) = (&mut written, &mut next);
+                let stopped = stopped;
+                scope.spawn(move |_| {
+                    if let Some(p) = previous.as_mut() {
+                        *written = write(format, stage, p, buf);
+                    }
+                    if written.is_ok()
+                        && !stopped
+                        && let Some(mut c) = prepared.take()
+                    {
+                        first_pass(format, stage, &mut c);
+                        *next = Some(c);
+                    }
+                });
+            }
             if let Some(c) = current.as_mut()
                 && !c.jobs.is_empty()
             {
@@ -345,27 +297,22 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
                 let units = &mut c.units[..c.count];
                 scope.spawn(move |_| units.iter_mut().for_each(F::prepare));
             }
-            if let Some(mut p) = previous.take() {
-                let written = write(&mut format, stage, &mut p);
-                spare.push(p);
-                written?;
-            }
-            let next = match prepared.take() {
-                Some(mut c) if !stopped => {
-                    first_pass(&mut format, stage, &mut c);
-                    Some(c)
-                }
-                _ => None,
-            };
             // Read the chunk after while the pool works.
             if !stopped {
-                read(&mut format, &mut next_reading)?;
+                read_result = read_chunk(&mut next_reading);
             }
-            Ok::<_, Error>(next)
         });
-        let next = result?;
+        if let Some(p) = previous.take() {
+            spare.push(p);
+            out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
+            after_chunk(stage)?;
+            written?;
+        }
         // No chunk after one whose first pass stopped.
         stopped |= next.as_ref().is_some_and(|c| c.stop.is_some());
+        if !stopped {
+            read_result?;
+        }
         previous = current.take();
         current = next;
         prepared = if stopped { None } else { to_prepare };
@@ -375,4 +322,90 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
     format.end(&mut buf);
     out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
     Ok(format.stats())
+}
+
+/// Stage 2 of a prepared chunk: the modal state and [`Stage::first`] of
+/// each unit, in order; a pose solved there converted at once.
+fn first_pass<F: Format, S: Stage>(format: &mut F, stage: &mut S, c: &mut Chunk<F, S::Job>) {
+    for i in 0..c.count {
+        if let Some(ahead) = c.units[..c.count].get(i + PREFETCH_AHEAD) {
+            F::prefetch(ahead);
+        }
+        let unit = &mut c.units[i];
+        let start = c.text.len();
+        let pending = match format.begin(unit, &mut c.text) {
+            Err(e) => {
+                c.stop = Some(e);
+                return;
+            }
+            Ok(None) => {
+                c.entries.push(Entry::Text(start, c.text.len()));
+                continue;
+            }
+            Ok(Some(p)) => p,
+        };
+        let unit = &c.units[i];
+        let step = stage.first(F::pose(&pending), format.previous(), F::line(unit));
+        let done = match step {
+            Err(m) => Err(format.solve_error(unit, &pending, m)),
+            Ok(Step::Done(solved)) => format.finish(unit, &pending, &solved, &mut c.text),
+            Ok(Step::Later(job)) => {
+                c.entries.push(Entry::Pose);
+                c.jobs.push(Job {
+                    unit: i,
+                    pending,
+                    job,
+                });
+                continue;
+            }
+        };
+        match done {
+            Ok(()) => c.entries.push(Entry::Text(start, c.text.len())),
+            Err(e) => {
+                c.stop = Some(e);
+                return;
+            }
+        }
+    }
+}
+
+/// Stage 4 of a worked chunk, into `buf`: the text of its units, the jobs
+/// committed and converted in order; its first-pass error, if any, after
+/// its units are converted. The chunk's buffers are kept for the next.
+fn write<F: Format, S: Stage>(
+    format: &mut F,
+    stage: &mut S,
+    c: &mut Chunk<F, S::Job>,
+    buf: &mut Vec<u8>,
+) -> Result<()> {
+    let mut jobs = c.jobs.iter().enumerate();
+    for entry in &c.entries {
+        match *entry {
+            Entry::Text(a, b) => buf.extend_from_slice(&c.text[a..b]),
+            Entry::Pose => {
+                let (j, job) = jobs.next().expect("one job per pose entry");
+                // The work was done on other cores.
+                if let Some(ahead) = c.jobs.get(j + PREFETCH_AHEAD) {
+                    prefetch_bytes(ahead);
+                }
+                let unit = &c.units[job.unit];
+                let converted = stage
+                    .commit(F::pose(&job.pending), &job.job, F::line(unit))
+                    .map_err(|m| format.solve_error(unit, &job.pending, m))
+                    .and_then(|solved| format.finish(unit, &job.pending, &solved, buf));
+                if let Err(e) = converted {
+                    // Nothing of a chunk that fails here is written.
+                    buf.clear();
+                    return Err(e);
+                }
+            }
+        }
+    }
+    c.text.clear();
+    c.entries.clear();
+    c.jobs.clear();
+    match c.stop.take() {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
 }
