@@ -16,8 +16,10 @@
 #             error motions each: examples/dense_table.rs).
 #
 # Prints per workload the times of compensate (both cores, one thread),
-# post and the peer, the ratios peer / compensate and compensate / post,
-# post's throughput in MB/s, and each side's remaining tool-tip error.
+# post and the peer (wall clock, and in brackets the user CPU time, which a
+# loaded machine disturbs less), the ratios peer / compensate and
+# compensate / post (wall clock), post's throughput in MB/s, and each
+# side's remaining tool-tip error.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 POSES="${1:-200000}"
@@ -31,13 +33,14 @@ python3 -c 'import numpy, scipy' 2>/dev/null || python3 -m pip install --quiet n
 cargo build --release --quiet --bin kinpost --example bench_program --example bench_lens_cl --example dense_table
 KINPOST=target/release/kinpost
 
-now() { date +%s.%N; }
-# Wall time of "$@" in seconds.
+# Wall time of "$@" (a command or a function of this script) in seconds;
+# its user CPU time goes to $WORK/user.
 timed() {
-  local t0 t1
-  t0=$(now); "$@"; t1=$(now)
-  awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }'
+  local TIMEFORMAT="%3R %3U"
+  { time "$@" ; } 2> "$WORK/time"
+  cut -d' ' -f1 "$WORK/time"
 }
+user() { cut -d' ' -f2 "$WORK/time"; }
 min() { awk -v a="$1" -v b="$2" 'BEGIN { print (b == "" || a < b) ? a : b }'; }
 
 # run_workload NAME KINPOST_PROGRAM PEER_PROGRAM ERRORS
@@ -49,20 +52,20 @@ run_workload() {
   kin1() { RAYON_NUM_THREADS=1 kin; }
   post() { "$KINPOST" post --machine zhao2022-xzbc "$program" -o "$WORK/post.nc" 2> "$WORK/post.log"; }
   peer() { python3 bench/peer_numpy.py --errors "$errors" "$peer_program" -o "$WORK/peer.nc" 2> "$WORK/peer.log"; }
-  local t_kin="" t_kin1="" t_post="" t_peer=""
+  local t_kin="" t_kin1="" t_post="" t_peer="" u_kin="" u_kin1="" u_post="" u_peer=""
   for _ in $(seq "$RUNS"); do
-    t_kin=$(min "$(timed kin)" "$t_kin")
-    t_kin1=$(min "$(timed kin1)" "$t_kin1")
-    t_post=$(min "$(timed post)" "$t_post")
-    t_peer=$(min "$(timed peer)" "$t_peer")
+    t_kin=$(min "$(timed kin)" "$t_kin"); u_kin=$(min "$(user)" "$u_kin")
+    t_kin1=$(min "$(timed kin1)" "$t_kin1"); u_kin1=$(min "$(user)" "$u_kin1")
+    t_post=$(min "$(timed post)" "$t_post"); u_post=$(min "$(user)" "$u_post")
+    t_peer=$(min "$(timed peer)" "$t_peer"); u_peer=$(min "$(user)" "$u_peer")
   done
   local kin_tip kin_it
   kin_tip=$(sed -n 's/.*tool-tip error:.*(solution \([^ ]*\) mm).*/\1/p' "$WORK/kinpost.log")
   kin_it=$(sed -n 's/.*Newton iterations: \(.*\)/\1/p' "$WORK/kinpost.log")
-  printf '%-34s %8s s   tool-tip residual max %s mm (%s)\n' "kinpost compensate (all cores)" "$t_kin" "$kin_tip" "$kin_it"
-  printf '%-34s %8s s\n' "kinpost compensate (1 thread)" "$t_kin1"
-  printf '%-34s %8s s\n' "kinpost post" "$t_post"
-  printf '%-34s %8s s   %s\n' "peer_numpy.py" "$t_peer" "$(cat "$WORK/peer.log")"
+  printf '%-34s %8s s (user %s s)   tool-tip residual max %s mm (%s)\n' "kinpost compensate (all cores)" "$t_kin" "$u_kin" "$kin_tip" "$kin_it"
+  printf '%-34s %8s s (user %s s)\n' "kinpost compensate (1 thread)" "$t_kin1" "$u_kin1"
+  printf '%-34s %8s s (user %s s)\n' "kinpost post" "$t_post" "$u_post"
+  printf '%-34s %8s s (user %s s)   %s\n' "peer_numpy.py" "$t_peer" "$u_peer" "$(cat "$WORK/peer.log")"
   awk -v p="$t_peer" -v k="$t_kin" -v k1="$t_kin1" -v po="$t_post" -v b="$bytes" 'BEGIN {
     printf "ratio peer / compensate: %.1fx (1 thread: %.1fx); compensate / post: %.2f; post: %.0f MB/s\n",
       p / k, p / k1, k / po, b / po / 1e6 }'

@@ -5,8 +5,10 @@
 //! and the emitter, which rewrites only the axis words of converted blocks.
 //! Everything else leaves byte for byte as it came.
 
+pub mod pipeline;
+
 use crate::error::{Error, Location, Result};
-use crate::gcode::{ItemKind, Line, LineReader};
+use crate::gcode::{ItemKind, Line};
 use crate::machine::{IkSolver, Machine, Pose};
 use crate::program::format::{push_fixed, push_scaled, scaled_integer};
 use crate::program::modal::Motion;
@@ -14,6 +16,7 @@ use crate::program::opaque::opaque_in_pose_block;
 pub use crate::program::rewrite::rewrite;
 use crate::program::{ModalState, PoseStart, Units, WordRef};
 use nalgebra::Vector3;
+use pipeline::{Format, Stage, Whole};
 use std::io::{BufRead, Write};
 
 mod cl;
@@ -292,7 +295,6 @@ pub struct Converted {
 /// `compensate`, reused by `linkage` on pose programs.
 pub struct GcodeConverter<'a> {
     machine: &'a Machine,
-    solver: &'a mut dyn PoseSolver,
     opts: &'a PostOptions,
     modal: ModalState,
     writer: AxisWriter<'a>,
@@ -313,15 +315,13 @@ pub struct GcodeConverter<'a> {
 }
 
 impl<'a> GcodeConverter<'a> {
-    /// A converter for `machine` using `solver`.
-    pub fn new(
-        machine: &'a Machine,
-        solver: &'a mut dyn PoseSolver,
-        opts: &'a PostOptions,
-    ) -> Self {
+    /// A converter for `machine`. It does not solve poses: a driver solves
+    /// each pose [`GcodeConverter::begin`] gives and hands the joint values
+    /// to [`GcodeConverter::finish`] ([`GcodeConverter::convert`] does both
+    /// with a [`PoseSolver`]).
+    pub fn new(machine: &'a Machine, opts: &'a PostOptions) -> Self {
         GcodeConverter {
             machine,
-            solver,
             opts,
             modal: ModalState::new(opts.pose_start),
             writer: AxisWriter::new(machine, opts.decimals),
@@ -334,14 +334,18 @@ impl<'a> GcodeConverter<'a> {
         }
     }
 
-    /// Converts one line, appending the bytes to write to `out`; returns the
-    /// joint values when the line was a pose.
-    pub fn convert(&mut self, line: &Line, out: &mut Vec<u8>) -> Result<Option<Converted>> {
+    /// Converts one line with `solver`, appending the bytes to write to
+    /// `out`; returns the joint values when the line was a pose.
+    pub fn convert(
+        &mut self,
+        line: &Line,
+        solver: &mut dyn PoseSolver,
+        out: &mut Vec<u8>,
+    ) -> Result<Option<Converted>> {
         let Some(pending) = self.begin(line, out)? else {
             return Ok(None);
         };
-        let solved = self
-            .solver
+        let solved = solver
             .solve(&pending.pose, self.previous.as_deref(), line.number)
             .map_err(|m| self.solve_error(line, &pending, m))?;
         self.finish(line, &pending, &solved, out)?;
@@ -660,32 +664,120 @@ pub struct PendingPose {
     pub meaning: crate::program::BlockMeaning,
 }
 
-/// Converts a G-code pose program, writing the machine program to `out`.
+/// Converts a G-code pose program, writing the machine program to `out`,
+/// with `solver` solving each pose in order (a pool task), the lines
+/// parsed on the pool ([`pipeline::drive`]).
 pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
-    solver: &mut dyn PoseSolver,
+    solver: &mut (dyn PoseSolver + Send),
     input: R,
     out: &mut W,
     opts: &PostOptions,
-    mut progress: impl FnMut(u64),
+    progress: impl FnMut(u64),
 ) -> Result<PostStats> {
-    let mut conv = GcodeConverter::new(machine, solver, opts);
-    let mut bytes_read = 0u64;
-    let mut buf = Vec::with_capacity(256);
-    let mut lines = LineReader::new(input);
-    while let Some(line) = lines.next_line() {
-        let line = line.map_err(|e| Error::io(&opts.file_name, e))?;
-        bytes_read += line.bytes.len() as u64;
-        progress(bytes_read);
-        buf.clear();
-        conv.convert(line, &mut buf)?;
-        out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
+    convert_gcode(
+        machine,
+        &mut Whole(solver),
+        &|_, j| match *j {},
+        |_| Ok(()),
+        input,
+        out,
+        opts,
+        progress,
+    )
+}
+
+/// Converts a G-code pose program with `stage` doing each pose, `work` on
+/// the stage's jobs in parallel and `after_chunk` after each chunk is
+/// written ([`pipeline::drive`]).
+#[allow(clippy::too_many_arguments)]
+pub fn convert_gcode<S: Stage, R: BufRead, W: Write + ?Sized>(
+    machine: &Machine,
+    stage: &mut S,
+    work: &(dyn Fn(&Pose, &mut S::Job) + Sync),
+    after_chunk: impl FnMut(&mut S) -> Result<()>,
+    mut input: R,
+    out: &mut W,
+    opts: &PostOptions,
+    progress: impl FnMut(u64),
+) -> Result<PostStats> {
+    let format = GcodeFormat {
+        conv: GcodeConverter::new(machine, opts),
+    };
+    let mut number = 0;
+    let read = |unit: &mut GcodeUnit| -> Result<Option<usize>> {
+        unit.raw.clear();
+        match input.read_until(b'\n', &mut unit.raw) {
+            Ok(0) => Ok(None),
+            Ok(n) => {
+                number += 1;
+                unit.line.number = number;
+                Ok(Some(n))
+            }
+            Err(e) => Err(Error::io(&opts.file_name, e)),
+        }
+    };
+    pipeline::drive(format, read, stage, work, after_chunk, out, progress)
+}
+
+/// A G-code line for [`pipeline::drive`]: its bytes as read, then parsed.
+#[derive(Default)]
+pub struct GcodeUnit {
+    /// The bytes read (after parsing: a spare buffer).
+    raw: Vec<u8>,
+    /// The parsed line.
+    line: Line,
+}
+
+/// G-code as a [`Format`]: lines parsed on the pool, converted by a
+/// [`GcodeConverter`].
+struct GcodeFormat<'a> {
+    conv: GcodeConverter<'a>,
+}
+
+impl Format for GcodeFormat<'_> {
+    type Unit = GcodeUnit;
+    type Pending = PendingPose;
+    fn prepare(unit: &mut GcodeUnit) {
+        let number = unit.line.number;
+        crate::gcode::parse_line_swap(&mut unit.raw, number, &mut unit.line);
     }
-    if let Some(end) = conv.feed.end() {
-        out.write_all(end.as_bytes())
-            .map_err(|e| Error::io("<output>", e))?;
+    fn prefetch(unit: &GcodeUnit) {
+        pipeline::prefetch_bytes(unit.line.items.as_slice());
+        pipeline::prefetch_bytes(unit.line.bytes.as_slice());
     }
-    Ok(conv.stats)
+    fn line(unit: &GcodeUnit) -> usize {
+        unit.line.number
+    }
+    fn begin(&mut self, unit: &mut GcodeUnit, out: &mut Vec<u8>) -> Result<Option<PendingPose>> {
+        self.conv.begin(&unit.line, out)
+    }
+    fn pose(pending: &PendingPose) -> &Pose {
+        &pending.pose
+    }
+    fn previous(&self) -> Option<&[f64]> {
+        self.conv.previous.as_deref()
+    }
+    fn solve_error(&self, unit: &GcodeUnit, pending: &PendingPose, message: String) -> Error {
+        self.conv.solve_error(&unit.line, pending, message)
+    }
+    fn finish(
+        &mut self,
+        unit: &GcodeUnit,
+        pending: &PendingPose,
+        solved: &SolvedPose,
+        out: &mut Vec<u8>,
+    ) -> Result<()> {
+        self.conv.finish(&unit.line, pending, solved, out)
+    }
+    fn end(&mut self, out: &mut Vec<u8>) {
+        if let Some(end) = self.conv.feed.end() {
+            out.extend_from_slice(end.as_bytes());
+        }
+    }
+    fn stats(self) -> PostStats {
+        self.conv.stats
+    }
 }
 
 /// `v` emptied, keeping its allocation, as a vector whose elements borrow

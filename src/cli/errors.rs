@@ -5,7 +5,6 @@ use super::{InputKind, MachineChoice, PoseStartArg};
 use crate::analyze::Analyzer;
 use crate::compensate::{
     BlockRecord, CompensatingSolver, Method, OnFail, Options, ReportWriter, RunSummary,
-    compensate_gcode,
 };
 use crate::error::{Error, Result};
 use crate::geometric::bspline::{Extrapolation, KnotChoice};
@@ -13,9 +12,9 @@ use crate::geometric::model::{ErrorModel, FitOptions};
 use crate::geometric::table::read_tables;
 use crate::input;
 use crate::linkage::nonlinear_error;
-use crate::machine::{IkSolver, Machine, NoErrors, Pose};
+use crate::machine::{IkSolver, Machine, NoErrors};
 use crate::output::write_atomically;
-use crate::post::{PoseSolver, PostOptions, SolvedPose, post_cl};
+use crate::post::PostOptions;
 use crate::program::PoseStart;
 use crate::program::source::looks_like_poses;
 use crate::progress::RunProgress;
@@ -409,37 +408,6 @@ pub struct CompensateArgs {
     pub quiet: bool,
 }
 
-/// The compensating solver with its per-block records handed to `sink` as
-/// they come (APT CL input, block by block).
-struct Streaming<'s, 'm, 'k> {
-    inner: &'s mut CompensatingSolver<'m>,
-    sink: &'k mut dyn FnMut(&mut Vec<BlockRecord>) -> Result<()>,
-    /// The first error of the sink (the run stops reporting there).
-    error: Option<Error>,
-}
-
-impl PoseSolver for Streaming<'_, '_, '_> {
-    fn solve(
-        &mut self,
-        pose: &Pose,
-        previous: Option<&[f64]>,
-        line: usize,
-    ) -> std::result::Result<SolvedPose, String> {
-        let solved = self.inner.solve(pose, previous, line)?;
-        if self.error.is_none()
-            && let Err(e) = (self.sink)(&mut self.inner.records)
-        {
-            self.error = Some(e);
-        }
-        self.inner.records.clear();
-        Ok(solved)
-    }
-
-    fn plans_freely(&self) -> bool {
-        false
-    }
-}
-
 /// `WX,WY,WZ`: three finite weights ≥ 0.
 fn parse_weights(s: &str) -> std::result::Result<[f64; 3], String> {
     let v: Vec<f64> = s
@@ -555,30 +523,21 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             Ok(())
         };
         write_atomically(a.output.as_deref(), |out| {
-            if kind == InputKind::Cl {
-                let mut streaming = Streaming {
-                    inner: &mut solver,
-                    sink: &mut sink,
-                    error: None,
-                };
-                let stats = post_cl(&machine, &mut streaming, &mut inp.reader, out, &opts, |n| {
-                    progress.update(n)
-                })?;
-                match streaming.error.take() {
-                    Some(e) => Err(e),
-                    None => Ok(stats),
-                }
+            let input = if kind == InputKind::Cl {
+                crate::compensate::Input::Cl
             } else {
-                compensate_gcode(
-                    &machine,
-                    &mut solver,
-                    &mut inp.reader,
-                    out,
-                    &opts,
-                    |n| progress.update(n),
-                    &mut sink,
-                )
-            }
+                crate::compensate::Input::Gcode
+            };
+            crate::compensate::compensate(
+                input,
+                &machine,
+                &mut solver,
+                &mut inp.reader,
+                out,
+                &opts,
+                |n| progress.update(n),
+                &mut sink,
+            )
         })?;
         let summary = summary.finish();
         if let Some(w) = writer.take() {

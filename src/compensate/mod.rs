@@ -28,7 +28,7 @@ mod report;
 mod solver;
 mod step;
 
-pub use pipeline::compensate_gcode;
+pub use pipeline::{Input, compensate, compensate_gcode};
 pub use refine::{MAX_COMPENSATION_MM, MAX_COMPENSATION_RAD, Refined, refine};
 pub use report::{ReportWriter, RunSummary};
 pub use solver::{BlockRecord, CompensatingSolver, OnFail};

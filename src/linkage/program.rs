@@ -333,7 +333,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
         ..PostOptions::default()
     };
     let mut ik = IkSolver::new(machine);
-    let mut conv = poses.then(|| GcodeConverter::new(machine, &mut ik, &post_opts));
+    let mut conv = poses.then(|| GcodeConverter::new(machine, &post_opts));
     let mut tracker = MachineAxisTracker::new(machine);
     let mut prev: Option<Vec<f64>> = None;
     let mut buf = Vec::with_capacity(256);
@@ -344,7 +344,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
         // The line in machine axes and its block, if it moves.
         buf.clear();
         let (mline, block) = match conv.as_mut() {
-            Some(c) => match c.convert(&line, &mut buf)? {
+            Some(c) => match c.convert(&line, &mut ik, &mut buf)? {
                 Some(cv) => {
                     let ml = parse_line(&buf, line.number);
                     let items = axis_items(machine, &ml);

@@ -1,0 +1,411 @@
+//! The one driver of `post` and `compensate`: a program goes through in
+//! chunks, its units (G-code lines, APT CL statements) prepared on the pool,
+//! converted in order, the per-pose work that needs no order done in
+//! parallel, and the result written in order, so memory stays flat and
+//! every core works.
+//!
+//! What is converted is a [`Format`] (G-code: [`super::GcodeConverter`];
+//! APT CL: `super::cl::ClConverter`); what is done with each pose is a
+//! [`Stage`] (`post`: the whole solve in order, [`Whole`]; `compensate`:
+//! the analytic IK in order, the Newton refinement in parallel, the failure
+//! policy and records in order).
+
+use super::{PoseSolver, PostStats, SolvedPose};
+use crate::error::{Error, Result};
+use crate::machine::Pose;
+use std::io::Write;
+
+/// Units per chunk.
+pub const CHUNK_UNITS: usize = 512;
+
+/// How many units ahead the in-order passes ask for a unit's memory.
+const PREFETCH_AHEAD: usize = 4;
+
+/// Asks the processor to bring the memory of `x` (a value or a slice)
+/// into the cache, one 64-byte line at a time.
+#[inline]
+pub fn prefetch_bytes<T: ?Sized>(x: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        let p = (x as *const T).cast::<i8>();
+        for off in (0..std::mem::size_of_val(x)).step_by(64) {
+            // SAFETY: a prefetch is a hint that never faults, whatever the
+            // address; SSE is part of x86_64.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(off)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = x;
+}
+
+/// A program format the driver converts: prepared on any thread,
+/// converted in order in two halves around the solve. (Its units are read
+/// by the driver's caller, on the driver's thread: the input need not be
+/// [`Send`]; the conversion runs on a pool thread.)
+pub trait Format: Send {
+    /// One unit of the program (a line, a statement), reused from chunk to
+    /// chunk.
+    type Unit: Send + Default;
+    /// A pose between [`Format::begin`] and [`Format::finish`].
+    type Pending: Send;
+    /// Prepares a read unit (any thread; G-code: parsing).
+    fn prepare(unit: &mut Self::Unit);
+    /// Asks the processor for the memory of a prepared unit (the pool
+    /// prepared it, so it sits in another core's cache).
+    fn prefetch(unit: &Self::Unit) {
+        prefetch_bytes(unit);
+    }
+    /// The 1-based line of the unit.
+    fn line(unit: &Self::Unit) -> usize;
+    /// In order: the modal state of the unit. A unit that is not a pose
+    /// appends its output to `out` and gives `None`; a pose is returned to
+    /// be solved.
+    fn begin(&mut self, unit: &mut Self::Unit, out: &mut Vec<u8>) -> Result<Option<Self::Pending>>;
+    /// The pose to solve.
+    fn pose(pending: &Self::Pending) -> &Pose;
+    /// The joint values of the last pose written or followed (what a solver
+    /// continues from).
+    fn previous(&self) -> Option<&[f64]>;
+    /// The error of a failed solve of `pending`.
+    fn solve_error(&self, unit: &Self::Unit, pending: &Self::Pending, message: String) -> Error;
+    /// In order: appends the pose's output with the joint values `solved`.
+    fn finish(
+        &mut self,
+        unit: &Self::Unit,
+        pending: &Self::Pending,
+        solved: &SolvedPose,
+        out: &mut Vec<u8>,
+    ) -> Result<()>;
+    /// Appends what ends the program (after the last unit).
+    fn end(&mut self, out: &mut Vec<u8>);
+    /// What was done.
+    fn stats(self) -> PostStats;
+}
+
+/// What the in-order pass made of a pose.
+pub enum Step<J> {
+    /// Solved: written at once.
+    Done(SolvedPose),
+    /// To be worked on in parallel ([`Stage::work`]) and committed in the
+    /// writing pass ([`Stage::commit`]).
+    Later(J),
+}
+
+/// What the driver does with each pose (in order on a pool thread, so
+/// [`Send`]).
+pub trait Stage: Send {
+    /// A pose's work between the passes.
+    type Job: Send;
+    /// In order: solves `pose` (line `line`), continuing from `previous`
+    /// (the converter's last joint values), or starts its job.
+    fn first(
+        &mut self,
+        pose: &Pose,
+        previous: Option<&[f64]>,
+        line: usize,
+    ) -> std::result::Result<Step<Self::Job>, String>;
+    /// In order, in the writing pass: the joint values of a job that was
+    /// worked on.
+    fn commit(
+        &mut self,
+        pose: &Pose,
+        job: &Self::Job,
+        line: usize,
+    ) -> std::result::Result<SolvedPose, String>;
+}
+
+/// The stage of `post`: a [`PoseSolver`] solves each pose in order, so
+/// branch choice and rotary unwinding see the poses in order, and every
+/// solver works (a compensating solver block by block, one IK per tool).
+pub struct Whole<'s>(pub &'s mut (dyn PoseSolver + Send));
+
+impl Stage for Whole<'_> {
+    type Job = std::convert::Infallible;
+    fn first(
+        &mut self,
+        pose: &Pose,
+        previous: Option<&[f64]>,
+        line: usize,
+    ) -> std::result::Result<Step<Self::Job>, String> {
+        self.0.solve(pose, previous, line).map(Step::Done)
+    }
+    fn commit(
+        &mut self,
+        _: &Pose,
+        job: &Self::Job,
+        _: usize,
+    ) -> std::result::Result<SolvedPose, String> {
+        match *job {}
+    }
+}
+
+/// One unit of a chunk after the first pass.
+enum Entry {
+    /// Bytes written (a range of the chunk's text buffer).
+    Text(usize, usize),
+    /// A pose to commit (the chunk's jobs are in the same order).
+    Pose,
+}
+
+/// A pose of a chunk between the passes.
+pub struct Job<P, J> {
+    /// Index of its unit in the chunk.
+    unit: usize,
+    /// The converter's half-done pose.
+    pub pending: P,
+    /// The stage's work.
+    pub job: J,
+}
+
+/// A chunk between the stages.
+struct Chunk<F: Format, J> {
+    units: Vec<F::Unit>,
+    /// How many of `units` are the chunk's (the rest are kept buffers).
+    count: usize,
+    text: Vec<u8>,
+    entries: Vec<Entry>,
+    jobs: Vec<Job<F::Pending, J>>,
+    /// The first pass stopped at an error (raised once the units before it
+    /// are written).
+    stop: Option<Error>,
+}
+
+impl<F: Format, J> Default for Chunk<F, J> {
+    fn default() -> Self {
+        Chunk {
+            units: Vec::new(),
+            count: 0,
+            text: Vec::new(),
+            entries: Vec::new(),
+            jobs: Vec::new(),
+            stop: None,
+        }
+    }
+}
+
+/// Converts a program with `format`, its units read by `read` (in order,
+/// on this thread; the unit's size in bytes, `None` at the end), doing
+/// `stage` for each pose and `work` on each of the stage's jobs in
+/// parallel, writing to `out`; the result is the same for any number of
+/// threads. `after_chunk` runs on this thread after each chunk is written
+/// (`compensate` hands its records on there); `progress` gets the bytes read.
+///
+/// The program goes through in chunks of [`CHUNK_UNITS`] units, each in
+/// four stages:
+///
+/// 1. its units are read (this thread: the input and, for APT CL, the
+///    reader and lowering keep state from unit to unit) and prepared (a pool
+///    task; G-code lines are parsed);
+/// 2. one pass in order (a pool task) applies the modal state and runs
+///    [`Stage::first`] on each pose (branch choice and rotary unwinding
+///    need the order); a pose solved there is converted at once;
+/// 3. `work` runs on the stage's jobs, independent per pose, in parallel;
+/// 4. a last pass in order (the same task as stage 2, before it) commits
+///    the jobs ([`Stage::commit`]) and converts them; this thread writes the
+///    chunk.
+///
+/// The stages are pipelined: while the pool works on chunk *k* (stage 3)
+/// and prepares chunk *k + 2* (stage 1), one pool task converts chunk
+/// *k − 1* (stage 4) and runs the first pass of chunk *k + 1* (stage 2),
+/// and this thread reads chunk *k + 3*, then joins the pool; at most five
+/// chunks are alive.
+#[allow(clippy::too_many_arguments)]
+pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
+    mut format: F,
+    mut read: impl FnMut(&mut F::Unit) -> Result<Option<usize>>,
+    stage: &mut S,
+    work: &(dyn Fn(&Pose, &mut S::Job) + Sync),
+    mut after_chunk: impl FnMut(&mut S) -> Result<()>,
+    out: &mut W,
+    mut progress: impl FnMut(u64),
+) -> Result<PostStats> {
+    use rayon::prelude::*;
+    let mut bytes_read = 0u64;
+    let mut buf = Vec::new();
+    let mut eof = false;
+    // Reads the next chunk's units into `c` (this thread).
+    let mut read_chunk = |c: &mut Chunk<F, S::Job>| -> Result<()> {
+        c.count = 0;
+        while c.count < CHUNK_UNITS && !eof {
+            if c.units.len() == c.count {
+                c.units.push(Default::default());
+            }
+            match read(&mut c.units[c.count])? {
+                Some(n) => {
+                    c.count += 1;
+                    bytes_read += n as u64;
+                }
+                None => eof = true,
+            }
+        }
+        progress(bytes_read);
+        Ok(())
+    };
+
+    let mut spare: Vec<Chunk<F, S::Job>> = Vec::new();
+    let mut reading: Chunk<F, S::Job> = Chunk::default();
+    read_chunk(&mut reading)?;
+    let mut prepared: Option<Chunk<F, S::Job>> = (reading.count > 0).then(|| {
+        reading.units[..reading.count]
+            .iter_mut()
+            .for_each(F::prepare);
+        std::mem::take(&mut reading)
+    });
+    read_chunk(&mut reading)?;
+    let mut current: Option<Chunk<F, S::Job>> = None;
+    let mut previous: Option<Chunk<F, S::Job>> = None;
+    let mut stopped = false;
+    while prepared.is_some() || current.is_some() || previous.is_some() {
+        let mut to_prepare = (reading.count > 0 && !stopped).then(|| std::mem::take(&mut reading));
+        let mut next_reading = spare.pop().unwrap_or_default();
+        let mut written: Result<()> = Ok(());
+        let mut next: Option<Chunk<F, S::Job>> = None;
+        let mut read_result: Result<()> = Ok(());
+        buf.clear();
+        rayon::in_place_scope(|scope| {
+            // The in-order task first: it is the pipeline's critical path,
+            // and the pool's other threads take the oldest task first.
+            {
+                let (format, stage, buf) = (&mut format, &mut *stage, &mut buf);
+                let (previous, prepared) = (&mut previous, &mut prepared);
+                let (written, next) = (&mut written, &mut next);
+                let stopped = stopped;
+                scope.spawn(move |_| {
+                    if let Some(p) = previous.as_mut() {
+                        *written = write(format, stage, p, buf);
+                    }
+                    if written.is_ok()
+                        && !stopped
+                        && let Some(mut c) = prepared.take()
+                    {
+                        first_pass(format, stage, &mut c);
+                        *next = Some(c);
+                    }
+                });
+            }
+            if let Some(c) = current.as_mut()
+                && !c.jobs.is_empty()
+            {
+                let jobs = &mut c.jobs;
+                scope.spawn(move |_| {
+                    jobs.par_iter_mut()
+                        .for_each(|j| work(F::pose(&j.pending), &mut j.job))
+                });
+            }
+            if let Some(c) = to_prepare.as_mut() {
+                let units = &mut c.units[..c.count];
+                scope.spawn(move |_| units.iter_mut().for_each(F::prepare));
+            }
+            // Read the chunk after while the pool works.
+            if !stopped {
+                read_result = read_chunk(&mut next_reading);
+            }
+        });
+        if let Some(p) = previous.take() {
+            spare.push(p);
+            out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
+            after_chunk(stage)?;
+            written?;
+        }
+        // No chunk after one whose first pass stopped.
+        stopped |= next.as_ref().is_some_and(|c| c.stop.is_some());
+        if !stopped {
+            read_result?;
+        }
+        previous = current.take();
+        current = next;
+        prepared = if stopped { None } else { to_prepare };
+        reading = next_reading;
+    }
+    buf.clear();
+    format.end(&mut buf);
+    out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
+    Ok(format.stats())
+}
+
+/// Stage 2 of a prepared chunk: the modal state and [`Stage::first`] of
+/// each unit, in order; a pose solved there converted at once.
+fn first_pass<F: Format, S: Stage>(format: &mut F, stage: &mut S, c: &mut Chunk<F, S::Job>) {
+    for i in 0..c.count {
+        if let Some(ahead) = c.units[..c.count].get(i + PREFETCH_AHEAD) {
+            F::prefetch(ahead);
+        }
+        let unit = &mut c.units[i];
+        let start = c.text.len();
+        let pending = match format.begin(unit, &mut c.text) {
+            Err(e) => {
+                c.stop = Some(e);
+                return;
+            }
+            Ok(None) => {
+                c.entries.push(Entry::Text(start, c.text.len()));
+                continue;
+            }
+            Ok(Some(p)) => p,
+        };
+        let unit = &c.units[i];
+        let step = stage.first(F::pose(&pending), format.previous(), F::line(unit));
+        let done = match step {
+            Err(m) => Err(format.solve_error(unit, &pending, m)),
+            Ok(Step::Done(solved)) => format.finish(unit, &pending, &solved, &mut c.text),
+            Ok(Step::Later(job)) => {
+                c.entries.push(Entry::Pose);
+                c.jobs.push(Job {
+                    unit: i,
+                    pending,
+                    job,
+                });
+                continue;
+            }
+        };
+        match done {
+            Ok(()) => c.entries.push(Entry::Text(start, c.text.len())),
+            Err(e) => {
+                c.stop = Some(e);
+                return;
+            }
+        }
+    }
+}
+
+/// Stage 4 of a worked chunk, into `buf`: the text of its units, the jobs
+/// committed and converted in order; its first-pass error, if any, after
+/// its units are converted. The chunk's buffers are kept for the next.
+fn write<F: Format, S: Stage>(
+    format: &mut F,
+    stage: &mut S,
+    c: &mut Chunk<F, S::Job>,
+    buf: &mut Vec<u8>,
+) -> Result<()> {
+    let mut jobs = c.jobs.iter().enumerate();
+    for entry in &c.entries {
+        match *entry {
+            Entry::Text(a, b) => buf.extend_from_slice(&c.text[a..b]),
+            Entry::Pose => {
+                let (j, job) = jobs.next().expect("one job per pose entry");
+                // The work was done on other cores.
+                if let Some(ahead) = c.jobs.get(j + PREFETCH_AHEAD) {
+                    prefetch_bytes(ahead);
+                }
+                let unit = &c.units[job.unit];
+                let converted = stage
+                    .commit(F::pose(&job.pending), &job.job, F::line(unit))
+                    .map_err(|m| format.solve_error(unit, &job.pending, m))
+                    .and_then(|solved| format.finish(unit, &job.pending, &solved, buf));
+                if let Err(e) = converted {
+                    // Nothing of a chunk that fails here is written.
+                    buf.clear();
+                    return Err(e);
+                }
+            }
+        }
+    }
+    c.text.clear();
+    c.entries.clear();
+    c.jobs.clear();
+    match c.stop.take() {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
