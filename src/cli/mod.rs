@@ -565,11 +565,6 @@ fn post(a: PostArgs) -> Result<()> {
         inverse_time: a.feed == FeedArg::InverseTime,
         tool_machines: machines,
     };
-    if opts.inverse_time && kind == InputKind::Cl {
-        return Err(Error::Usage(
-            "--feed inverse-time is for G-code pose programs: APT CL input is not converted to inverse time".into(),
-        ));
-    }
     let mut progress = RunProgress::new(inp.size, a.quiet, "post");
     let stats = write_atomically(a.output.as_deref(), |out| {
         if kind == InputKind::Cl {

@@ -41,6 +41,11 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     let mut motion_written: Option<u8> = None;
     let mut plane_written: Option<u8> = None;
     let mut bytes_read = 0u64;
+    // `--feed inverse-time`: the feed is per revolution (no conversion),
+    // the output is in G93, the last programmed tool tip (mm).
+    let mut per_rev = false;
+    let mut g93 = false;
+    let mut last_tip: Option<Vector3<f64>> = None;
     writeln!(
         out,
         "(kinpost: APT CL {} for machine {})",
@@ -60,6 +65,18 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     let mut pending: std::collections::VecDeque<crate::cl::ClRecord> = Default::default();
     while let Some(record) = pending.pop_front().map(Ok).or_else(|| records.next()) {
         let record = record?;
+        // Back to G94 before anything but a straight move in pose order
+        // (an arc, a hole, the end): it keeps the programmed feed.
+        if g93
+            && matches!(
+                record.statement,
+                ClStatement::Arc(_) | ClStatement::Hole(_) | ClStatement::End
+            )
+        {
+            writeln!(out, "G94").map_err(io)?;
+            g93 = false;
+            feed_written = None;
+        }
         stats.lines += 1;
         bytes_read += record.text.len() as u64;
         progress(bytes_read);
@@ -121,20 +138,53 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                     .map_err(|m| Error::input(loc.clone(), m))?;
                 let motion = if rapid_next { 0 } else { 1 };
                 rapid_next = false;
+                // Inverse time: a feed move per minute that turns a rotary
+                // axis and moves the tip lasts tip path / feed.
+                let inverse_f = match (opts.inverse_time, motion, per_rev, feed, &previous) {
+                    (true, 1, false, Some(f), Some(p)) => {
+                        let turns = machine
+                            .chain
+                            .joints()
+                            .iter()
+                            .zip(p.iter().zip(&solved.q))
+                            .any(|(j, (a, b))| {
+                                j.kind == crate::machine::JointKind::Revolute
+                                    && (a - b).abs() > 1e-12
+                            });
+                        let path = last_tip.map_or(0.0, |t| (tip - t).norm());
+                        (turns && path > crate::program::inverse_time::MIN_TIP_PATH_MM)
+                            .then(|| f / path)
+                    }
+                    _ => None,
+                };
                 let mut block = String::new();
+                match (inverse_f, g93) {
+                    (Some(_), false) => block.push_str("G93 "),
+                    (None, true) => {
+                        block.push_str("G94 ");
+                        feed_written = None;
+                    }
+                    _ => {}
+                }
+                g93 = inverse_f.is_some();
                 if motion_written != Some(motion) {
                     block.push_str(if motion == 0 { "G0 " } else { "G1 " });
                     motion_written = Some(motion);
                 }
                 // Axis names and digits: ASCII.
                 block.push_str(std::str::from_utf8(words).unwrap_or_default());
-                if motion == 1 && feed.is_some() && feed != feed_written {
+                if let Some(f93) = inverse_f {
+                    block.push_str(" F");
+                    block.push_str(&crate::program::inverse_time::feed_text(f93));
+                    feed_written = None;
+                } else if motion == 1 && feed.is_some() && feed != feed_written {
                     block.push_str(" F");
                     cl_motion::push_number(&mut block, feed.unwrap_or(0.0));
                     feed_written = feed;
                 }
                 writeln!(out, "{}", block.trim_end()).map_err(io)?;
                 previous = Some(solved.q);
+                last_tip = Some(tip);
             }
             ClStatement::Fedrat { value, unit } => {
                 feed = Some(match unit {
@@ -142,7 +192,8 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                     FeedUnit::Unspecified => value * units.mm_per_unit(),
                     _ => *value,
                 });
-                if matches!(unit, FeedUnit::Mmpr | FeedUnit::Ipr) {
+                per_rev = matches!(unit, FeedUnit::Mmpr | FeedUnit::Ipr);
+                if per_rev {
                     writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?;
                 }
             }
@@ -216,6 +267,7 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                 axis = Vector3::from(arc.tool_axis);
                 stats.poses += 1;
                 previous = Some(plan.q_end);
+                last_tip = Some(Vector3::from(arc.end) * scale);
             }
             ClStatement::Hole(hole) => {
                 let scale = units.mm_per_unit();
@@ -239,6 +291,12 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                         axis = Vector3::from(hole.axis);
                         stats.poses += 1;
                         previous = Some(plan.q_after(hole));
+                        let after = if hole.retract_to_r {
+                            hole.r_plane
+                        } else {
+                            hole.clear
+                        };
+                        last_tip = Some(Vector3::from(after) * scale);
                         let after = hole.feed_after.iter().cloned();
                         cl_motion::put_back(&mut pending, &record, after);
                     }
@@ -262,6 +320,9 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
                 }
             }
         }
+    }
+    if g93 {
+        writeln!(out, "G94").map_err(io)?;
     }
     Ok(stats)
 }

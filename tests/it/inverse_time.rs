@@ -5,7 +5,6 @@
 //! the programmed feed, the path computed here from the programmed poses.
 
 use std::collections::HashMap;
-use std::path::Path;
 use std::process::Command;
 
 use crate::util::BIN;
@@ -191,16 +190,110 @@ fn the_tool_tip_keeps_the_programmed_feed() {
     );
 }
 
+/// The same poses as APT CL (`GOTO/x,y,z,i,j,k`, `FEDRAT/MMPM`, `RAPID`),
+/// posted with `--feed inverse-time` and followed as a controller runs it:
+/// the pose blocks come in the order of the `GOTO`s.
 #[test]
-fn inverse_time_is_refused_for_apt_cl() {
-    let cls = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/programs/zhao2022-xzbc.cls");
+fn apt_cl_keeps_the_programmed_tip_feed_too() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, poses) = program();
+    let mut cl = String::from("UNITS/MM\nMULTAX/ON\n");
+    let mut feed = None;
+    let mut axis = [0.0f64, 0.0, 1.0];
+    let (text, _) = program();
+    for (line, p) in text.lines().filter(|l| l.starts_with('N')).zip(&poses) {
+        let w = words(line);
+        axis = [
+            w.get("I").copied().unwrap_or(axis[0]),
+            w.get("J").copied().unwrap_or(axis[1]),
+            w.get("K").copied().unwrap_or(axis[2]),
+        ];
+        if p.2 {
+            cl.push_str("RAPID\n");
+        } else if feed != Some(p.3) {
+            cl.push_str(&format!("FEDRAT/MMPM,{}\n", p.3));
+            feed = Some(p.3);
+        }
+        cl.push_str(&format!(
+            "GOTO/{:.6},{:.6},{:.6},{:.9},{:.9},{:.9}\n",
+            p.1[0], p.1[1], p.1[2], axis[0], axis[1], axis[2]
+        ));
+    }
+    cl.push_str("FINI\n");
+    let path = dir.path().join("p.cls");
+    std::fs::write(&path, &cl).unwrap();
     let out = Command::new(BIN)
-        .args(["post", "--feed", "inverse-time"])
-        .arg(&cls)
+        .args([
+            "post",
+            "-m",
+            "xyzac-trt",
+            "--decimals",
+            "9",
+            "-q",
+            "--feed",
+            "inverse-time",
+        ])
+        .arg(&path)
         .output()
         .unwrap();
-    assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("inverse-time"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = String::from_utf8(out.stdout).unwrap();
+    let mut blocks = poses.iter();
+    let (mut inverse, mut f_modal) = (false, None::<f64>);
+    let (mut last_axes, mut last_tip) = (None::<(f64, f64)>, None::<[f64; 3]>);
+    let (mut converted, mut kept) = (0, 0);
+    for line in out.lines() {
+        let w = words(line);
+        if w.contains_key("G93") {
+            inverse = true;
+        }
+        if w.contains_key("G94") {
+            inverse = false;
+        }
+        if let Some(f) = w.get("F") {
+            f_modal = Some(*f);
+        }
+        if !w.contains_key("X") {
+            continue;
+        }
+        let &(_, tip, rapid, feed) = blocks.next().expect("one block per GOTO");
+        let axes = (w["A"], w["C"]);
+        let rotary =
+            last_axes.is_some_and(|a| (a.0 - axes.0).abs() > 1e-7 || (a.1 - axes.1).abs() > 1e-7);
+        let length = last_tip.map(|s| {
+            ((tip[0] - s[0]).powi(2) + (tip[1] - s[1]).powi(2) + (tip[2] - s[2]).powi(2)).sqrt()
+        });
+        if !rapid && rotary && length.is_some_and(|l| l > 1e-6) {
+            assert!(inverse, "not in G93: {line}");
+            let l = length.unwrap();
+            let time = 1.0 / f_modal.unwrap();
+            assert!(
+                (feed * time - l).abs() < 1e-7 * l.max(1.0),
+                "F·t {} vs {l}: {line}",
+                feed * time
+            );
+            assert!(w.contains_key("F"), "G93 needs F on every block: {line}");
+            converted += 1;
+        } else {
+            assert!(!inverse, "left in G93: {line}");
+            if !rapid {
+                assert_eq!(f_modal, Some(feed), "{line}");
+            }
+            kept += 1;
+        }
+        last_axes = Some(axes);
+        last_tip = Some(tip);
+    }
+    assert!(blocks.next().is_none(), "{out}");
+    assert!(!inverse, "the program ends in G93:\n{out}");
+    assert!(
+        converted >= 25 && kept >= 8,
+        "converted {converted}, kept {kept}"
+    );
 }
 
 #[test]
