@@ -2,10 +2,56 @@
 //! (compensation steps, the linear axes of the IK): Householder QR of a tall
 //! m×k matrix with m ≤ 7 rows and k ≤ 6 columns, least squares and
 //! minimum-norm solutions, and a condition estimate so that callers can fall
-//! back to an SVD when a problem is ill-conditioned.
+//! back to an SVD when a problem is ill-conditioned; and [`rank`], the one
+//! rank policy every module follows.
 
 // Dense matrix code reads best with explicit row and column indices.
 #![allow(clippy::needless_range_loop)]
+
+/// The rank policy: where a matrix is treated as rank-deficient. Every
+/// pseudo-inverse, SVD solve and dependence test of the crate takes its
+/// cut-off from here, by the role of the matrix:
+///
+/// | role | matrix | a singular value σ counts as zero when |
+/// | --- | --- | --- |
+/// | [`rank::JACOBIAN`] | a kinematic Jacobian (compensation step, the paper's stacked step) | σ ≤ 1e-12 · max(m, n) · σ_max (LAPACK's rule, ε·max(m,n), with a margin of about 4500) |
+/// | [`rank::TIP_SYSTEM_MM`] | a tip system `J δ = r` in mm per mm or rad (the joints free at a bound, the linear axes of a linkage point, the generic IK's Newton step) | σ ≤ 1e-12 mm, absolute: below it a step moves the tip by less than the rounding of its coordinates |
+/// | [`rank::FIT`] | a least-squares fit of measured data (B-spline design matrix; the normal matrix of a diagnosis, scaled to unit diagonal, whose eigenvalues are squared singular values) | σ (or λ) ≤ 1e-10 · σ_max (λ_max): noise in the data makes smaller directions meaningless |
+/// | [`rank::DEPENDENT_AXES`] | the directions of a machine's linear axes | σ_min ≤ 1e-9 · max(σ_max, 1): the axes do not span the space |
+/// | [`rank::DAMPED_FLOOR`] | a Marquardt-damped system (the generic IK's Levenberg–Marquardt step: full rank by its damping) | σ ≤ 1e-15, absolute: a floor against exact zeros only |
+/// | [`rank::CONDITION_LIMIT`] | the stack QR and Gram paths of the Newton step | condition estimate above 1e8: the SVD path decides instead |
+///
+/// The tolerances differ by role, not by accident: a Jacobian's
+/// singular values are exact up to rounding, a fit's only up to the noise
+/// of the data. Each has a test at its site.
+pub mod rank {
+    /// Relative cut-off per dimension for kinematic Jacobians.
+    pub const JACOBIAN: f64 = 1e-12;
+    /// Absolute cut-off (mm) for tip systems in mm per mm or rad.
+    pub const TIP_SYSTEM_MM: f64 = 1e-12;
+    /// Relative cut-off for fits of measured data.
+    pub const FIT: f64 = 1e-10;
+    /// Absolute floor for Marquardt-damped systems.
+    pub const DAMPED_FLOOR: f64 = 1e-15;
+    /// Relative test of dependent linear axes.
+    pub const DEPENDENT_AXES: f64 = 1e-9;
+    /// Condition estimate above which a stack factorisation hands over to
+    /// the SVD.
+    pub const CONDITION_LIMIT: f64 = 1e8;
+
+    /// The cut-off for a Jacobian of `rows × cols` whose largest singular
+    /// value is `smax` ([`JACOBIAN`]), never below the smallest positive
+    /// number.
+    pub fn jacobian_cutoff(smax: f64, rows: usize, cols: usize) -> f64 {
+        (smax * JACOBIAN * rows.max(cols) as f64).max(f64::MIN_POSITIVE)
+    }
+
+    /// The cut-off for a fit whose largest singular value (or eigenvalue of
+    /// its scaled normal matrix) is `largest` ([`FIT`]).
+    pub fn fit_cutoff(largest: f64) -> f64 {
+        FIT * largest
+    }
+}
 
 /// Largest number of rows.
 pub const ROWS: usize = 7;

@@ -323,7 +323,10 @@ pub(super) fn refine_with(
             let step = if free.is_empty() {
                 None
             } else {
-                jf.clone().svd(true, true).solve(&rv, 1e-12).ok()
+                jf.clone()
+                    .svd(true, true)
+                    .solve(&rv, crate::linalg::rank::TIP_SYSTEM_MM)
+                    .ok()
             };
             let removable = step.as_ref().map_or(0.0, |s| (&jf * s).norm());
             let gain = rn - (rn * rn - removable * removable).max(0.0).sqrt();

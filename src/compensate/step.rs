@@ -52,8 +52,8 @@ pub(super) fn residual(target: &Pose, p: &Pose) -> (Vector3<f64>, Vector3<f64>) 
 pub(super) fn pinv(m: &DMatrix<f64>) -> DMatrix<f64> {
     let svd = m.clone().svd(true, true);
     let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
-    let eps = smax * 1e-12 * (m.nrows().max(m.ncols()) as f64);
-    svd.pseudo_inverse(eps.max(f64::MIN_POSITIVE))
+    let eps = crate::linalg::rank::jacobian_cutoff(smax, m.nrows(), m.ncols());
+    svd.pseudo_inverse(eps)
         .unwrap_or_else(|_| DMatrix::zeros(m.ncols(), m.nrows()))
 }
 
@@ -85,12 +85,12 @@ pub(super) type Joints = [f64; MAX_JOINTS];
 
 /// Largest condition estimate of the Gram matrix `(J_p S)(J_p S)ᵀ` for
 /// the closed-form tip step ([`Factored::factor_gram`]); above it the QR path.
-pub(super) const GRAM_CONDITION_LIMIT: f64 = 1e8;
+pub(super) const GRAM_CONDITION_LIMIT: f64 = crate::linalg::rank::CONDITION_LIMIT;
 
 /// Problems whose (small) matrices have a condition number above this are
 /// handed to the SVD path; below it the Householder QR solution is accurate
 /// to far better than the next Newton step needs.
-pub(super) const QR_CONDITION_LIMIT: f64 = 1e8;
+pub(super) const QR_CONDITION_LIMIT: f64 = crate::linalg::rank::CONDITION_LIMIT;
 
 /// Smallest damping (in decades from 1e-6) of the tip step `S (J S)ᵀ ((J S)
 /// (J S)ᵀ + λ² I)⁻¹ r` that keeps it within `caps`, starting from the

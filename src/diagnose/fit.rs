@@ -380,7 +380,7 @@ pub fn pinv_sym(m: &DMatrix<f64>) -> DMatrix<f64> {
     let scaled = DMatrix::from_fn(n, n, |a, b| m[(a, b)] * d[a] * d[b]);
     let e = scaled.symmetric_eigen();
     let max = e.eigenvalues.iter().fold(0.0f64, |a, &b| a.max(b.abs()));
-    let cut = max * 1e-10;
+    let cut = crate::linalg::rank::fit_cutoff(max);
     let mut inv = DMatrix::zeros(n, n);
     for k in 0..n {
         let l = e.eigenvalues[k];

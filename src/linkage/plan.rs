@@ -103,7 +103,7 @@ pub fn solve_linears(
         let rhs = DVector::from_column_slice(r.as_slice());
         let svd = j.svd(true, true);
         let d = svd
-            .solve(&rhs, 1e-12)
+            .solve(&rhs, crate::linalg::rank::TIP_SYSTEM_MM)
             .map_err(|e| format!("linear axes cannot be solved: {e}"))?;
         for (k, &jn) in lin.iter().enumerate() {
             q[jn] += d[k];

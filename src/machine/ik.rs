@@ -728,7 +728,7 @@ impl IkSolver {
         let svd = a.svd(true, true);
         let smax = svd.singular_values.max();
         let smin = svd.singular_values.min();
-        if smin.is_nan() || smin <= 1e-9 * smax.max(1.0) {
+        if smin.is_nan() || smin <= crate::linalg::rank::DEPENDENT_AXES * smax.max(1.0) {
             return Err(dependent());
         }
         let x = svd.solve(&b, 0.0).map_err(failed)?;

@@ -105,7 +105,14 @@ fn restore_tip(
         *iterations += 1;
         let jt = DMatrix::from_fn(3, n, |i, k| j[(i, k)]);
         let rt = DVector::from_column_slice(rt.as_slice());
-        let Some(step) = bounded_step(&jt, &rt, &vec![0.0; n], &q, bounds, 1e-12) else {
+        let Some(step) = bounded_step(
+            &jt,
+            &rt,
+            &vec![0.0; n],
+            &q,
+            bounds,
+            crate::linalg::rank::TIP_SYSTEM_MM,
+        ) else {
             break;
         };
         let mut q_new = &q + &step;
@@ -208,7 +215,14 @@ pub fn solve(
         let damping: Vec<f64> = (0..n)
             .map(|k| mu.sqrt() * jw.column(k).norm().max(1e-9))
             .collect();
-        let Some(step) = bounded_step(&jw, &r, &damping, &q, bounds, 1e-15) else {
+        let Some(step) = bounded_step(
+            &jw,
+            &r,
+            &damping,
+            &q,
+            bounds,
+            crate::linalg::rank::DAMPED_FLOOR,
+        ) else {
             break;
         };
         let mut trial = &q + &step;

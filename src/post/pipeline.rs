@@ -87,7 +87,7 @@ pub trait Format: Send {
 pub enum Step<J> {
     /// Solved: written at once.
     Done(SolvedPose),
-    /// To be worked on in parallel ([`Stage::work`]) and committed in the
+    /// To be worked on in parallel (the driver's `work`, [`drive`]) and committed in the
     /// writing pass ([`Stage::commit`]).
     Later(J),
 }

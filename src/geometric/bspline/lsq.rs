@@ -99,11 +99,12 @@ fn solve_rows(
         }
         b[r] = w * g.mean[i];
     }
-    // Scale-aware rank tolerance: singular values below 1e-10 of the largest
-    // are treated as zero (minimum-norm solution for a deficient basis).
+    // The rank policy of a fit (`linalg::rank::FIT`): singular values below
+    // 1e-10 of the largest are treated as zero (minimum-norm solution for a
+    // deficient basis).
     let svd = a.svd(true, true);
     let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
-    let eps = 1e-10 * smax.max(f64::MIN_POSITIVE);
+    let eps = crate::linalg::rank::fit_cutoff(smax.max(f64::MIN_POSITIVE));
     let x = svd.solve(&b, eps).ok()?;
     let c: Vec<f64> = x.iter().copied().collect();
     if !c.iter().all(|v| v.is_finite()) {
