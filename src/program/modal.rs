@@ -278,6 +278,11 @@ impl ModalState {
                     tcp_codes.push(TcpCode::SiemensOn(*item));
                 }
                 "TRAFOOF" => self.pose_mode = false,
+                // Sinumerik motion modes of group 1 besides G0–G3: circles
+                // through an intermediate point or tangential, and splines.
+                // Modal, like G2: later blocks move along them too.
+                "CIP" | "CT" => self.motion = Motion::Arc,
+                "ASPLINE" | "BSPLINE" | "CSPLINE" | "POLY" => self.motion = Motion::Other,
                 // Sinumerik frames: their X Y Z are offsets, angles or
                 // factors, never a tool tip. Under TRAORI they would move
                 // every later pose, which kinpost does not fold in: refused
@@ -348,8 +353,10 @@ impl ModalState {
         if !straight {
             let item = words.iter().find(|w| is_tip(w.address)).map(|w| w.item);
             let what = match self.motion {
-                Motion::Arc => "circular interpolation (G2/G3)",
-                _ => "a canned cycle",
+                Motion::Arc => "circular interpolation (G2/G3; Sinumerik CIP, CT)",
+                _ => {
+                    "a canned cycle, a thread or a spline (G81–G89, G33, G5, Sinumerik ASPLINE, BSPLINE, CSPLINE, POLY)"
+                }
             };
             return Err(BlockError {
                 item,

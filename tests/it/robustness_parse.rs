@@ -123,3 +123,47 @@ fn a_file_cut_inside_a_pose_block_is_refused() {
     assert_eq!(code, 0);
     assert!(!err.contains("truncated"), "{err}");
 }
+
+/// Sinumerik circles (`CIP` through an intermediate point, `CT`
+/// tangential) and splines under TRAORI: before, the block's end point was
+/// converted and `CIP` kept, so the controller drew a circle in machine
+/// axes through an intermediate point given in the workpiece frame (exit
+/// 0). They are modal like G2: the next block without a motion word is
+/// refused too. Outside pose mode they pass through unchanged.
+#[test]
+fn sinumerik_circles_and_splines_in_pose_mode_are_refused() {
+    let start = "TRAORI\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\n";
+    for (name, rest, col_line) in [
+        (
+            "cip.mpf",
+            "CIP X20 Y10 Z5 I1=15 J1=5 K1=5\nTRAFOOF\nM30\n",
+            "cip.mpf:3:5:",
+        ),
+        ("ct.mpf", "CT X30 Y0 Z5\nTRAFOOF\nM30\n", "ct.mpf:3:4:"),
+        (
+            "spline.mpf",
+            "BSPLINE\nX20 Y10 Z5\nTRAFOOF\nM30\n",
+            "spline.mpf:4:1:",
+        ),
+    ] {
+        let (code, out, err) = post(name, format!("{start}{rest}").as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains(col_line), "{name}: {err}");
+        assert!(out.is_empty() || !String::from_utf8_lossy(&out).contains("CIP X20.0000"));
+    }
+    // Modal: a circle mode set before TRAORI still holds for a pose block
+    // without a motion word.
+    let (code, _, err) = post(
+        "modal.mpf",
+        b"G1 X0 Y0 Z5 F500\nCIP X20 Y10 Z5 I1=15 J1=5 K1=5\nTRAORI\nX30 Y0 Z5 A3=0 B3=0 C3=1\nTRAFOOF\nM30\n",
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("modal.mpf:4:1:") && err.contains("CIP"),
+        "{err}"
+    );
+    let plain = b"G1 X10 Y0 Z5 F500\nCIP X20 Y10 Z5 I1=15 J1=5 K1=5\nCT X30 Y0 Z5\nM30\n";
+    let (code, out, err) = post("plain.mpf", plain);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(out, plain);
+}
