@@ -45,6 +45,12 @@ pub enum Motion {
     Other,
 }
 
+/// Words that give the tool orientation, or something tied to it, in a
+/// pose block other than a tool vector; refused in pose mode.
+const ORIENTATION_WORDS: &[&str] = &[
+    "A", "B", "C", "A2", "B2", "C2", "A4", "B4", "C4", "A5", "B5", "C5", "LEAD", "TILT", "THETA",
+];
+
 /// Units of lengths in the program.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Units {
@@ -347,6 +353,35 @@ impl ModalState {
             warnings: Vec::new(),
             vector_deviation: 0.0,
         };
+        // The orientation given another way than by a tool vector: rotary
+        // axis positions (Fanuc G43.4 type 1, Sinumerik ORIAXES), Euler or
+        // RPY angles (A2 B2 C2), lead and tilt angles, the tool's rotation
+        // about itself, surface normals for 3-D tool compensation (A4 B4
+        // C4, A5 B5 C5). kinpost would keep the previous tool vector and
+        // add a second set of rotary words: refused instead.
+        if self.pose_mode
+            && !non_modal
+            && let Some(w) = words
+                .iter()
+                .find(|w| ORIENTATION_WORDS.contains(&w.address))
+        {
+            return Err(BlockError {
+                item: Some(w.item),
+                message: format!(
+                    "`{}` gives the tool orientation another way than by a tool vector ({}): not converted; give the tool vector as I J K (G43.5 / LinuxCNC) or A3 B3 C3 (Sinumerik ORIVECT) in the CAM post",
+                    w.address,
+                    match w.address {
+                        "A" | "B" | "C" =>
+                            "a rotary axis position, as in Fanuc G43.4 type 1 or Sinumerik ORIAXES",
+                        "A2" | "B2" | "C2" => "Euler or RPY angles",
+                        "LEAD" | "TILT" => "lead and tilt angles",
+                        "THETA" => "a rotation of the tool about itself",
+                        _ => "a surface normal for 3-D tool compensation",
+                    }
+                ),
+            });
+        }
+
         if !self.pose_mode || non_modal || !(has_tip || has_axis) {
             return Ok(meaning);
         }

@@ -167,3 +167,51 @@ fn sinumerik_circles_and_splines_in_pose_mode_are_refused() {
     assert_eq!(code, 0, "{err}");
     assert_eq!(out, plain);
 }
+
+/// Orientation given another way than by a tool vector in pose mode:
+/// rotary axis positions (Fanuc G43.4 type 1, Sinumerik ORIAXES), Euler
+/// angles, lead and tilt, surface normals. Before: the previous tool
+/// vector was kept and a second set of rotary words appended
+/// (`A0.0000 C0.0000 A30 C10`), exit 0; a block turning A alone passed
+/// through, so the controller turned A without holding the tip.
+#[test]
+fn an_orientation_not_given_as_a_tool_vector_is_refused() {
+    let start = "TRAORI\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\n";
+    for (name, block, at, word) in [
+        ("axes.mpf", "G1 X20 Y0 Z5 A30 C10", "axes.mpf:3:14:", "`A`"),
+        ("alone.mpf", "G1 A30", "alone.mpf:3:4:", "`A`"),
+        (
+            "euler.mpf",
+            "G1 X30 Y0 Z5 A2=10 B2=20 C2=0",
+            "euler.mpf:3:14:",
+            "`A2`",
+        ),
+        (
+            "lead.mpf",
+            "G1 X20 Y0 Z5 LEAD=10 TILT=5",
+            "lead.mpf:3:14:",
+            "`LEAD`",
+        ),
+        (
+            "normal.mpf",
+            "G1 X40 Y0 Z5 A3=0 B3=0 C3=1 A5=0 B5=0 C5=1",
+            "normal.mpf:3:29:",
+            "`A5`",
+        ),
+    ] {
+        let (code, out, err) = post(name, format!("{start}{block}\nTRAFOOF\nM30\n").as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains(at) && err.contains(word), "{name}: {err}");
+        assert!(!String::from_utf8_lossy(&out).contains("A30"), "{name}");
+    }
+    // Fanuc G43.4 with rotary positions.
+    let (code, _, err) = post(
+        "fanuc.ngc",
+        b"G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\nG1 X20 B30 C10\nG49\nM30\n",
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("fanuc.ngc:3:8:") && err.contains("`B`"),
+        "{err}"
+    );
+}
