@@ -359,6 +359,34 @@ impl ModalState {
         // about itself, surface normals for 3-D tool compensation (A4 B4
         // C4, A5 B5 C5). kinpost would keep the previous tool vector and
         // add a second set of rotary words: refused instead.
+        // A subprogram or macro call moves the tool in a way kinpost cannot
+        // see (Fanuc M98/M198/G65/G66, Sinumerik CALL/PCALL/MCALL/EXTCALL).
+        if self.pose_mode {
+            let call = words
+                .iter()
+                .find(|w| {
+                    (w.address == "M" && (w.value == 98.0 || w.value == 198.0))
+                        || (w.address == "G"
+                            && [65.0, 66.0, 66.1]
+                                .iter()
+                                .any(|g| (w.value - g).abs() < 1e-9))
+                })
+                .map(|w| (w.item, format!("{}{}", w.address, w.value)))
+                .or_else(|| {
+                    keywords
+                        .iter()
+                        .find(|(_, k)| matches!(*k, "CALL" | "PCALL" | "MCALL" | "EXTCALL"))
+                        .map(|(i, k)| (*i, k.to_string()))
+                });
+            if let Some((item, what)) = call {
+                return Err(BlockError {
+                    item: Some(item),
+                    message: format!(
+                        "a subprogram or macro call ({what}) in pose mode is not converted: kinpost cannot see what it moves; call it outside TRAORI / G43.4, or have the CAM system write its moves"
+                    ),
+                });
+            }
+        }
         if self.pose_mode
             && !non_modal
             && let Some(w) = words

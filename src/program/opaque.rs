@@ -21,6 +21,17 @@ pub fn describe_opaque(bytes: &[u8]) -> String {
             quote(&crate::error::visible(text))
         );
     }
+    if let Some(name) = call_name(text) {
+        return format!(
+            "a cycle or subprogram call (`{}`) in pose mode is not converted: kinpost cannot see what it moves{}; call it outside TRAORI / G43.4, or have the CAM system write its moves",
+            quote(&name),
+            if name.eq_ignore_ascii_case("CYCLE800") {
+                " (CYCLE800 swivels the work plane)"
+            } else {
+                ""
+            }
+        );
+    }
     if text.trim_start().starts_with('(') && !text.contains(')') {
         return format!(
             "unclosed comment `{}`: a `(` without its `)`; in a block that must be converted it would hide the words after it",
@@ -142,6 +153,7 @@ pub fn opaque_in_pose_block(
     line.items.iter().position(|it| {
         matches!(it.kind, ItemKind::Opaque)
             && (is_pose
+                || call_name(&String::from_utf8_lossy(line.item_bytes(it))).is_some()
                 || line.item_bytes(it).iter().any(|b| {
                     matches!(
                         b.to_ascii_uppercase(),
@@ -149,6 +161,19 @@ pub fn opaque_in_pose_block(
                     )
                 }))
     })
+}
+
+/// The name of a Sinumerik-style call, `NAME(…)` (`CYCLE800(1,…)`): a
+/// letter, then letters, digits or `_`, at least two characters, then `(`.
+fn call_name(text: &str) -> Option<String> {
+    let t = text.trim_start();
+    let name: String = t
+        .chars()
+        .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+        .collect();
+    let first_letter = name.chars().next().is_some_and(|c| c.is_ascii_alphabetic());
+    (first_letter && name.len() >= 2 && t[name.len()..].trim_start().starts_with('('))
+        .then_some(name)
 }
 
 /// Whether unreadable text holds a tool-vector word: `I`, `J` or `K`

@@ -366,7 +366,9 @@ fn arc_in_pose_mode() {
     expect(
         &r,
         1,
-        &["p.nc:2:4: circular interpolation (G2/G3; Sinumerik CIP, CT) cannot be converted in pose mode"],
+        &[
+            "p.nc:2:4: circular interpolation (G2/G3; Sinumerik CIP, CT) cannot be converted in pose mode",
+        ],
     );
 }
 

@@ -215,3 +215,40 @@ fn an_orientation_not_given_as_a_tool_vector_is_refused() {
         "{err}"
     );
 }
+
+/// Cycle and subprogram calls in pose mode move the tool in a way kinpost
+/// cannot see: refused at the call, naming it (before: `CYCLE800(…)` was
+/// refused only because its name holds a `Y`, with "the word CYCLE has no
+/// number"; `M98 P1000` and `MYSUB(1,2)` passed with exit 0). Outside pose
+/// mode they pass through unchanged.
+#[test]
+fn calls_in_pose_mode_are_refused_by_name() {
+    let pose = "TRAORI\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\n";
+    for (name, text, want) in [
+        (
+            "c800.mpf",
+            format!(
+                "{pose}CYCLE800(1,\"TABLE\",200000,57,0,0,0,0,0,0,0,0,0,-1,100,1)\nTRAFOOF\nM30\n"
+            ),
+            "c800.mpf:3:1: a cycle or subprogram call (`CYCLE800`)",
+        ),
+        (
+            "sub.mpf",
+            format!("{pose}MYSUB(1,2)\nTRAFOOF\nM30\n"),
+            "sub.mpf:3:1: a cycle or subprogram call (`MYSUB`)",
+        ),
+        (
+            "m98.ngc",
+            "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\nM98 P1000\nG49\nM30\n".to_string(),
+            "m98.ngc:3:1: a subprogram or macro call (M98)",
+        ),
+    ] {
+        let (code, _, err) = post(name, text.as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains(want), "{name}: {err}");
+    }
+    let plain = b"G1 X10 Y0 Z5 F500\nCYCLE800(1,\"TABLE\",200000,57,0,0,0,0,0,0,0,0,0,-1,100,1)\nM98 P1000\nM30\n";
+    let (code, out, err) = post("plain.mpf", plain);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(out, plain);
+}
