@@ -223,6 +223,9 @@ impl ModalState {
         let mut feed_item = None;
         let mut fanuc_tcp_here = false;
         let mut frame = None;
+        // A block that changes the coordinate system, or goes home, in pose
+        // mode: its item and what it does.
+        let mut setup: Option<(usize, &str)> = None;
         let lathe_cycle = words.iter().any(|w| w.address == "Q");
         for w in words {
             match w.address {
@@ -263,7 +266,28 @@ impl ModalState {
                             tcp_codes.push(TcpCode::FanucOn(w.item));
                         }
                         490 => self.pose_mode = false,
-                        40 | 100 | 280 | 300 | 520 | 530 | 920 => non_modal = true,
+                        // Offsets and coordinate systems: under the poses
+                        // they would move kinpost's machine axis words.
+                        100 | 520 | 920..=923 => {
+                            non_modal = true;
+                            setup = setup.or(Some((w.item, "changes the coordinate system the poses are given in (G10, G52, G92)")));
+                        }
+                        540..=590 | 591..=593 | 5000..=5990 => {
+                            setup = setup.or(Some((
+                                w.item,
+                                "changes the work offset (G54–G59.3, Sinumerik G500–G599)",
+                            )));
+                        }
+                        280 | 300 => {
+                            non_modal = true;
+                            if words
+                                .iter()
+                                .any(|o| matches!(o.address, "X" | "Y" | "Z" | "A" | "B" | "C"))
+                            {
+                                setup = setup.or(Some((w.item, "moves home through an intermediate point (G28/G30 with axis words) that kinpost would have to convert")));
+                            }
+                        }
+                        40 | 530 => non_modal = true,
                         _ => {}
                     }
                 }
@@ -313,6 +337,16 @@ impl ModalState {
         let has_tip = words.iter().any(|w| is_tip(w.address));
         let has_axis = words.iter().any(|w| is_axis(w.address));
         let straight = matches!(self.motion, Motion::Rapid | Motion::Linear);
+        if let Some((item, what)) = setup
+            && self.pose_mode
+        {
+            return Err(BlockError {
+                item: Some(item),
+                message: format!(
+                    "this block {what}: in pose mode it is not converted, since the controller would apply it to kinpost's machine axis words; set offsets before TCP is switched on, or give the poses in the workpiece frame (--work-offset)"
+                ),
+            });
+        }
         if let Some(item) = frame {
             self.frame_seen = true;
             if self.pose_mode {

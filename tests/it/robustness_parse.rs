@@ -252,3 +252,56 @@ fn calls_in_pose_mode_are_refused_by_name() {
     assert_eq!(code, 0, "{err}");
     assert_eq!(out, plain);
 }
+
+/// Offsets and homing in pose mode: the controller would apply them to
+/// kinpost's machine axis words (before: `G52 X5`, `G92 X0` and `G55`
+/// passed with exit 0, the tool then landing off by the offset; `G28` with
+/// an intermediate point passed unconverted). Before pose mode they pass.
+#[test]
+fn offsets_and_homing_in_pose_mode_are_refused() {
+    let pose = "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\n";
+    for (name, block, want) in [
+        (
+            "g52.ngc",
+            "G52 X5",
+            "g52.ngc:3:1: this block changes the coordinate system",
+        ),
+        (
+            "g92.ngc",
+            "G92 X0",
+            "g92.ngc:3:1: this block changes the coordinate system",
+        ),
+        (
+            "g10.ngc",
+            "G10 L2 P1 X5",
+            "g10.ngc:3:1: this block changes the coordinate system",
+        ),
+        (
+            "g55.ngc",
+            "G55",
+            "g55.ngc:3:1: this block changes the work offset",
+        ),
+        (
+            "g28.ngc",
+            "G28 X0 Y0 Z50",
+            "g28.ngc:3:1: this block moves home",
+        ),
+    ] {
+        let (code, _, err) = post(name, format!("{pose}{block}\nG49\nM30\n").as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains(want), "{name}: {err}");
+    }
+    let (code, _, err) = post(
+        "g500.mpf",
+        b"TRAORI\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\nG500\nTRAFOOF\nM30\n",
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("g500.mpf:3:1: this block changes the work offset"),
+        "{err}"
+    );
+    // Before TCP is on, and G53 / G4 inside it, pass.
+    let ok = b"G54 G92 X0\nG43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\nG4 P1\nG53 G0 Z0\nG49\nG28\nM30\n";
+    let (code, _, err) = post("ok.ngc", ok);
+    assert_eq!(code, 0, "{err}");
+}
