@@ -163,10 +163,18 @@ pub fn opaque_in_pose_block(
     })
 }
 
-/// The name of a Sinumerik-style call, `NAME(…)` (`CYCLE800(1,…)`): a
-/// letter, then letters, digits or `_`, at least two characters, then `(`.
+/// The name of a call: Sinumerik-style `NAME(…)` (`CYCLE800(1,…)`: a
+/// letter, then letters, digits or `_`, at least two characters, then
+/// `(`), or a LinuxCNC o-word call (`o100 call`, `o<probe> call [1]`).
 fn call_name(text: &str) -> Option<String> {
     let t = text.trim_start();
+    if t.starts_with(['o', 'O']) {
+        let mut parts = t.split_whitespace();
+        let name = parts.next().unwrap_or_default();
+        if parts.next().is_some_and(|w| w.eq_ignore_ascii_case("call")) {
+            return Some(format!("{name} call"));
+        }
+    }
     let name: String = t
         .chars()
         .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')

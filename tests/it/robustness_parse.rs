@@ -242,6 +242,11 @@ fn calls_in_pose_mode_are_refused_by_name() {
             "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\nM98 P1000\nG49\nM30\n".to_string(),
             "m98.ngc:3:1: a subprogram or macro call (M98)",
         ),
+        (
+            "ocall.ngc",
+            "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\no100 call [1]\nG49\nM30\n".to_string(),
+            "ocall.ngc:3:1: a cycle or subprogram call (`o100 call`)",
+        ),
     ] {
         let (code, _, err) = post(name, text.as_bytes());
         assert_eq!(code, 1, "{name}: {err}");
