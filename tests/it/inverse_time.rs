@@ -89,37 +89,42 @@ fn program() -> (String, Vec<Block>) {
     (text, poses)
 }
 
-#[test]
-fn the_tool_tip_keeps_the_programmed_feed() {
-    let dir = tempfile::tempdir().unwrap();
-    let (text, poses) = program();
-    let path = dir.path().join("p.ngc");
-    std::fs::write(&path, &text).unwrap();
-    let run = |feed: &str| {
-        let out = Command::new(BIN)
-            .args([
-                "post",
-                "-m",
-                "xyzac-trt",
-                "--decimals",
-                "9",
-                "-q",
-                "--feed",
-                feed,
-            ])
-            .arg(&path)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8(out.stdout).unwrap()
-    };
-    let out = run("inverse-time");
-    let by_n: HashMap<u32, &Block> = poses.iter().map(|p| (p.0, p)).collect();
-    // The controller's state while running the output.
+/// `kinpost post` of `path` on xyzac-trt with 9 decimals and `--feed
+/// feed`: its standard output (the run must succeed).
+fn post_with_feed(path: &std::path::Path, feed: &str) -> String {
+    let out = Command::new(BIN)
+        .args([
+            "post",
+            "-m",
+            "xyzac-trt",
+            "--decimals",
+            "9",
+            "-q",
+            "--feed",
+            feed,
+        ])
+        .arg(path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+/// Follows the written program `out` as a controller would (feed mode G93 /
+/// G94 and the modal F) and checks every pose block: one that turns a
+/// rotary axis and moves the tip is in G93 with F · (1/F min) equal to
+/// the tip path at the programmed feed; any other is in G94 with the
+/// programmed feed. `block` gives the programmed block of a line's words
+/// (None for a line that is not a pose block). Returns the blocks
+/// converted and kept; the program must not end in G93.
+fn follow(
+    out: &str,
+    mut block: impl FnMut(&HashMap<String, f64>) -> Option<Block>,
+) -> (usize, usize) {
     let mut inverse = false;
     let mut f_modal: Option<f64> = None;
     let mut last_axes: Option<(f64, f64)> = None;
@@ -136,10 +141,9 @@ fn the_tool_tip_keeps_the_programmed_feed() {
         if let Some(f) = w.get("F") {
             f_modal = Some(*f);
         }
-        let Some(n) = w.get("N").map(|n| *n as u32) else {
+        let Some((_, tip, rapid, feed)) = block(&w) else {
             continue;
         };
-        let &(_, tip, rapid, feed) = by_n[&n];
         let axes = (w["A"], w["C"]);
         let rotary =
             last_axes.is_some_and(|a| (a.0 - axes.0).abs() > 1e-7 || (a.1 - axes.1).abs() > 1e-7);
@@ -149,21 +153,21 @@ fn the_tool_tip_keeps_the_programmed_feed() {
         if !rapid && rotary && length.is_some_and(|l| l > 1e-6) {
             // G93: the block lasts 1/F min; at the programmed feed the tip
             // needs length/feed.
-            assert!(inverse, "N{n} not in G93: {line}");
+            assert!(inverse, "not in G93: {line}");
             let time = 1.0 / f_modal.unwrap();
             let l = length.unwrap();
             assert!(
                 (feed * time - l).abs() < 1e-7 * l.max(1.0),
-                "N{n}: F·t = {} mm, tip path {l} mm: {line}",
+                "F·t = {} mm, tip path {l} mm: {line}",
                 feed * time
             );
             assert!(w.contains_key("F"), "G93 needs F on every block: {line}");
             converted += 1;
         } else {
             // Not converted: G94 with the programmed feed.
-            assert!(!inverse, "N{n} left in G93: {line}");
+            assert!(!inverse, "left in G93: {line}");
             if !rapid {
-                assert_eq!(f_modal, Some(feed), "N{n}: {line}");
+                assert_eq!(f_modal, Some(feed), "{line}");
             }
             kept += 1;
         }
@@ -171,6 +175,20 @@ fn the_tool_tip_keeps_the_programmed_feed() {
         last_tip = Some(tip);
     }
     assert!(!inverse, "the program ends in G93:\n{out}");
+    (converted, kept)
+}
+
+#[test]
+fn the_tool_tip_keeps_the_programmed_feed() {
+    let dir = tempfile::tempdir().unwrap();
+    let (text, poses) = program();
+    let path = dir.path().join("p.ngc");
+    std::fs::write(&path, &text).unwrap();
+    let run = |feed: &str| post_with_feed(&path, feed);
+    let out = run("inverse-time");
+    let by_n: HashMap<u32, &Block> = poses.iter().map(|p| (p.0, p)).collect();
+    // The pose blocks carry their N numbers.
+    let (converted, kept) = follow(&out, |w| w.get("N").map(|n| *by_n[&(*n as u32)]));
     assert!(
         converted >= 25 && kept >= 8,
         "converted {converted}, kept {kept}"
@@ -222,74 +240,14 @@ fn apt_cl_keeps_the_programmed_tip_feed_too() {
     cl.push_str("FINI\n");
     let path = dir.path().join("p.cls");
     std::fs::write(&path, &cl).unwrap();
-    let out = Command::new(BIN)
-        .args([
-            "post",
-            "-m",
-            "xyzac-trt",
-            "--decimals",
-            "9",
-            "-q",
-            "--feed",
-            "inverse-time",
-        ])
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let out = String::from_utf8(out.stdout).unwrap();
+    let out = post_with_feed(&path, "inverse-time");
+    // The pose blocks come in the order of the GOTOs.
     let mut blocks = poses.iter();
-    let (mut inverse, mut f_modal) = (false, None::<f64>);
-    let (mut last_axes, mut last_tip) = (None::<(f64, f64)>, None::<[f64; 3]>);
-    let (mut converted, mut kept) = (0, 0);
-    for line in out.lines() {
-        let w = words(line);
-        if w.contains_key("G93") {
-            inverse = true;
-        }
-        if w.contains_key("G94") {
-            inverse = false;
-        }
-        if let Some(f) = w.get("F") {
-            f_modal = Some(*f);
-        }
-        if !w.contains_key("X") {
-            continue;
-        }
-        let &(_, tip, rapid, feed) = blocks.next().expect("one block per GOTO");
-        let axes = (w["A"], w["C"]);
-        let rotary =
-            last_axes.is_some_and(|a| (a.0 - axes.0).abs() > 1e-7 || (a.1 - axes.1).abs() > 1e-7);
-        let length = last_tip.map(|s| {
-            ((tip[0] - s[0]).powi(2) + (tip[1] - s[1]).powi(2) + (tip[2] - s[2]).powi(2)).sqrt()
-        });
-        if !rapid && rotary && length.is_some_and(|l| l > 1e-6) {
-            assert!(inverse, "not in G93: {line}");
-            let l = length.unwrap();
-            let time = 1.0 / f_modal.unwrap();
-            assert!(
-                (feed * time - l).abs() < 1e-7 * l.max(1.0),
-                "F·t {} vs {l}: {line}",
-                feed * time
-            );
-            assert!(w.contains_key("F"), "G93 needs F on every block: {line}");
-            converted += 1;
-        } else {
-            assert!(!inverse, "left in G93: {line}");
-            if !rapid {
-                assert_eq!(f_modal, Some(feed), "{line}");
-            }
-            kept += 1;
-        }
-        last_axes = Some(axes);
-        last_tip = Some(tip);
-    }
+    let (converted, kept) = follow(&out, |w| {
+        w.contains_key("X")
+            .then(|| *blocks.next().expect("one block per GOTO"))
+    });
     assert!(blocks.next().is_none(), "{out}");
-    assert!(!inverse, "the program ends in G93:\n{out}");
     assert!(
         converted >= 25 && kept >= 8,
         "converted {converted}, kept {kept}"
