@@ -34,10 +34,9 @@ use std::io::BufRead;
 
 use nom::{
     IResult, Parser,
-    branch::alt,
     bytes::complete::{tag, take_while, take_while1},
-    character::complete::{char, digit0, digit1, one_of},
-    combinator::{all_consuming, opt, recognize},
+    character::complete::one_of,
+    combinator::recognize,
 };
 
 use crate::error::{Error, Location};
@@ -271,6 +270,21 @@ impl<R: BufRead> ClReader<R> {
             }));
         }
 
+        // A statement on one line (most are): read from the line itself;
+        // a byte at offset k of it is at column `col + k`.
+        let (piece, continued) = statement_piece(start);
+        if !continued {
+            return Some(match parse_statement(piece) {
+                Ok(statement) => Ok(ClRecord {
+                    line: first,
+                    col,
+                    text,
+                    statement,
+                }),
+                Err(e) => Err(self.error(first, col + e.offset, e.message, strip_eol(&text))),
+            });
+        }
+
         let mut logical = Logical {
             text: Vec::new(),
             segments: Vec::new(),
@@ -374,8 +388,13 @@ fn first_non_blank(line: &[u8]) -> Option<usize> {
 /// continued (ends in a single `$`, which is removed).
 fn statement_piece(content: &[u8]) -> (&[u8], bool) {
     let mut s = strip_eol(content);
-    if let Some(p) = s.windows(2).position(|w| w == b"$$") {
-        s = &s[..p];
+    let mut from = 0;
+    while let Some(p) = s[from..].iter().position(|&b| b == b'$') {
+        if s.get(from + p + 1) == Some(&b'$') {
+            s = &s[..from + p];
+            break;
+        }
+        from += p + 1;
     }
     while let Some((&last, init)) = s.split_last() {
         if is_blank(last) {
@@ -419,8 +438,14 @@ fn major_words(i: In) -> PResult<In> {
 }
 
 /// `number = [ sign ], ( digits, [ ".", { digit } ] | ".", digits ),
-///  [ ( "e" | "E" ), [ sign ], digits ]`
+///  [ ( "e" | "E" ), [ sign ], digits ]`: the grammar `Arg::number`
+/// reads (by the standard parser, which the test
+/// `number_agrees_with_grammar` holds to it).
+#[cfg(test)]
 fn number_text(i: In) -> PResult<In> {
+    use nom::branch::alt;
+    use nom::character::complete::{char, digit0, digit1};
+    use nom::combinator::opt;
     recognize((
         opt(one_of("+-")),
         alt((
@@ -448,10 +473,36 @@ impl Arg<'_> {
         self.text.eq_ignore_ascii_case(word.as_bytes())
     }
 
-    /// The argument as a finite number.
+    /// The argument as a finite number (`number_text`).
+    ///
+    /// Read by the standard library's `f64` parser, whose grammar for
+    /// numbers is `number_text`'s exactly (sign, digits with an optional
+    /// point or a point and digits, an optional exponent; case-insensitive
+    /// `e`); the words it reads besides (`inf`, `infinity`, `nan`) are not
+    /// finite and refused here, like an overflow (`1e999`). A unit test
+    /// checks the two agree.
     fn number(&self) -> Option<f64> {
-        let (_, text) = all_consuming(number_text).parse_complete(self.text).ok()?;
-        let v: f64 = std::str::from_utf8(text).ok()?.parse().ok()?;
+        // Plain decimals (`-45.9945172`, most of them) exactly here.
+        let (negative, unsigned) = match self.text.split_first() {
+            Some((b'-', rest)) => (true, rest),
+            Some((b'+', rest)) => (false, rest),
+            _ => (false, self.text),
+        };
+        let mut digits = crate::numeric::Digits::default();
+        let int_digits = digits.scan(unsigned);
+        let point = unsigned.get(int_digits) == Some(&b'.');
+        let frac_digits = if point {
+            digits.scan(&unsigned[int_digits + 1..])
+        } else {
+            0
+        };
+        // Digits, a point and digits, nothing else (no exponent).
+        let plain = int_digits + frac_digits > 0
+            && unsigned.len() == int_digits + usize::from(point) + frac_digits;
+        if plain && let Some(v) = digits.exact(frac_digits) {
+            return Some(if negative { -v } else { v });
+        }
+        let v: f64 = std::str::from_utf8(self.text).ok()?.parse().ok()?;
         v.is_finite().then_some(v)
     }
 
@@ -474,23 +525,28 @@ impl Arg<'_> {
 
 /// Split `args` (starting at `offset` of the logical text) at commas.
 fn split_args(args: &[u8], offset: usize) -> Vec<Arg<'_>> {
-    let mut out = Vec::new();
-    if args.iter().all(|&b| is_blank(b)) {
-        return out;
-    }
+    let mut out = Vec::with_capacity(8);
     let mut start = 0;
     for piece in args.split(|&b| b == b',') {
-        let lead = piece.iter().take_while(|&&b| is_blank(b)).count();
-        let trail = piece[lead..]
+        let lead = piece
             .iter()
-            .rev()
-            .take_while(|&&b| is_blank(b))
-            .count();
+            .position(|&b| !is_blank(b))
+            .unwrap_or(piece.len());
+        let end = piece
+            .iter()
+            .rposition(|&b| !is_blank(b))
+            .map_or(lead, |p| p + 1);
         out.push(Arg {
-            text: &piece[lead..piece.len() - trail],
+            text: &piece[lead..end],
             offset: offset + start + lead,
         });
         start += piece.len() + 1;
+    }
+    // Nothing but blanks: no argument.
+    if let [only] = out.as_slice()
+        && only.text.is_empty()
+    {
+        out.clear();
     }
     out
 }
@@ -534,14 +590,13 @@ fn parse_statement(text: &[u8]) -> Result<ClStatement, StatementError> {
             message: "expected an APT statement (`MAJOR/args` or `MAJOR`)".into(),
         });
     };
-    let major_all = collapse_upper(major_raw);
     // The first word alone, for statements without `/`.
     let first_raw = major_word(text).map(|(_, w)| w).unwrap_or_default();
-    let first_word = collapse_upper(first_raw);
+    let first_known = known_major(first_raw);
     let after_first = trim(&text[first_raw.len()..]);
-    if TEXT_MAJORS.contains(&first_word.as_str()) {
+    if let Some(word) = first_known.filter(|w| TEXT_MAJORS.contains(w)) {
         return Ok(ClStatement::Other {
-            major: first_word,
+            major: word.to_string(),
             text: String::from_utf8_lossy(after_first).into_owned(),
         });
     }
@@ -550,15 +605,20 @@ fn parse_statement(text: &[u8]) -> Result<ClStatement, StatementError> {
         .map(|(r, _)| (r, r));
     let Ok((args_text, _)) = slash else {
         // No slash: a bare major word, possibly followed by free text.
-        if NEEDS_ARGS.contains(&first_word.as_str()) {
+        if let Some(word) = first_known.filter(|w| NEEDS_ARGS.contains(w)) {
             return Err(StatementError {
                 offset: first_raw.len(),
-                message: format!("expected `/` and arguments after {first_word}"),
+                message: format!("expected `/` and arguments after {word}"),
             });
         }
-        return Ok(bare(first_word, after_first));
+        return Ok(bare(collapse_upper(first_raw), after_first));
     };
-    let major = major_all;
+    // The major word(s), uppercased, blanks collapsed (no allocation for
+    // the majors interpreted here).
+    let major: std::borrow::Cow<'static, str> = match first_known {
+        Some(word) if major_raw.len() == first_raw.len() => word.into(),
+        _ => collapse_upper(major_raw).into(),
+    };
     let args_offset = text.len() - args_text.len();
     let args = split_args(args_text, args_offset);
     let at_major = Arg {
@@ -566,7 +626,7 @@ fn parse_statement(text: &[u8]) -> Result<ClStatement, StatementError> {
         offset: 0,
     };
     let other = || ClStatement::Other {
-        major: major.clone(),
+        major: major.to_string(),
         text: String::from_utf8_lossy(trim(args_text)).into_owned(),
     };
     let count_err = |want: &str| {
@@ -576,7 +636,7 @@ fn parse_statement(text: &[u8]) -> Result<ClStatement, StatementError> {
             if args.len() == 1 { "" } else { "s" }
         ))
     };
-    match major.as_str() {
+    match &*major {
         "GOTO" => {
             if args.len() != 3 && args.len() != 6 {
                 return Err(count_err("3 numbers (x,y,z) or 6 (x,y,z,i,j,k)"));
@@ -661,6 +721,21 @@ fn bare(major: String, after: &[u8]) -> ClStatement {
             text: String::from_utf8_lossy(after).into_owned(),
         },
     }
+}
+
+/// The major words interpreted here (`NEEDS_ARGS`, `TEXT_MAJORS`, the
+/// bare ones), as written in this list: `word` compared without case.
+const KNOWN_MAJORS: &[&str] = &[
+    "GOTO", "TLAXIS", "FEDRAT", "LOADTL", "UNITS", "SPINDL", "COOLNT", "MULTAX", "RAPID", "FINI",
+    "END", "PARTNO", "PPRINT", "INSERT", "REMARK",
+];
+
+/// `word` uppercased, when it is one of [`KNOWN_MAJORS`].
+fn known_major(word: &[u8]) -> Option<&'static str> {
+    KNOWN_MAJORS
+        .iter()
+        .copied()
+        .find(|k| word.eq_ignore_ascii_case(k.as_bytes()))
 }
 
 /// Uppercase, blanks collapsed to one space.
@@ -848,5 +923,38 @@ mod tests {
         assert_eq!(n("inf"), None);
         assert_eq!(n("1.2.3"), None);
         assert_eq!(n(""), None);
+    }
+
+    /// `Arg::number` (the standard parser) accepts exactly the finite
+    /// numbers of the grammar's `number_text`.
+    #[test]
+    fn number_agrees_with_grammar() {
+        use nom::combinator::all_consuming;
+        let pieces = [
+            "", "+", "-", "0", "7", "12", ".", ".5", "5.", "1.25", "e", "E", "e5", "e+5", "E-05",
+            "inf", "Infinity", "nan", "NaN", "_", "1_0", " ", "x", "0x1", "1e999", "d",
+        ];
+        let grammar = |s: &str| -> Option<f64> {
+            let (_, t) = all_consuming(number_text)
+                .parse_complete(s.as_bytes())
+                .ok()?;
+            let v: f64 = std::str::from_utf8(t).ok()?.parse().ok()?;
+            v.is_finite().then_some(v)
+        };
+        let mut checked = 0;
+        for a in pieces {
+            for b in pieces {
+                for c in ["", "5", "e3", ".", "+1"] {
+                    let s = format!("{a}{b}{c}");
+                    let arg = Arg {
+                        text: s.as_bytes(),
+                        offset: 0,
+                    };
+                    assert_eq!(arg.number(), grammar(&s), "`{s}`");
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 3000);
     }
 }

@@ -54,9 +54,128 @@ pub fn round_half_away(x: f64) -> Option<i64> {
     })
 }
 
+/// Powers of ten up to 10^19, all exact in an f64.
+const POW10: [f64; 20] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
+    1e17, 1e18, 1e19,
+];
+
+/// The digits of a decimal number as they are scanned (by the G-code and
+/// the APT CL readers): how many, and the integer they spell (exact while
+/// there are at most [`Digits::EXACT`], so that it fits in a u64).
+#[derive(Default)]
+pub struct Digits {
+    /// The integer the digits spell (wrapped past [`Digits::EXACT`] digits).
+    pub value: u64,
+    /// How many digits were scanned.
+    pub count: usize,
+}
+
+impl Digits {
+    /// The most digits whose integer is exact.
+    pub const EXACT: usize = 19;
+
+    /// Scans the digits `i` starts with, appending them; returns how many
+    /// there are.
+    pub fn scan(&mut self, i: &[u8]) -> usize {
+        let mut n = 0;
+        let mut value = self.value;
+        for &b in i {
+            let d = b.wrapping_sub(b'0');
+            if d > 9 {
+                break;
+            }
+            // Wraps only past 19 digits, when the count says it is not exact.
+            value = value.wrapping_mul(10).wrapping_add(u64::from(d));
+            n += 1;
+        }
+        self.value = value;
+        self.count += n;
+        n
+    }
+
+    /// The value of the digits scanned, the last `frac_digits` of them after
+    /// the decimal point, when it is computed exactly here: at most 19
+    /// digits whose integer is at most 2^53 (an exact integer divided by an
+    /// exact power of ten, rounded once, is the nearest f64, as
+    /// [`str::parse`] gives it). `None`: use [`str::parse`].
+    pub fn exact(&self, frac_digits: usize) -> Option<f64> {
+        (self.count <= Self::EXACT && self.value <= 1 << 53 && frac_digits < POW10.len())
+            .then(|| self.value as f64 / POW10[frac_digits])
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn digit_runs() {
+        let mut text = Vec::new();
+        for (head, n) in [
+            (&b"12345678x"[..], 8),
+            (b"1234567x9", 7),
+            (b"x2345678", 0),
+            (b"123/5678", 3),
+            (b"123:5678", 3),
+            (b"\xff\xff1234567", 0),
+            (b"1234\xfa\xfa78", 4),
+            (b"1234567890123456789012", 22),
+            (b"12", 2),
+            (b"", 0),
+            (b"1234567890123456789 ", 19),
+            (b"12345678901234567890123", 23),
+            (b"0000000000000000000000001", 25),
+        ] {
+            // With the bytes after it of every kind, and near the end of the input.
+            for tail in [&b""[..], b"\n", b" X1.5 Y-2.25 Z3\r\n", b"99999999"] {
+                text.clear();
+                text.extend_from_slice(head);
+                text.extend_from_slice(tail);
+                let mut d = Digits::default();
+                let got = d.scan(&text);
+                let want = text.iter().take_while(|b| b.is_ascii_digit()).count();
+                assert!(
+                    got == want && (tail.first() == Some(&b'9') || got == n),
+                    "{text:?}"
+                );
+                if want <= Digits::EXACT {
+                    let s = std::str::from_utf8(&text[..want]).unwrap();
+                    assert_eq!(d.value, s.parse::<u64>().unwrap_or(0), "{s}");
+                }
+                assert_eq!(d.count, want);
+            }
+        }
+    }
+
+    /// The exact path gives what the standard parser gives.
+    #[test]
+    fn exact_matches_parse() {
+        for text in [
+            "0",
+            "1",
+            "5.",
+            ".5",
+            "45.994517200",
+            "0.000000001",
+            "9007199254740992",
+            "900719925474099.3",
+            "123456789.0123456789",
+            "3.14159265358979",
+        ] {
+            let mut d = Digits::default();
+            let int = d.scan(text.as_bytes());
+            let rest = &text.as_bytes()[int..];
+            let frac = if rest.first() == Some(&b'.') {
+                d.scan(&rest[1..])
+            } else {
+                0
+            };
+            if let Some(v) = d.exact(frac) {
+                assert_eq!(v, text.parse::<f64>().unwrap(), "{text}");
+            }
+        }
+    }
 
     #[test]
     fn finds_the_peak_of_a_parabola() {

@@ -63,12 +63,6 @@ const OWORD_KEYWORDS: &[&str] = &[
 /// (`XNAN`, `Xinf`).
 const NON_FINITE: &[&str] = &["nan", "inf", "infinity"];
 
-/// Powers of ten up to 10^19, all exact in an f64.
-const POW10: [f64; 20] = [
-    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
-    1e17, 1e18, 1e19,
-];
-
 fn fail<O>() -> PResult<'static, O> {
     Err(nom::Err::Error(()))
 }
@@ -133,39 +127,6 @@ fn ends_checksum(rest: In) -> bool {
     ends_separated(rest) || rest.first() == Some(&b'(')
 }
 
-/// The digits of a number as they are scanned: how many, and the integer
-/// they spell (exact while there are at most [`Digits::EXACT`], so that it
-/// fits in a u64).
-#[derive(Default)]
-struct Digits {
-    value: u64,
-    count: usize,
-}
-
-impl Digits {
-    /// The most digits whose integer is exact.
-    const EXACT: usize = 19;
-
-    /// Scans the digits `i` starts with, appending them; returns how many
-    /// there are.
-    fn scan(&mut self, i: In) -> usize {
-        let mut n = 0;
-        let mut value = self.value;
-        for &b in i {
-            let d = b.wrapping_sub(b'0');
-            if d > 9 {
-                break;
-            }
-            // Wraps only past 19 digits, when the count says it is not exact.
-            value = value.wrapping_mul(10).wrapping_add(u64::from(d));
-            n += 1;
-        }
-        self.value = value;
-        self.count += n;
-        n
-    }
-}
-
 /// `number = [ sign, { blank } ], unsigned` with
 /// `unsigned = digit, { digit }, [ ".", { digit } ] | ".", digit, { digit }`;
 /// returns the number's source text and its value. No exponent: in G-code
@@ -178,6 +139,7 @@ impl Digits {
 /// that does not fit in an f64 (400 digits) is not a number, so that an
 /// overflow never turns silently into `inf`.
 fn number(i: In) -> PResult<(In, f64)> {
+    use crate::numeric::Digits;
     let (negative, unsigned) = match i.first() {
         Some(b'-') => (true, skip_blanks(&i[1..])),
         Some(b'+') => (false, skip_blanks(&i[1..])),
@@ -196,14 +158,18 @@ fn number(i: In) -> PResult<(In, f64)> {
     }
     let rest = &unsigned[len..];
     let text = &i[..i.len() - rest.len()];
-    let value = if digits.count <= Digits::EXACT && digits.value <= 1 << 53 {
-        let v = digits.value as f64 / POW10[frac_digits];
-        if negative { -v } else { v }
-    } else {
-        match slow_value(text) {
+    let value = match digits.exact(frac_digits) {
+        Some(v) => {
+            if negative {
+                -v
+            } else {
+                v
+            }
+        }
+        None => match slow_value(text) {
             Some(v) => v,
             None => return fail(),
-        }
+        },
     };
     Ok((rest, (text, value)))
 }
@@ -608,45 +574,6 @@ mod tests {
         assert!(number(b"nan").is_err());
         assert!(number(b"inf").is_err());
         assert!(number("9".repeat(400).as_bytes()).is_err());
-    }
-
-    #[test]
-    fn digit_runs() {
-        let mut text = Vec::new();
-        for (head, n) in [
-            (&b"12345678x"[..], 8),
-            (b"1234567x9", 7),
-            (b"x2345678", 0),
-            (b"123/5678", 3),
-            (b"123:5678", 3),
-            (b"\xff\xff1234567", 0),
-            (b"1234\xfa\xfa78", 4),
-            (b"1234567890123456789012", 22),
-            (b"12", 2),
-            (b"", 0),
-            (b"1234567890123456789 ", 19),
-            (b"12345678901234567890123", 23),
-            (b"0000000000000000000000001", 25),
-        ] {
-            // With the bytes after it of every kind, and near the end of the input.
-            for tail in [&b""[..], b"\n", b" X1.5 Y-2.25 Z3\r\n", b"99999999"] {
-                text.clear();
-                text.extend_from_slice(head);
-                text.extend_from_slice(tail);
-                let mut d = Digits::default();
-                let got = d.scan(&text);
-                let want = text.iter().take_while(|b| b.is_ascii_digit()).count();
-                assert!(
-                    got == want && (tail.first() == Some(&b'9') || got == n),
-                    "{text:?}"
-                );
-                if want <= Digits::EXACT {
-                    let s = std::str::from_utf8(&text[..want]).unwrap();
-                    assert_eq!(d.value, s.parse::<u64>().unwrap_or(0), "{s}");
-                }
-                assert_eq!(d.count, want);
-            }
-        }
     }
 
     #[test]
