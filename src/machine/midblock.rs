@@ -29,6 +29,15 @@ pub fn branch_change_warning(
     if prev.len() != q.len() || q.len() != joints.len() {
         return None;
     }
+    // Most blocks: no rotary turns that far even the long way.
+    let big = BIG_TURN_DEG.to_radians();
+    if !joints
+        .iter()
+        .zip(prev.iter().zip(q))
+        .any(|(jt, (a, b))| jt.kind == JointKind::Revolute && (b - a).abs() > big)
+    {
+        return None;
+    }
     // The move the controller makes: a modulo axis takes the short way.
     let step: Vec<f64> = (0..q.len())
         .map(|j| {

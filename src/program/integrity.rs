@@ -30,7 +30,10 @@ pub fn check_line(line: &Line, file: &str, pose_mode: bool) -> Result<()> {
             String::from_utf8_lossy(&line.bytes),
         ));
     }
-    if let Some(at) = line.bytes.iter().position(|b| *b == 0) {
+    // `contains` on bytes is a vectorised search; the position only then.
+    if line.bytes.contains(&0)
+        && let Some(at) = line.bytes.iter().position(|b| *b == 0)
+    {
         return Err(Error::input_with(
             Location::new(file, line.number, at + 1),
             "a NUL byte: the file is damaged or not a text NC program",

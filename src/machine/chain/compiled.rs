@@ -22,6 +22,8 @@ use super::{
 pub struct NearTrig {
     q0: [f64; MAX_JOINTS],
     sc: [(f64, f64); MAX_JOINTS],
+    /// Which joints are revolute (the others have no angle).
+    revolute: [bool; MAX_JOINTS],
 }
 
 impl NearTrig {
@@ -30,11 +32,13 @@ impl NearTrig {
         let mut t = NearTrig {
             q0: [0.0; MAX_JOINTS],
             sc: [(0.0, 1.0); MAX_JOINTS],
+            revolute: [false; MAX_JOINTS],
         };
         for (j, joint) in joints.iter().enumerate().take(MAX_JOINTS) {
             t.q0[j] = q0[j];
             if joint.kind == JointKind::Revolute {
                 t.sc[j] = q0[j].sin_cos();
+                t.revolute[j] = true;
             }
         }
         t
@@ -55,7 +59,7 @@ impl NearTrig {
         let mut t = *self;
         for (j, &dj) in d.iter().enumerate().take(MAX_JOINTS) {
             t.q0[j] = self.q0[j] + dj;
-            if dj == 0.0 {
+            if dj == 0.0 || !self.revolute[j] {
                 continue;
             }
             let d = if dj.abs() <= Self::NEAR_RAD {
