@@ -3,7 +3,7 @@
 //! policy, backlash and records in order.
 
 use super::refine::{Refined, refine};
-use super::solver::{BlockRecord, CompensatingSolver};
+use super::solver::{BlockRecord, CompensatingSolver, written_residual};
 use crate::machine::chain::{JointValues, Pose};
 use crate::post::pipeline::{Stage, Step};
 use crate::post::{PostOptions, PostStats, SolvedPose};
@@ -14,6 +14,10 @@ use std::io::{BufRead, Write};
 struct Job {
     th: JointValues,
     refined: Option<Refined>,
+    /// The tool-tip and axis errors as written, when worked out beside the
+    /// refinement (no backlash pre-compensation; the failure policy keeps
+    /// the refined axes).
+    written: Option<(f64, f64)>,
 }
 
 /// The stage of `compensate`: [`CompensatingSolver`] split around the
@@ -34,7 +38,11 @@ impl Stage for Compensating<'_, '_> {
     ) -> std::result::Result<Step<Job>, String> {
         let th = self.solver.theoretical(pose, self.previous_th.as_deref())?;
         self.previous_th = Some(th.clone());
-        Ok(Step::Later(Job { th, refined: None }))
+        Ok(Step::Later(Job {
+            th,
+            refined: None,
+            written: None,
+        }))
     }
     fn commit(
         &mut self,
@@ -43,7 +51,8 @@ impl Stage for Compensating<'_, '_> {
         line: usize,
     ) -> std::result::Result<SolvedPose, String> {
         let refined = job.refined.as_ref().expect("refined in parallel");
-        self.solver.commit(pose, &job.th, refined, line)
+        self.solver
+            .commit(pose, &job.th, refined, job.written, line)
     }
 }
 
@@ -113,8 +122,25 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
     let chain = solver.actual_chain.clone();
     let errors = solver.errors;
     let options = solver.options;
+    // Backlash pre-compensation depends on the order: the written errors
+    // are then worked out in order, else here, beside the refinement.
+    let decimals = solver.decimals.clone();
+    let written_here = solver.backlash.is_empty() && !decimals.is_empty();
     let work = |pose: &Pose, job: &mut Job| {
-        job.refined = Some(refine(&chain, errors, pose, &job.th, &options));
+        let r = refine(&chain, errors, pose, &job.th, &options);
+        if written_here {
+            let lag = [0.0; crate::machine::chain::MAX_JOINTS];
+            job.written = Some(written_residual(
+                machine,
+                &chain,
+                errors,
+                &decimals,
+                pose,
+                &r.q,
+                &lag[..r.q.len()],
+            ));
+        }
+        job.refined = Some(r);
     };
     let mut stage = Compensating {
         solver,

@@ -124,7 +124,7 @@ impl crate::post::PoseSolver for CompensatingSolver<'_> {
     ) -> std::result::Result<crate::post::SolvedPose, String> {
         let th = self.theoretical(pose, previous)?;
         let r = self.refine_block(pose, &th);
-        self.commit(pose, &th, &r, line)
+        self.commit(pose, &th, &r, None, line)
     }
 }
 
@@ -153,6 +153,19 @@ impl CompensatingSolver<'_> {
         refine(&self.actual_chain, self.errors, pose, th, &self.options)
     }
 
+    /// [`written_residual`] with this solver's machine, errors and decimals.
+    pub fn written_residual(&self, pose: &Pose, q: &[f64], lag: &[f64]) -> (f64, f64) {
+        written_residual(
+            self.machine,
+            &self.actual_chain,
+            self.errors,
+            &self.decimals,
+            pose,
+            q,
+            lag,
+        )
+    }
+
     /// Stage 3 (in block order): the failure policy, backlash
     /// pre-compensation and the block's record.
     pub fn commit(
@@ -160,6 +173,7 @@ impl CompensatingSolver<'_> {
         pose: &Pose,
         th: &JointValues,
         r: &Refined,
+        written: Option<(f64, f64)>,
         line: usize,
     ) -> std::result::Result<crate::post::SolvedPose, String> {
         // A tip within the accepted residual is met, whether or not the
@@ -243,19 +257,11 @@ impl CompensatingSolver<'_> {
         let (written_tip, written_axis) = if self.decimals.is_empty() {
             (after_tip, after_axis)
         } else {
-            let mut ext = self.machine.to_external(&q);
-            for (v, &d) in ext.iter_mut().zip(&self.decimals) {
-                let scale = 10f64.powi(d as i32);
-                if let Some(i) = crate::numeric::round_half_away(*v * scale) {
-                    *v = i as f64 / scale;
-                }
+            match written {
+                // Worked out beside the refinement, for these very axes.
+                Some(w) if q == r.q && lag.iter().all(|&l| l == 0.0) => w,
+                _ => self.written_residual(pose, &q, &lag),
             }
-            let mut written = self.machine.to_internal(&ext);
-            for (w, l) in written.iter_mut().zip(lag) {
-                *w -= l;
-            }
-            let p = self.actual_chain.pose(&written, self.errors);
-            (p.tip_distance(pose), p.axis_angle(pose))
         };
         let ext_c = self.machine.to_external(&q);
         let ext_t = self.machine.to_external(th);
@@ -287,4 +293,33 @@ impl CompensatingSolver<'_> {
             q,
         })
     }
+}
+
+/// The tool-tip (mm) and tool-axis (rad) errors of the actual machine
+/// (`chain` with `errors`) at the axes as written: `q` (chain order, with
+/// the backlash pre-compensation `lag` added) rounded to `decimals` (per
+/// axis of `machine`), the lag taken off again (the machine's play takes
+/// it back).
+pub fn written_residual(
+    machine: &crate::machine::Machine,
+    chain: &Chain,
+    errors: &dyn JointErrors,
+    decimals: &[u32],
+    pose: &Pose,
+    q: &[f64],
+    lag: &[f64],
+) -> (f64, f64) {
+    let mut ext = machine.to_external(q);
+    for (v, &d) in ext.iter_mut().zip(decimals) {
+        let scale = 10f64.powi(d as i32);
+        if let Some(i) = crate::numeric::round_half_away(*v * scale) {
+            *v = i as f64 / scale;
+        }
+    }
+    let mut written = machine.to_internal(&ext);
+    for (w, l) in written.iter_mut().zip(lag) {
+        *w -= l;
+    }
+    let p = chain.pose(&written, errors);
+    (p.tip_distance(pose), p.axis_angle(pose))
 }
