@@ -9,10 +9,10 @@ use crate::post::pipeline::{Stage, Step};
 use crate::post::{PostOptions, PostStats, SolvedPose};
 use std::io::{BufRead, Write};
 
-/// A pose's work between the passes: the theoretical joint values and,
-/// once refined, the refinement.
+/// A pose's work between the passes: the theoretical joint values (none
+/// when the IK failed there) and, once refined, the refinement.
 struct Job {
-    th: JointValues,
+    th: Option<JointValues>,
     refined: Option<Refined>,
 }
 
@@ -22,6 +22,20 @@ struct Compensating<'s, 'm> {
     solver: &'s mut CompensatingSolver<'m>,
     /// The theoretical joint values of the previous pose.
     previous_th: Option<JointValues>,
+    /// The IK continues from the joint values written (compensated) for
+    /// the previous pose, as [`CompensatingSolver`]'s
+    /// [`crate::post::PoseSolver`] interface does (APT CL), instead of the
+    /// previous theoretical solution (G-code). The first pass then
+    /// predicts the IK from the previous theoretical solution; the writing
+    /// pass solves it again from the written values and refines again, in
+    /// order, where the two differ (a free rotary at a singular pose keeps
+    /// its written value; a branch or turn tie).
+    from_written: bool,
+}
+
+/// Whether `a` and `b` are the same joint values, bit for bit.
+fn same_bits(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
 impl Stage for Compensating<'_, '_> {
@@ -32,18 +46,43 @@ impl Stage for Compensating<'_, '_> {
         _: Option<&[f64]>,
         _: usize,
     ) -> std::result::Result<Step<Job>, String> {
-        let th = self.solver.theoretical(pose, self.previous_th.as_deref())?;
+        let th = match self.solver.theoretical(pose, self.previous_th.as_deref()) {
+            Ok(th) => th,
+            // Solved again from the written values in the writing pass.
+            Err(_) if self.from_written => {
+                return Ok(Step::Later(Job {
+                    th: None,
+                    refined: None,
+                }));
+            }
+            Err(m) => return Err(m),
+        };
         self.previous_th = Some(th.clone());
-        Ok(Step::Later(Job { th, refined: None }))
+        Ok(Step::Later(Job {
+            th: Some(th),
+            refined: None,
+        }))
     }
     fn commit(
         &mut self,
         pose: &Pose,
         job: &Job,
+        previous: Option<&[f64]>,
         line: usize,
     ) -> std::result::Result<SolvedPose, String> {
+        if self.from_written {
+            let th = self.solver.theoretical(pose, previous)?;
+            if let (Some(predicted), Some(refined)) = (&job.th, &job.refined)
+                && same_bits(predicted, &th)
+            {
+                return self.solver.commit(pose, &th, refined, line);
+            }
+            let refined = self.solver.refine_block(pose, &th);
+            return self.solver.commit(pose, &th, &refined, line);
+        }
+        let th = job.th.as_ref().expect("solved in the first pass");
         let refined = job.refined.as_ref().expect("refined in parallel");
-        self.solver.commit(pose, &job.th, refined, line)
+        self.solver.commit(pose, th, refined, line)
     }
 }
 
@@ -114,11 +153,14 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
     let errors = solver.errors;
     let options = solver.options;
     let work = |pose: &Pose, job: &mut Job| {
-        job.refined = Some(refine(&chain, errors, pose, &job.th, &options));
+        if let Some(th) = &job.th {
+            job.refined = Some(refine(&chain, errors, pose, th, &options));
+        }
     };
     let mut stage = Compensating {
         solver,
         previous_th: None,
+        from_written: kind == Input::Cl,
     };
     // The records go on after each chunk, on this thread.
     let after = |s: &mut Compensating<'_, '_>| records(&mut s.solver.records);
@@ -126,49 +168,8 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
         Input::Gcode => crate::post::convert_gcode(
             machine, &mut stage, &work, after, input, out, opts, progress,
         ),
-        Input::Cl => {
-            let mut streaming = Streaming {
-                inner: stage.solver,
-                sink: &mut records,
-                error: None,
-            };
-            let stats = crate::post::post_cl(machine, &mut streaming, input, out, opts, progress)?;
-            match streaming.error.take() {
-                Some(e) => Err(e),
-                None => Ok(stats),
-            }
-        }
-    }
-}
-
-/// The compensating solver with its per-block records handed to `sink` as
-/// they come (APT CL input, solved block by block in order: its arcs and
-/// holes are planned with the solver, so they stay serial).
-struct Streaming<'s, 'm, 'k> {
-    inner: &'s mut CompensatingSolver<'m>,
-    sink: &'k mut dyn FnMut(&mut Vec<BlockRecord>) -> crate::error::Result<()>,
-    /// The first error of the sink (the run stops reporting there).
-    error: Option<crate::error::Error>,
-}
-
-impl crate::post::PoseSolver for Streaming<'_, '_, '_> {
-    fn solve(
-        &mut self,
-        pose: &Pose,
-        previous: Option<&[f64]>,
-        line: usize,
-    ) -> std::result::Result<SolvedPose, String> {
-        let solved = self.inner.solve(pose, previous, line)?;
-        if self.error.is_none()
-            && let Err(e) = (self.sink)(&mut self.inner.records)
-        {
-            self.error = Some(e);
-        }
-        self.inner.records.clear();
-        Ok(solved)
-    }
-
-    fn plans_freely(&self) -> bool {
-        false
+        Input::Cl => crate::post::convert_cl(
+            machine, &mut stage, &work, after, input, out, opts, progress,
+        ),
     }
 }
