@@ -131,12 +131,17 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
 /// `records` receives the per-block records after each chunk (memory stays
 /// flat).
 ///
-/// Unlike [`crate::post::post_gcode`] with the solver's
+/// On G-code, unlike [`crate::post::post_gcode`] with the solver's
 /// [`crate::post::PoseSolver`] interface, which continues each IK from the
 /// previous block's *compensated* axes, the IK continues from the previous
 /// *theoretical* solution: the two differ by the compensation (micrometres,
 /// microradians), which changes neither the branch nor the turn of a rotary
-/// except at an exact tie.
+/// except at an exact tie (and at a singular pose, the value a free rotary
+/// keeps). On APT CL the IK continues from the compensated axes, as that
+/// interface does: the theoretical solution predicts it for the parallel
+/// refinement, and a pose whose IK from the written axes differs is solved
+/// and refined again in order. Arcs and holes of APT CL are their moves
+/// ([`crate::post::convert_cl`]).
 #[allow(clippy::too_many_arguments)]
 pub fn compensate<R: BufRead, W: Write + ?Sized>(
     kind: Input,

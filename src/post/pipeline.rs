@@ -5,10 +5,12 @@
 //! every core works.
 //!
 //! What is converted is a [`Format`] (G-code: [`super::GcodeConverter`];
-//! APT CL: `super::cl::ClConverter`); what is done with each pose is a
-//! [`Stage`] (`post`: the whole solve in order, [`Whole`]; `compensate`:
-//! the analytic IK in order, the Newton refinement in parallel, the failure
-//! policy and records in order).
+//! APT CL: the CL format of `post/cl.rs`, its statements read and lowered
+//! on the calling thread); what is done with each pose is a [`Stage`]
+//! (`post`: the whole solve in order, [`Whole`], whose solver the format
+//! may plan with, [`Stage::planner`]; `compensate`: the analytic IK in
+//! order, the Newton refinement in parallel, the failure policy and records
+//! in order).
 
 use super::{PoseSolver, PostStats, SolvedPose};
 use crate::error::{Error, Result};
