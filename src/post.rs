@@ -21,7 +21,7 @@ use std::io::{BufRead, Write};
 
 mod cl;
 mod cl_motion;
-pub use cl::post_cl;
+pub use cl::{convert_cl, post_cl};
 
 /// Turns a tool pose into joint values (chain order, internal units).
 ///
@@ -749,7 +749,12 @@ impl Format for GcodeFormat<'_> {
     fn line(unit: &GcodeUnit) -> usize {
         unit.line.number
     }
-    fn begin(&mut self, unit: &mut GcodeUnit, out: &mut Vec<u8>) -> Result<Option<PendingPose>> {
+    fn begin(
+        &mut self,
+        unit: &mut GcodeUnit,
+        out: &mut Vec<u8>,
+        _: Option<&mut dyn PoseSolver>,
+    ) -> Result<Option<PendingPose>> {
         self.conv.begin(&unit.line, out)
     }
     fn pose(pending: &PendingPose) -> &Pose {

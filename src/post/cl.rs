@@ -1,16 +1,23 @@
-//! `kinpost post` on APT CL data: the statements, lowered
-//! ([`crate::cl::lower`]), become blocks of G-code in the machine's axes.
+//! APT CL in, G-code for the machine out: the statements read and lowered
+//! in order ([`crate::cl::lower`]) on the driver's thread, converted
+//! through the driver ([`super::pipeline::drive`]) like G-code.
 
 use super::cl_motion;
-use super::{AxisWriter, PoseSolver, PostOptions, PostStats, unreachable_axis};
-use crate::cl::{ClReader, ClStatement, FeedUnit, SpindleDir};
+use super::pipeline::{Format, Stage, Whole};
+use super::{AxisWriter, PoseSolver, PostOptions, PostStats, SolvedPose, unreachable_axis};
+use crate::cl::{ClReader, ClRecord, ClStatement, FeedUnit, SpindleDir};
 use crate::error::{Error, Location, Result};
+use crate::machine::chain::JointValues;
 use crate::machine::{Machine, Pose};
 use crate::program::Units;
 use nalgebra::Vector3;
+use std::collections::VecDeque;
 use std::io::{BufRead, Write};
 
-/// Converts APT CL data to a G-code program for `machine`.
+mod plan;
+
+/// Converts APT CL data to a G-code program for `machine`, with `solver`
+/// solving each pose in order.
 ///
 /// Statements are translated: `GOTO` → `G0`/`G1` with the machine's axes,
 /// `FEDRAT` → `F`, `RAPID` → `G0` for the next `GOTO`, `LOADTL` → `T.. M6`,
@@ -23,29 +30,42 @@ use std::io::{BufRead, Write};
 /// allow (`post/cl_motion.rs`, docs/programs.md), else their moves.
 pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
-    solver: &mut dyn PoseSolver,
+    solver: &mut (dyn PoseSolver + Send),
     input: R,
     out: &mut W,
     opts: &PostOptions,
-    mut progress: impl FnMut(u64),
+    progress: impl FnMut(u64),
+) -> Result<PostStats> {
+    convert_cl(
+        machine,
+        &mut Whole(solver),
+        &|_, j| match *j {},
+        |_| Ok(()),
+        input,
+        out,
+        opts,
+        progress,
+    )
+}
+
+/// Converts APT CL data as [`post_cl`] does, with `stage` doing each pose,
+/// `work` on the stage's jobs in parallel and `after_chunk` after each
+/// chunk is written ([`super::pipeline::drive`]). The statements are read
+/// and lowered on this thread, converted on the pool. Arcs and holes are
+/// planned (`G2`/`G3`, canned cycles) only with a stage that solves every
+/// pose in order ([`Stage::planner`]); otherwise they are their moves.
+#[allow(clippy::too_many_arguments)]
+pub fn convert_cl<S: Stage, R: BufRead, W: Write + ?Sized>(
+    machine: &Machine,
+    stage: &mut S,
+    work: &(dyn Fn(&Pose, &mut S::Job) + Sync),
+    after_chunk: impl FnMut(&mut S) -> Result<()>,
+    input: R,
+    out: &mut W,
+    opts: &PostOptions,
+    progress: impl FnMut(u64),
 ) -> Result<PostStats> {
     let io = |e: std::io::Error| Error::io("<output>", e);
-    let mut stats = PostStats::default();
-    let mut writer = AxisWriter::new(machine, opts.decimals);
-    let mut previous: Option<crate::machine::chain::JointValues> = None;
-    let mut axis = Vector3::z();
-    let mut rapid_next = false;
-    let mut units = Units::Mm;
-    let mut feed: Option<f64> = None;
-    let mut feed_written: Option<f64> = None;
-    let mut motion_written: Option<u8> = None;
-    let mut plane_written: Option<u8> = None;
-    let mut bytes_read = 0u64;
-    // `--feed inverse-time`: the feed is per revolution (no conversion),
-    // the output is in G93, the last programmed tool tip (mm).
-    let mut per_rev = false;
-    let mut g93 = false;
-    let mut last_tip: Option<Vector3<f64>> = None;
     writeln!(
         out,
         "(kinpost: APT CL {} for machine {})",
@@ -60,271 +80,451 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
         opts.arc_tolerance_mm,
         opts.cl_units,
     );
-    // Statements an arc or a hole turned into (its moves, or the steps of
-    // its canned form), before the next record.
-    let mut pending: std::collections::VecDeque<crate::cl::ClRecord> = Default::default();
-    while let Some(record) = pending.pop_front().map(Ok).or_else(|| records.next()) {
-        let record = record?;
+    let format = ClFormat {
+        machine,
+        opts,
+        stats: PostStats::default(),
+        warnings: Vec::new(),
+        seq: 0,
+        queue: VecDeque::new(),
+        axis: Vector3::z(),
+        rapid_next: false,
+        units: Units::Mm,
+        feed: None,
+        per_rev: false,
+        g80: 0,
+        writer: AxisWriter::new(machine, opts.decimals),
+        previous: None,
+        last_tip: None,
+        g93: false,
+        feed_written: None,
+        motion_written: None,
+        plane_written: None,
+        g80_applied: 0,
+        scratch: String::new(),
+    };
+    // Nothing is read after a statement that failed (it is raised in order).
+    let mut failed = false;
+    let read = |unit: &mut ClUnit| -> Result<Option<usize>> {
+        if failed {
+            return Ok(None);
+        }
+        *unit = records.next();
+        Ok(match unit {
+            None => None,
+            Some(Ok(r)) => Some(r.text.len()),
+            Some(Err(_)) => {
+                failed = true;
+                Some(0)
+            }
+        })
+    };
+    super::pipeline::drive(format, read, stage, work, after_chunk, out, progress)
+}
+
+/// One lowered statement as read (or the error reading it).
+type ClUnit = Option<Result<ClRecord>>;
+
+/// A `GOTO` between [`Format::begin`] and [`Format::finish`], with the
+/// modal state it was programmed in.
+pub struct ClPending {
+    pose: Pose,
+    /// The tool tip, mm.
+    tip: Vector3<f64>,
+    /// `RAPID` came before it.
+    rapid: bool,
+    /// The feed in force (mm/min, or mm/rev when `per_rev`).
+    feed: Option<f64>,
+    per_rev: bool,
+    /// The `G80` blocks begun before it ([`ClFormat::g80`]).
+    g80: u64,
+    /// Its place among the statements (for the order of warnings).
+    seq: u64,
+}
+
+/// APT CL as a [`Format`]: the lowered statements (read in order on the
+/// driver's thread: the reader and the lowering keep state from statement
+/// to statement), converted in order.
+///
+/// Its state is in two halves. [`Format::begin`] reads and sets the modal
+/// state of the program (units, tool axis, `RAPID`, feed), captured in each
+/// pose's [`ClPending`]; [`Format::finish`] the state of what is written
+/// (joint values, axis words, modal words written). Under `compensate` the
+/// first pass of a chunk runs before the chunk before it is written, so
+/// `begin` does not touch the written state; with a planner (`post`) every
+/// pose before is written when `begin` runs, and arcs and holes are planned
+/// and written there.
+struct ClFormat<'a> {
+    machine: &'a Machine,
+    opts: &'a PostOptions,
+    stats: PostStats,
+    /// Warnings with the place of their statement and half (0: begin,
+    /// 1: finish): sorted at the end into statement order.
+    warnings: Vec<((u64, u8), String)>,
+    /// Statements begun.
+    seq: u64,
+    /// Statements an arc or a hole of the unit turned into (its moves, or
+    /// the steps of its canned form), given out one `begin` at a time.
+    queue: VecDeque<ClStatement>,
+    // The program's modal state (begin).
+    /// The tool axis in force.
+    axis: Vector3<f64>,
+    rapid_next: bool,
+    units: Units,
+    feed: Option<f64>,
+    /// `--feed inverse-time`: the feed is per revolution (no conversion).
+    per_rev: bool,
+    /// `G80` blocks begun: each one resets the motion code written, in
+    /// order, when the first pose after it is written.
+    g80: u64,
+    // What is written (finish; begin with a planner).
+    writer: AxisWriter<'a>,
+    /// Joint values of the last pose written.
+    previous: Option<JointValues>,
+    /// The last programmed tool tip, mm.
+    last_tip: Option<Vector3<f64>>,
+    /// The output is in `G93`.
+    g93: bool,
+    feed_written: Option<f64>,
+    motion_written: Option<u8>,
+    plane_written: Option<u8>,
+    /// The `G80` blocks applied to `motion_written`.
+    g80_applied: u64,
+    /// Scratch for a formatted number.
+    scratch: String,
+}
+
+/// The record of a unit that was read without error.
+fn record(unit: &ClUnit) -> &ClRecord {
+    match unit {
+        Some(Ok(r)) => r,
+        _ => unreachable!("a statement that failed to read is raised at its begin"),
+    }
+}
+
+/// Where a statement is.
+fn location(opts: &PostOptions, record: &ClRecord) -> Location {
+    Location::new(&opts.file_name, record.line, record.col)
+}
+
+/// The statement's text, trimmed, for messages and comments.
+fn text(record: &ClRecord) -> String {
+    String::from_utf8_lossy(&record.text).trim().to_string()
+}
+
+/// An error at `record`, quoting it.
+fn error_at(opts: &PostOptions, record: &ClRecord, message: String) -> Error {
+    Error::input_with(location(opts, record), message, text(record))
+}
+
+/// Appends a line to `out` (writing to a vector cannot fail).
+fn line(out: &mut Vec<u8>, args: std::fmt::Arguments) {
+    let _ = out.write_fmt(args);
+    out.push(b'\n');
+}
+
+impl ClFormat<'_> {
+    /// Resets the motion code written for the `G80` blocks up to `upto`.
+    fn apply_g80(&mut self, upto: u64) {
+        if self.g80_applied != upto {
+            self.motion_written = None;
+            self.g80_applied = upto;
+        }
+    }
+
+    /// A warning of the statement begun last (`half` 0) or of the pose
+    /// `seq` (`half` 1).
+    fn warn(&mut self, seq: u64, half: u8, w: String) {
+        self.warnings.push(((seq, half), w));
+    }
+
+    /// The pose of a `GOTO` to tip `tip` (CL units), tool axis `a` or the
+    /// one in force.
+    fn goto(
+        &mut self,
+        record: &ClRecord,
+        tip: &[f64; 3],
+        a: Option<&[f64; 3]>,
+    ) -> Result<Option<ClPending>> {
+        let scale = self.units.mm_per_unit();
+        let tip = Vector3::new(tip[0], tip[1], tip[2]) * scale;
+        if let Some(a) = a {
+            self.axis = Vector3::new(a[0], a[1], a[2]);
+        }
+        let norm = self.axis.norm();
+        if norm.is_nan()
+            || norm <= 1e-12
+            || (norm - 1.0).abs() > crate::program::modal::TOOL_VECTOR_TOLERANCE
+        {
+            return Err(error_at(
+                self.opts,
+                record,
+                format!(
+                    "tool axis of length {norm:.6}, not 1 (tolerance {}): expected a unit vector",
+                    crate::program::modal::TOOL_VECTOR_TOLERANCE
+                ),
+            ));
+        }
+        self.stats.max_vector_deviation = self.stats.max_vector_deviation.max((norm - 1.0).abs());
+        if (norm - 1.0).abs() > crate::program::modal::QUIET_NORMALISATION {
+            let loc = location(self.opts, record);
+            self.warn(
+                self.seq,
+                0,
+                format!("{loc}: tool axis of length {norm:.9} normalised to unit length"),
+            );
+        }
+        Ok(Some(ClPending {
+            pose: Pose::new(tip, self.axis / norm),
+            tip,
+            rapid: std::mem::take(&mut self.rapid_next),
+            feed: self.feed,
+            per_rev: self.per_rev,
+            g80: self.g80,
+            seq: self.seq,
+        }))
+    }
+
+    /// In order: one statement of `record` (its own, or one its arc or
+    /// hole turned into).
+    fn statement(
+        &mut self,
+        record: &ClRecord,
+        statement: &ClStatement,
+        planner: Option<&mut dyn PoseSolver>,
+        out: &mut Vec<u8>,
+    ) -> Result<Option<ClPending>> {
+        self.seq += 1;
         // Back to G94 before anything but a straight move in pose order
-        // (an arc, a hole, the end): it keeps the programmed feed.
-        if g93
+        // (an arc, a hole, the end): it keeps the programmed feed. (Only
+        // `post` writes G93, and it writes each pose before the next
+        // statement begins.)
+        if self.g93
             && matches!(
-                record.statement,
+                statement,
                 ClStatement::Arc(_) | ClStatement::Hole(_) | ClStatement::End
             )
         {
-            writeln!(out, "G94").map_err(io)?;
-            g93 = false;
-            feed_written = None;
+            out.extend_from_slice(b"G94\n");
+            self.g93 = false;
+            self.feed_written = None;
         }
-        stats.lines += 1;
-        bytes_read += record.text.len() as u64;
-        progress(bytes_read);
-        let loc = Location::new(&opts.file_name, record.line, record.col);
-        let text = String::from_utf8_lossy(&record.text).trim().to_string();
-        match &record.statement {
-            ClStatement::Goto { tip, axis: a } => {
-                let scale = units.mm_per_unit();
-                let tip = Vector3::new(tip[0], tip[1], tip[2]) * scale;
-                if let Some(a) = a {
-                    axis = Vector3::new(a[0], a[1], a[2]);
-                }
-                let norm = axis.norm();
-                if norm.is_nan()
-                    || norm <= 1e-12
-                    || (norm - 1.0).abs() > crate::program::modal::TOOL_VECTOR_TOLERANCE
-                {
-                    return Err(Error::input_with(
-                        loc,
-                        format!(
-                            "tool axis of length {norm:.6}, not 1 (tolerance {}): expected a unit vector",
-                            crate::program::modal::TOOL_VECTOR_TOLERANCE
-                        ),
-                        text,
-                    ));
-                }
-                stats.max_vector_deviation = stats.max_vector_deviation.max((norm - 1.0).abs());
-                if (norm - 1.0).abs() > crate::program::modal::QUIET_NORMALISATION {
-                    stats.warnings.push(format!(
-                        "{loc}: tool axis of length {norm:.9} normalised to unit length"
-                    ));
-                }
-                let pose = Pose::new(tip, axis / norm);
-                let solved = solver
-                    .solve(&pose, previous.as_deref(), record.line)
-                    .map_err(|m| Error::input_with(loc.clone(), m, text.clone()))?;
-                if solved.axis_miss_rad > opts.axis_tolerance_rad {
-                    return Err(Error::input_with(
-                        loc,
-                        unreachable_axis(
-                            &machine.name,
-                            solved.axis_miss_rad,
-                            opts.axis_tolerance_rad,
-                        ),
-                        text,
-                    ));
-                }
-                stats.max_axis_miss_rad = stats.max_axis_miss_rad.max(solved.axis_miss_rad);
-                stats.poses += 1;
-                if let Some(prev) = &previous
-                    && let Some(w) = crate::machine::midblock::branch_change_warning(
-                        machine, prev, &solved.q, &pose,
-                    )
-                {
-                    stats.warnings.push(format!("{loc}: {w}"));
-                }
-                let words = writer
-                    .words(&solved.q, Units::Mm, true, opts.modal_axes, " ")
-                    .map_err(|m| Error::input(loc.clone(), m))?;
-                let motion = if rapid_next { 0 } else { 1 };
-                rapid_next = false;
-                // Inverse time: a feed move per minute that turns a rotary
-                // axis and moves the tip lasts tip path / feed.
-                let inverse_f = match (opts.inverse_time, motion, per_rev, feed, &previous) {
-                    (true, 1, false, Some(f), Some(p)) => {
-                        let turns = machine
-                            .chain
-                            .joints()
-                            .iter()
-                            .zip(p.iter().zip(&solved.q))
-                            .any(|(j, (a, b))| {
-                                j.kind == crate::machine::JointKind::Revolute
-                                    && (a - b).abs() > 1e-12
-                            });
-                        let path = last_tip.map_or(0.0, |t| (tip - t).norm());
-                        (turns && path > crate::program::inverse_time::MIN_TIP_PATH_MM)
-                            .then(|| f / path)
-                    }
-                    _ => None,
-                };
-                let mut block = String::new();
-                match (inverse_f, g93) {
-                    (Some(_), false) => block.push_str("G93 "),
-                    (None, true) => {
-                        block.push_str("G94 ");
-                        feed_written = None;
-                    }
-                    _ => {}
-                }
-                g93 = inverse_f.is_some();
-                if motion_written != Some(motion) {
-                    block.push_str(if motion == 0 { "G0 " } else { "G1 " });
-                    motion_written = Some(motion);
-                }
-                // Axis names and digits: ASCII.
-                block.push_str(std::str::from_utf8(words).unwrap_or_default());
-                if let Some(f93) = inverse_f {
-                    block.push_str(" F");
-                    block.push_str(&crate::program::inverse_time::feed_text(f93));
-                    feed_written = None;
-                } else if motion == 1 && feed.is_some() && feed != feed_written {
-                    block.push_str(" F");
-                    cl_motion::push_number(&mut block, feed.unwrap_or(0.0));
-                    feed_written = feed;
-                }
-                writeln!(out, "{}", block.trim_end()).map_err(io)?;
-                previous = Some(solved.q);
-                last_tip = Some(tip);
-            }
+        self.stats.lines += 1;
+        match statement {
+            ClStatement::Goto { tip, axis } => return self.goto(record, tip, axis.as_ref()),
             ClStatement::Fedrat { value, unit } => {
-                feed = Some(match unit {
+                self.feed = Some(match unit {
                     FeedUnit::Ipm => value * 25.4,
-                    FeedUnit::Unspecified => value * units.mm_per_unit(),
+                    FeedUnit::Unspecified => value * self.units.mm_per_unit(),
                     _ => *value,
                 });
-                per_rev = matches!(unit, FeedUnit::Mmpr | FeedUnit::Ipr);
-                if per_rev {
-                    writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?;
+                self.per_rev = matches!(unit, FeedUnit::Mmpr | FeedUnit::Ipr);
+                if self.per_rev {
+                    line(out, format_args!("({})", sanitize_comment(&text(record))));
                 }
             }
-            ClStatement::Rapid => rapid_next = true,
-            ClStatement::TlAxis(a) => axis = Vector3::new(a[0], a[1], a[2]),
-            ClStatement::LoadTl(n) => writeln!(out, "T{n} M6").map_err(io)?,
+            ClStatement::Rapid => self.rapid_next = true,
+            ClStatement::TlAxis(a) => self.axis = Vector3::new(a[0], a[1], a[2]),
+            ClStatement::LoadTl(n) => line(out, format_args!("T{n} M6")),
             ClStatement::Spindle { rpm, dir, off } => {
                 if *off {
-                    writeln!(out, "M5").map_err(io)?;
+                    line(out, format_args!("M5"));
                 } else {
                     let m = match dir {
                         Some(SpindleDir::CounterClockwise) => "M4",
                         _ => "M3",
                     };
                     match rpm {
-                        Some(s) => writeln!(out, "S{} {m}", crate::program::format::fixed(*s, 0))
-                            .map_err(io)?,
-                        None => writeln!(out, "{m}").map_err(io)?,
+                        Some(s) => line(
+                            out,
+                            format_args!("S{} {m}", crate::program::format::fixed(*s, 0)),
+                        ),
+                        None => line(out, format_args!("{m}")),
                     }
                 }
             }
             ClStatement::Coolant(on) => {
-                writeln!(out, "{}", if *on { "M8" } else { "M9" }).map_err(io)?
+                line(out, format_args!("{}", if *on { "M8" } else { "M9" }))
             }
             ClStatement::Units(u) => {
-                units = match u {
+                self.units = match u {
                     crate::cl::ClUnits::Inches => Units::Inch,
                     crate::cl::ClUnits::Mm => Units::Mm,
                 };
-                writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?;
+                line(out, format_args!("({})", sanitize_comment(&text(record))));
             }
-            ClStatement::Comment(c) => {
-                writeln!(out, "({})", sanitize_comment(c.trim())).map_err(io)?
-            }
+            ClStatement::Comment(c) => line(out, format_args!("({})", sanitize_comment(c.trim()))),
             ClStatement::End => {
-                let t = text.to_ascii_uppercase();
-                writeln!(out, "{}", if t.starts_with("FINI") { "M30" } else { "M2" }).map_err(io)?
+                let t = text(record).to_ascii_uppercase();
+                line(
+                    out,
+                    format_args!("{}", if t.starts_with("FINI") { "M30" } else { "M2" }),
+                );
             }
             ClStatement::Multax(_) | ClStatement::Other { .. } => {
-                writeln!(out, "({})", sanitize_comment(&text)).map_err(io)?
+                line(out, format_args!("({})", sanitize_comment(&text(record))))
             }
             ClStatement::Block(b) => {
                 if b == "G80" {
-                    motion_written = None;
-                }
-                writeln!(out, "{b}").map_err(io)?
-            }
-            ClStatement::Warning(w) => stats.warnings.push(w.clone()),
-            ClStatement::Arc(arc) => {
-                let scale = units.mm_per_unit();
-                let plan = match (&previous, rapid_next) {
-                    (Some(p), false) => {
-                        cl_motion::plan_arc(machine, solver, opts, arc, p, scale, record.line)
+                    self.g80 += 1;
+                    if planner.is_some() {
+                        self.apply_g80(self.g80);
                     }
-                    _ => None,
-                };
-                let Some(plan) = plan else {
-                    let steps = arc.moves.iter().cloned();
-                    cl_motion::put_back(&mut pending, &record, steps);
-                    continue;
-                };
-                let mut block = cl_motion::arc_block(&mut writer, &plan, &mut plane_written)
-                    .map_err(|m| Error::input(loc.clone(), m))?;
-                if feed.is_some() && feed != feed_written {
-                    block.push_str(" F");
-                    cl_motion::push_number(&mut block, feed.unwrap_or(0.0));
-                    feed_written = feed;
                 }
-                writeln!(out, "{block}").map_err(io)?;
-                motion_written = Some(plan.motion);
-                axis = Vector3::from(arc.tool_axis);
-                stats.poses += 1;
-                previous = Some(plan.q_end);
-                last_tip = Some(Vector3::from(arc.end) * scale);
+                line(out, format_args!("{b}"));
             }
-            ClStatement::Hole(hole) => {
-                let scale = units.mm_per_unit();
-                let (line, prev) = (record.line, previous.as_deref());
-                let plan = cl_motion::plan_hole(machine, solver, opts, hole, prev, scale, line);
-                match (plan, hole.positioned) {
-                    (Some(plan), true) => {
-                        let block = cl_motion::hole_block(
-                            &mut writer,
-                            hole,
-                            &plan,
-                            scale,
-                            feed,
-                            &mut plane_written,
-                        )
-                        .map_err(|m| Error::input(loc.clone(), m))?;
-                        writeln!(out, "{block}").map_err(io)?;
-                        feed_written = None;
-                        rapid_next = false;
-                        motion_written = hole.code;
-                        axis = Vector3::from(hole.axis);
-                        stats.poses += 1;
-                        previous = Some(plan.q_after(hole));
-                        let after = if hole.retract_to_r {
-                            hole.r_plane
-                        } else {
-                            hole.clear
-                        };
-                        last_tip = Some(Vector3::from(after) * scale);
-                        let after = hole.feed_after.iter().cloned();
-                        cl_motion::put_back(&mut pending, &record, after);
-                    }
-                    (Some(plan), false) => {
-                        let steps = cl_motion::canned_steps(hole, plan.preposition).into_iter();
-                        cl_motion::put_back(&mut pending, &record, steps);
-                    }
-                    (None, _) => match &hole.moves {
-                        Some(moves) => {
-                            let steps = moves.iter().cloned();
-                            cl_motion::put_back(&mut pending, &record, steps);
-                        }
-                        None => {
-                            return Err(Error::input_with(
-                                loc,
-                                cl_motion::not_canned(&machine.name),
-                                text,
-                            ));
-                        }
-                    },
-                }
-            }
+            ClStatement::Warning(w) => self.warn(self.seq, 0, w.clone()),
+            ClStatement::Arc(arc) => self.arc(record, arc, planner, out)?,
+            ClStatement::Hole(hole) => self.hole(record, hole, planner, out)?,
+        }
+        Ok(None)
+    }
+}
+
+impl Format for ClFormat<'_> {
+    type Unit = ClUnit;
+    type Pending = ClPending;
+    fn prepare(_: &mut ClUnit) {}
+    fn line(unit: &ClUnit) -> usize {
+        match unit {
+            Some(Ok(r)) => r.line,
+            _ => 0,
         }
     }
-    if g93 {
-        writeln!(out, "G94").map_err(io)?;
+    fn begin(
+        &mut self,
+        unit: &mut ClUnit,
+        out: &mut Vec<u8>,
+        planner: Option<&mut dyn PoseSolver>,
+    ) -> Result<Option<ClPending>> {
+        if let Some(Err(_)) = unit
+            && let Some(Err(e)) = unit.take()
+        {
+            return Err(e);
+        }
+        let record = record(unit);
+        match self.queue.pop_front() {
+            Some(s) => self.statement(record, &s, planner, out),
+            None => self.statement(record, &record.statement, planner, out),
+        }
     }
-    Ok(stats)
+    fn unit_done(&self) -> bool {
+        self.queue.is_empty()
+    }
+    fn pose(pending: &ClPending) -> &Pose {
+        &pending.pose
+    }
+    fn previous(&self) -> Option<&[f64]> {
+        self.previous.as_deref()
+    }
+    fn solve_error(&self, unit: &ClUnit, _: &ClPending, message: String) -> Error {
+        error_at(self.opts, record(unit), message)
+    }
+    fn finish(
+        &mut self,
+        unit: &ClUnit,
+        pending: &ClPending,
+        solved: &SolvedPose,
+        out: &mut Vec<u8>,
+    ) -> Result<()> {
+        let (opts, machine) = (self.opts, self.machine);
+        let record = record(unit);
+        if solved.axis_miss_rad > opts.axis_tolerance_rad {
+            return Err(error_at(
+                opts,
+                record,
+                unreachable_axis(&machine.name, solved.axis_miss_rad, opts.axis_tolerance_rad),
+            ));
+        }
+        self.apply_g80(pending.g80);
+        self.stats.max_axis_miss_rad = self.stats.max_axis_miss_rad.max(solved.axis_miss_rad);
+        self.stats.poses += 1;
+        if let Some(prev) = &self.previous
+            && let Some(w) = crate::machine::midblock::branch_change_warning(
+                machine,
+                prev,
+                &solved.q,
+                &pending.pose,
+            )
+        {
+            let loc = location(opts, record);
+            self.warn(pending.seq, 1, format!("{loc}: {w}"));
+        }
+        let motion = if pending.rapid { 0 } else { 1 };
+        // Inverse time: a feed move per minute that turns a rotary axis
+        // and moves the tip lasts tip path / feed.
+        let inverse_f = match (
+            opts.inverse_time,
+            motion,
+            pending.per_rev,
+            pending.feed,
+            &self.previous,
+        ) {
+            (true, 1, false, Some(f), Some(p)) => {
+                let turns = machine
+                    .chain
+                    .joints()
+                    .iter()
+                    .zip(p.iter().zip(&solved.q))
+                    .any(|(j, (a, b))| {
+                        j.kind == crate::machine::JointKind::Revolute && (a - b).abs() > 1e-12
+                    });
+                let path = self.last_tip.map_or(0.0, |t| (pending.tip - t).norm());
+                (turns && path > crate::program::inverse_time::MIN_TIP_PATH_MM).then(|| f / path)
+            }
+            _ => None,
+        };
+        let words = self
+            .writer
+            .words(&solved.q, Units::Mm, true, opts.modal_axes, " ")
+            .map_err(|m| Error::input(location(opts, record), m))?;
+        let start = out.len();
+        match (inverse_f, self.g93) {
+            (Some(_), false) => out.extend_from_slice(b"G93 "),
+            (None, true) => {
+                out.extend_from_slice(b"G94 ");
+                self.feed_written = None;
+            }
+            _ => {}
+        }
+        self.g93 = inverse_f.is_some();
+        if self.motion_written != Some(motion) {
+            out.extend_from_slice(if motion == 0 { b"G0 " } else { b"G1 " });
+            self.motion_written = Some(motion);
+        }
+        out.extend_from_slice(words);
+        let scratch = &mut self.scratch;
+        scratch.clear();
+        if let Some(f93) = inverse_f {
+            scratch.push_str(" F");
+            scratch.push_str(&crate::program::inverse_time::feed_text(f93));
+            self.feed_written = None;
+        } else if motion == 1 && pending.feed.is_some() && pending.feed != self.feed_written {
+            scratch.push_str(" F");
+            cl_motion::push_number(scratch, pending.feed.unwrap_or(0.0));
+            self.feed_written = pending.feed;
+        }
+        out.extend_from_slice(scratch.as_bytes());
+        // The block without trailing spaces (the words may be none).
+        while out.len() > start && out.last().is_some_and(u8::is_ascii_whitespace) {
+            out.pop();
+        }
+        out.push(b'\n');
+        self.previous = Some(solved.q.clone());
+        self.last_tip = Some(pending.tip);
+        Ok(())
+    }
+    fn end(&mut self, out: &mut Vec<u8>) {
+        if self.g93 {
+            out.extend_from_slice(b"G94\n");
+        }
+    }
+    fn stats(mut self) -> PostStats {
+        // Stable: the warnings of one statement and half keep their order.
+        self.warnings.sort_by_key(|w| w.0);
+        self.stats.warnings = self.warnings.into_iter().map(|w| w.1).collect();
+        self.stats
+    }
 }
 
 /// Makes text safe inside a `( )` comment: parentheses become brackets and

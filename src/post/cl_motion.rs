@@ -384,20 +384,14 @@ pub(super) fn canned_steps(hole: &HoleMove, preposition: bool) -> Vec<ClStatemen
     steps
 }
 
-/// Puts `steps` before the other pending statements, each with the
-/// location of `record`.
+/// Puts `steps` before the other statements in `queue` (all of them of
+/// the same record).
 pub(super) fn put_back(
-    pending: &mut std::collections::VecDeque<crate::cl::ClRecord>,
-    record: &crate::cl::ClRecord,
+    queue: &mut std::collections::VecDeque<ClStatement>,
     steps: impl DoubleEndedIterator<Item = ClStatement>,
 ) {
     for statement in steps.rev() {
-        pending.push_front(crate::cl::ClRecord {
-            line: record.line,
-            col: record.col,
-            text: record.text.clone(),
-            statement,
-        });
+        queue.push_front(statement);
     }
 }
 

@@ -5,10 +5,12 @@
 //! every core works.
 //!
 //! What is converted is a [`Format`] (G-code: [`super::GcodeConverter`];
-//! APT CL: `super::cl::ClConverter`); what is done with each pose is a
-//! [`Stage`] (`post`: the whole solve in order, [`Whole`]; `compensate`:
-//! the analytic IK in order, the Newton refinement in parallel, the failure
-//! policy and records in order).
+//! APT CL: the CL format of `post/cl.rs`, its statements read and lowered
+//! on the calling thread); what is done with each pose is a [`Stage`]
+//! (`post`: the whole solve in order, [`Whole`], whose solver the format
+//! may plan with, [`Stage::planner`]; `compensate`: the analytic IK in
+//! order, the Newton refinement in parallel, the failure policy and records
+//! in order).
 
 use super::{PoseSolver, PostStats, SolvedPose};
 use crate::error::{Error, Result};
@@ -60,8 +62,22 @@ pub trait Format: Send {
     fn line(unit: &Self::Unit) -> usize;
     /// In order: the modal state of the unit. A unit that is not a pose
     /// appends its output to `out` and gives `None`; a pose is returned to
-    /// be solved.
-    fn begin(&mut self, unit: &mut Self::Unit, out: &mut Vec<u8>) -> Result<Option<Self::Pending>>;
+    /// be solved. `planner`: the stage's solver when it solves every pose
+    /// in this pass ([`Stage::planner`]), so that everything written before
+    /// the unit is converted already (a format may plan with it: APT CL
+    /// arcs and holes).
+    fn begin(
+        &mut self,
+        unit: &mut Self::Unit,
+        out: &mut Vec<u8>,
+        planner: Option<&mut dyn PoseSolver>,
+    ) -> Result<Option<Self::Pending>>;
+    /// Whether the unit last begun is done; else [`Format::begin`] is
+    /// called again for it (a unit that gives several poses: an APT CL arc
+    /// or hole as its moves).
+    fn unit_done(&self) -> bool {
+        true
+    }
     /// The pose to solve.
     fn pose(pending: &Self::Pending) -> &Pose;
     /// The joint values of the last pose written or followed (what a solver
@@ -106,13 +122,21 @@ pub trait Stage: Send {
         line: usize,
     ) -> std::result::Result<Step<Self::Job>, String>;
     /// In order, in the writing pass: the joint values of a job that was
-    /// worked on.
+    /// worked on; `previous`: the converter's last joint values (those
+    /// written before this pose).
     fn commit(
         &mut self,
         pose: &Pose,
         job: &Self::Job,
+        previous: Option<&[f64]>,
         line: usize,
     ) -> std::result::Result<SolvedPose, String>;
+    /// The solver, when the stage solves every pose in the first pass
+    /// ([`Step::Done`]): the format may plan with it in
+    /// [`Format::begin`], where everything before is converted.
+    fn planner(&mut self) -> Option<&mut dyn PoseSolver> {
+        None
+    }
 }
 
 /// The stage of `post`: a [`PoseSolver`] solves each pose in order, so
@@ -134,9 +158,13 @@ impl Stage for Whole<'_> {
         &mut self,
         _: &Pose,
         job: &Self::Job,
+        _: Option<&[f64]>,
         _: usize,
     ) -> std::result::Result<SolvedPose, String> {
         match *job {}
+    }
+    fn planner(&mut self) -> Option<&mut dyn PoseSolver> {
+        Some(&mut *self.0)
     }
 }
 
@@ -331,40 +359,47 @@ fn first_pass<F: Format, S: Stage>(format: &mut F, stage: &mut S, c: &mut Chunk<
         if let Some(ahead) = c.units[..c.count].get(i + PREFETCH_AHEAD) {
             F::prefetch(ahead);
         }
-        let unit = &mut c.units[i];
-        let start = c.text.len();
-        let pending = match format.begin(unit, &mut c.text) {
-            Err(e) => {
+        loop {
+            if let Err(e) = first_of(format, stage, c, i) {
                 c.stop = Some(e);
                 return;
             }
-            Ok(None) => {
-                c.entries.push(Entry::Text(start, c.text.len()));
-                continue;
+            if format.unit_done() {
+                break;
             }
-            Ok(Some(p)) => p,
-        };
-        let unit = &c.units[i];
-        let step = stage.first(F::pose(&pending), format.previous(), F::line(unit));
-        let done = match step {
-            Err(m) => Err(format.solve_error(unit, &pending, m)),
-            Ok(Step::Done(solved)) => format.finish(unit, &pending, &solved, &mut c.text),
-            Ok(Step::Later(job)) => {
-                c.entries.push(Entry::Pose);
-                c.jobs.push(Job {
-                    unit: i,
-                    pending,
-                    job,
-                });
-                continue;
-            }
-        };
-        match done {
-            Ok(()) => c.entries.push(Entry::Text(start, c.text.len())),
-            Err(e) => {
-                c.stop = Some(e);
-                return;
-            }
+        }
+    }
+}
+
+/// One [`Format::begin`] of unit `i` of `c` and, for a pose,
+/// [`Stage::first`] (and [`Format::finish`] when solved there).
+fn first_of<F: Format, S: Stage>(
+    format: &mut F,
+    stage: &mut S,
+    c: &mut Chunk<F, S::Job>,
+    i: usize,
+) -> Result<()> {
+    let start = c.text.len();
+    let Some(pending) = format.begin(&mut c.units[i], &mut c.text, stage.planner())? else {
+        c.entries.push(Entry::Text(start, c.text.len()));
+        return Ok(());
+    };
+    let unit = &c.units[i];
+    match stage.first(F::pose(&pending), format.previous(), F::line(unit)) {
+        Err(m) => Err(format.solve_error(unit, &pending, m)),
+        Ok(Step::Done(solved)) => {
+            format.finish(unit, &pending, &solved, &mut c.text)?;
+            c.entries.push(Entry::Text(start, c.text.len()));
+            Ok(())
+        }
+        Ok(Step::Later(job)) => {
+            c.entries.push(Entry::Pose);
+            c.jobs.push(Job {
+                unit: i,
+                pending,
+                job,
+            });
+            Ok(())
         }
     }
 }
@@ -390,7 +425,12 @@ fn write<F: Format, S: Stage>(
                 }
                 let unit = &c.units[job.unit];
                 let converted = stage
-                    .commit(F::pose(&job.pending), &job.job, F::line(unit))
+                    .commit(
+                        F::pose(&job.pending),
+                        &job.job,
+                        format.previous(),
+                        F::line(unit),
+                    )
                     .map_err(|m| format.solve_error(unit, &job.pending, m))
                     .and_then(|solved| format.finish(unit, &job.pending, &solved, buf));
                 if let Err(e) = converted {

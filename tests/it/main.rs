@@ -15,6 +15,7 @@ mod architecture;
 mod bad_input;
 mod cl;
 mod cl_dialects;
+mod cl_driver;
 mod cl_real;
 mod cli_corpus_echo;
 mod cli_diagnose;
