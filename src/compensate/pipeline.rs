@@ -9,10 +9,10 @@ use crate::post::pipeline::{Stage, Step};
 use crate::post::{PostOptions, PostStats, SolvedPose};
 use std::io::{BufRead, Write};
 
-/// A pose's work between the passes: the theoretical joint values (none
-/// when the IK failed there) and, once refined, the refinement.
+/// A pose's work between the passes: the theoretical joint values and,
+/// once refined, the refinement.
 struct Job {
-    th: Option<JointValues>,
+    th: JointValues,
     refined: Option<Refined>,
     /// The tool-tip and axis errors as written, when worked out beside the
     /// refinement (no backlash pre-compensation; the failure policy keeps
@@ -26,20 +26,6 @@ struct Compensating<'s, 'm> {
     solver: &'s mut CompensatingSolver<'m>,
     /// The theoretical joint values of the previous pose.
     previous_th: Option<JointValues>,
-    /// The IK continues from the joint values written (compensated) for
-    /// the previous pose, as [`CompensatingSolver`]'s
-    /// [`crate::post::PoseSolver`] interface does (APT CL), instead of the
-    /// previous theoretical solution (G-code). The first pass then
-    /// predicts the IK from the previous theoretical solution; the writing
-    /// pass solves it again from the written values and refines again, in
-    /// order, where the two differ (a free rotary at a singular pose keeps
-    /// its written value; a branch or turn tie).
-    from_written: bool,
-}
-
-/// Whether `a` and `b` are the same joint values, bit for bit.
-fn same_bits(a: &[f64], b: &[f64]) -> bool {
-    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
 }
 
 impl Stage for Compensating<'_, '_> {
@@ -50,21 +36,10 @@ impl Stage for Compensating<'_, '_> {
         _: Option<&[f64]>,
         _: usize,
     ) -> std::result::Result<Step<Job>, String> {
-        let th = match self.solver.theoretical(pose, self.previous_th.as_deref()) {
-            Ok(th) => th,
-            // Solved again from the written values in the writing pass.
-            Err(_) if self.from_written => {
-                return Ok(Step::Later(Job {
-                    th: None,
-                    refined: None,
-                    written: None,
-                }));
-            }
-            Err(m) => return Err(m),
-        };
+        let th = self.solver.theoretical(pose, self.previous_th.as_deref())?;
         self.previous_th = Some(th.clone());
         Ok(Step::Later(Job {
-            th: Some(th),
+            th,
             refined: None,
             written: None,
         }))
@@ -73,22 +48,11 @@ impl Stage for Compensating<'_, '_> {
         &mut self,
         pose: &Pose,
         job: &Job,
-        previous: Option<&[f64]>,
         line: usize,
     ) -> std::result::Result<SolvedPose, String> {
-        if self.from_written {
-            let th = self.solver.theoretical(pose, previous)?;
-            if let (Some(predicted), Some(refined)) = (&job.th, &job.refined)
-                && same_bits(predicted, &th)
-            {
-                return self.solver.commit(pose, &th, refined, job.written, line);
-            }
-            let refined = self.solver.refine_block(pose, &th);
-            return self.solver.commit(pose, &th, &refined, None, line);
-        }
-        let th = job.th.as_ref().expect("solved in the first pass");
         let refined = job.refined.as_ref().expect("refined in parallel");
-        self.solver.commit(pose, th, refined, job.written, line)
+        self.solver
+            .commit(pose, &job.th, refined, job.written, line)
     }
 }
 
@@ -137,17 +101,17 @@ pub fn compensate_gcode<R: BufRead, W: Write + ?Sized>(
 /// `records` receives the per-block records after each chunk (memory stays
 /// flat).
 ///
-/// On G-code, unlike [`crate::post::post_gcode`] with the solver's
-/// [`crate::post::PoseSolver`] interface, which continues each IK from the
-/// previous block's *compensated* axes, the IK continues from the previous
-/// *theoretical* solution: the two differ by the compensation (micrometres,
-/// microradians), which changes neither the branch nor the turn of a rotary
-/// except at an exact tie (and at a singular pose, the value a free rotary
-/// keeps). On APT CL the IK continues from the compensated axes, as that
-/// interface does: the theoretical solution predicts it for the parallel
-/// refinement, and a pose whose IK from the written axes differs is solved
-/// and refined again in order. Arcs and holes of APT CL are their moves
-/// ([`crate::post::convert_cl`]).
+/// Unlike [`crate::post::post_gcode`] / [`crate::post::post_cl`] with the
+/// solver's [`crate::post::PoseSolver`] interface, which continue each IK
+/// from the previous block's *compensated* axes, the IK continues from the
+/// previous *theoretical* solution, on G-code and APT CL alike: the two
+/// differ by the compensation (micrometres, microradians), which changes
+/// neither the branch nor the turn of a rotary except at an exact tie, and
+/// at a singular pose the value a free rotary keeps is the theoretical one
+/// (continuing from compensated values there let a free rotary drift by
+/// the compensation bound and sent a later pose of a SolidWorks program
+/// out of the machine's Y travel, where `post` converts it). Arcs and holes
+/// of APT CL are their moves ([`crate::post::convert_cl`]).
 #[allow(clippy::too_many_arguments)]
 pub fn compensate<R: BufRead, W: Write + ?Sized>(
     kind: Input,
@@ -168,8 +132,7 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
     let decimals = solver.decimals.clone();
     let written_here = solver.backlash.is_empty() && !decimals.is_empty();
     let work = |pose: &Pose, job: &mut Job| {
-        let Some(th) = &job.th else { return };
-        let r = refine(&chain, errors, pose, th, &options);
+        let r = refine(&chain, errors, pose, &job.th, &options);
         if written_here {
             let lag = [0.0; crate::machine::chain::MAX_JOINTS];
             job.written = Some(written_residual(
@@ -187,7 +150,6 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
     let mut stage = Compensating {
         solver,
         previous_th: None,
-        from_written: kind == Input::Cl,
     };
     // The records go on after each chunk, on this thread.
     let after = |s: &mut Compensating<'_, '_>| records(&mut s.solver.records);

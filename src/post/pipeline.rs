@@ -122,13 +122,11 @@ pub trait Stage: Send {
         line: usize,
     ) -> std::result::Result<Step<Self::Job>, String>;
     /// In order, in the writing pass: the joint values of a job that was
-    /// worked on; `previous`: the converter's last joint values (those
-    /// written before this pose).
+    /// worked on.
     fn commit(
         &mut self,
         pose: &Pose,
         job: &Self::Job,
-        previous: Option<&[f64]>,
         line: usize,
     ) -> std::result::Result<SolvedPose, String>;
     /// The solver, when the stage solves every pose in the first pass
@@ -158,7 +156,6 @@ impl Stage for Whole<'_> {
         &mut self,
         _: &Pose,
         job: &Self::Job,
-        _: Option<&[f64]>,
         _: usize,
     ) -> std::result::Result<SolvedPose, String> {
         match *job {}
@@ -425,12 +422,7 @@ fn write<F: Format, S: Stage>(
                 }
                 let unit = &c.units[job.unit];
                 let converted = stage
-                    .commit(
-                        F::pose(&job.pending),
-                        &job.job,
-                        format.previous(),
-                        F::line(unit),
-                    )
+                    .commit(F::pose(&job.pending), &job.job, F::line(unit))
                     .map_err(|m| format.solve_error(unit, &job.pending, m))
                     .and_then(|solved| format.finish(unit, &job.pending, &solved, buf));
                 if let Err(e) = converted {

@@ -171,3 +171,53 @@ fn units_and_arc_tolerance_options() {
     let (code, _, _) = post_stdin(&["--arc-tolerance", "0"], arc);
     assert_eq!(code, 2);
 }
+
+/// `compensate` converts every SolidWorks program that `post` converts, on
+/// the five-axis fixture machines with an error table. Before, APT CL
+/// compensation continued each IK from the previous *compensated* axes: at
+/// the vertical tool a free C kept its compensated value, and
+/// Sacrifice-Board.apt on xyzbc-trt and xyzbc-nutating (and on xyzac-trt)
+/// was refused at line 405 with Y beyond its travel, while `post` converted
+/// it.
+#[test]
+fn solidworks_cam_compensate_wherever_post_succeeds() {
+    let Some(files) = files() else { return };
+    // An X, Y, Z table for the A/C machine: the linear axes of wang2023's.
+    let wang =
+        std::fs::read_to_string(util::repo_file("fixtures/errors/wang2023-xyzab.csv")).unwrap();
+    let xyz: String = wang
+        .lines()
+        .take_while(|l| !l.starts_with("A,"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let dir = std::env::temp_dir().join(format!("kinpost-cl-real-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let xyz_path = dir.join("xyz.csv");
+    std::fs::write(&xyz_path, xyz).unwrap();
+    let zhao = util::repo_file("fixtures/errors/zhao2022-xzbc.csv");
+    let cases = [
+        ("fixtures/machines/xyzbc-trt.json", zhao.clone()),
+        ("fixtures/machines/xyzbc-nutating.json", zhao.clone()),
+        (MACHINE, xyz_path.to_string_lossy().into_owned()),
+    ];
+    let mut compared = 0;
+    for f in &files {
+        let f = f.to_str().unwrap();
+        for (machine, table) in &cases {
+            let machine = util::repo_file(machine);
+            let post = kinpost(&["post", "-q", "-m", &machine, f]);
+            if !post.status.success() {
+                continue;
+            }
+            let comp = kinpost(&["compensate", "-q", "-m", &machine, "--errors", table, f]);
+            assert!(
+                comp.status.success(),
+                "{f} on {machine}: post converts it, compensate refuses: {}",
+                String::from_utf8_lossy(&comp.stderr)
+            );
+            compared += 1;
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+    assert!(compared >= 6, "{compared} runs compared");
+}
