@@ -220,11 +220,17 @@ struct Field<'a> {
 /// Splits `line` at `sep`, trimming whitespace around each field; trailing
 /// empty fields are dropped.
 fn split_fields(line: &str, sep: char) -> Vec<Field<'_>> {
-    let mut out = Vec::new();
+    let mut out = Vec::with_capacity(8);
     let mut start = 0;
     let bytes_len = line.len();
+    // An ASCII separator (all but exotic ones) is found byte by byte.
+    let ascii = u8::try_from(sep).ok().filter(u8::is_ascii);
     loop {
-        let end = line[start..].find(sep).map_or(bytes_len, |i| start + i);
+        let found = match ascii {
+            Some(b) => line.as_bytes()[start..].iter().position(|&c| c == b),
+            None => line[start..].find(sep),
+        };
+        let end = found.map_or(bytes_len, |i| start + i);
         let raw = &line[start..end];
         let lead = raw.len() - raw.trim_start().len();
         out.push(Field {
@@ -258,6 +264,28 @@ fn strip_comment(line: &str) -> &str {
 fn parse_number(text: &str) -> std::result::Result<f64, &'static str> {
     if text.is_empty() {
         return Err("empty field: expected a number");
+    }
+    // A plain decimal (`-0.0017216`) exactly by the digit scan, as the
+    // program readers do; anything else by the standard parser.
+    let bytes = text.as_bytes();
+    let (negative, unsigned) = match bytes.split_first() {
+        Some((b'-', rest)) => (true, rest),
+        Some((b'+', rest)) => (false, rest),
+        _ => (false, bytes),
+    };
+    let mut digits = crate::numeric::Digits::default();
+    let int_digits = digits.scan(unsigned);
+    let point = unsigned.get(int_digits) == Some(&b'.');
+    let frac_digits = if point {
+        digits.scan(&unsigned[int_digits + 1..])
+    } else {
+        0
+    };
+    if int_digits + frac_digits > 0
+        && unsigned.len() == int_digits + usize::from(point) + frac_digits
+        && let Some(v) = digits.exact(frac_digits)
+    {
+        return Ok(if negative { -v } else { v });
     }
     let owned;
     let t = if text.contains('\u{2212}') {
