@@ -5,7 +5,7 @@
 # interleaved, so that a slower spell of a shared machine falls on all of
 # them alike. Not part of CI.
 #
-#   bash bench/run.sh [POSES] [WORKLOAD]     (defaults: 200000, both)
+#   bash bench/run.sh [POSES] [WORKLOAD]     (defaults: 200000, spiral and lens-cl)
 #
 # Workloads:
 #   spiral  — the lens spiral as G-code, the 376-row error table of the
@@ -13,7 +13,10 @@
 #   lens-cl — seed 000's lens ring run back and forth, as APT CL for
 #             kinpost (the peer reads the same poses as G-code), with a
 #             dense 6,003-row table (X, Z every 0.1 mm, B every 0.09°, six
-#             error motions each: examples/dense_table.rs).
+#             error motions each: examples/dense_table.rs);
+#   tables  — lens-cl compensated with that table and with ones 4 and 16
+#             times finer (24,003 and 96,003 rows): loading and fitting
+#             grow with the rows, the conversion does not (no peer run).
 #
 # Prints per workload the times of compensate (both cores, one thread),
 # post and the peer (wall clock, and in brackets the user CPU time, which a
@@ -85,6 +88,26 @@ for w in $WORKLOADS; do
       [ -s "$dense" ] || target/release/examples/dense_table > "$dense"
       run_workload lens-cl "$cl" "$nc" "$dense"
       ;;
-    *) echo "unknown workload $w (spiral, lens-cl)" >&2; exit 2 ;;
+    tables)
+      # The speed as the error tables grow: lens-cl compensated with the
+      # dense table, 4 and 16 times finer (6,003 / 24,003 / 96,003 rows).
+      cl="$WORK/lens-$POSES.cls"
+      [ -s "$cl" ] || target/release/examples/bench_lens_cl "$POSES" cl > "$cl"
+      echo "== tables: lens-cl, $POSES poses, compensate with finer tables, $(nproc) cores"
+      for f in 1 4 16; do
+        t="$WORK/dense-x$f.csv"
+        [ -s "$t" ] || target/release/examples/dense_table "$f" > "$t"
+        load() { "$KINPOST" compensate -q --machine zhao2022-xzbc --errors "$t" "$WORK/empty.nc" -o "$WORK/empty-out.nc" 2> /dev/null; }
+        comp() { "$KINPOST" compensate -q --machine zhao2022-xzbc --errors "$t" "$cl" -o "$WORK/kinpost.nc" 2> /dev/null; }
+        : > "$WORK/empty.nc"
+        t_load=""; t_comp=""
+        for _ in $(seq "$RUNS"); do
+          t_load=$(min "$(timed load)" "$t_load"); t_comp=$(min "$(timed comp)" "$t_comp")
+        done
+        printf '%6s rows: load and fit %s s, compensate %s s, compensate less loading %s s\n' \
+          "$(grep -c '^[-0-9]' "$t")" "$t_load" "$t_comp" "$(awk -v a="$t_comp" -v b="$t_load" 'BEGIN { printf "%.3f", a - b }')"
+      done
+      ;;
+    *) echo "unknown workload $w (spiral, lens-cl, tables)" >&2; exit 2 ;;
   esac
 done
