@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Peak memory (RSS) of post and compensate on a long program, default
-# 2,000,000 blocks (about 160 MB of G-code). Not part of CI.
+# 2,000,000 blocks (about 160 MB of G-code), and as many APT CL statements.
+# Not part of CI.
 #
 #   bash bench/memory.sh [POSES]
 set -euo pipefail
@@ -9,7 +10,7 @@ POSES="${1:-2000000}"
 WORK="${BENCH_DIR:-${TMPDIR:-/tmp}/kinpost-bench}"
 mkdir -p "$WORK"
 command -v /usr/bin/time >/dev/null || { apt-get update -qq && apt-get install -y -qq time; }
-cargo build --release --quiet --bin kinpost --example bench_program
+cargo build --release --quiet --bin kinpost --example bench_program --example bench_lens_cl
 PROGRAM="$WORK/poses-$POSES.nc"
 [ -s "$PROGRAM" ] || target/release/examples/bench_program "$POSES" > "$PROGRAM"
 echo "== $POSES blocks ($(du -h "$PROGRAM" | cut -f1))"
@@ -24,4 +25,10 @@ run "post -o FILE" target/release/kinpost post -q "$PROGRAM" -o "$WORK/post.nc"
 run "post (stdout)" target/release/kinpost post -q "$PROGRAM"
 run "compensate -o FILE" target/release/kinpost compensate -q --errors fixtures/errors/zhao2022-xzbc.csv "$PROGRAM" -o "$WORK/comp.nc"
 run "compensate --report FILE -o FILE" target/release/kinpost compensate -q --errors fixtures/errors/zhao2022-xzbc.csv --report "$WORK/report.json" "$PROGRAM" -o "$WORK/comp.nc"
+# The same length as APT CL (the lens ring back and forth).
+CL="$WORK/lens-$POSES.cls"
+[ -s "$CL" ] || target/release/examples/bench_lens_cl "$POSES" cl > "$CL"
+echo "== $POSES APT CL statements ($(du -h "$CL" | cut -f1))"
+run "post APT CL -o FILE" target/release/kinpost post -q "$CL" -o "$WORK/post.nc"
+run "compensate APT CL --report FILE -o FILE" target/release/kinpost compensate -q --errors fixtures/errors/zhao2022-xzbc.csv --report "$WORK/report.json" "$CL" -o "$WORK/comp.nc"
 rm -f "$WORK/post.nc" "$WORK/comp.nc" "$WORK/report.json"
