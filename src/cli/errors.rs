@@ -514,12 +514,14 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             None => None,
         };
         let mut sink = |records: &mut Vec<BlockRecord>| -> Result<()> {
-            for r in records.drain(..) {
-                summary.add(&r);
-                if let Some(w) = &mut writer {
-                    w.block(&r).map_err(|e| Error::io(report_name.clone(), e))?;
-                }
+            for r in records.iter() {
+                summary.add(r);
             }
+            if let Some(w) = &mut writer {
+                w.blocks(records)
+                    .map_err(|e| Error::io(report_name.clone(), e))?;
+            }
+            records.clear();
             Ok(())
         };
         write_atomically(a.output.as_deref(), |out| {

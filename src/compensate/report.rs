@@ -14,6 +14,71 @@ pub struct ReportWriter<W: std::io::Write> {
     buf: Vec<u8>,
     /// Keys of the per-axis values: the axis and its unit (`X_mm`, `C_deg`).
     axis_keys: Vec<String>,
+    /// The axes in the alphabetical order of their keys.
+    key_order: Vec<usize>,
+}
+
+/// A block as the report writes it: the record's fields in alphabetical
+/// order, the compensation as an object keyed by axis and unit in
+/// alphabetical order (the layout `serde_json::to_value` of the record
+/// gives, without building the value).
+struct BlockJson<'a> {
+    record: &'a BlockRecord,
+    keys: &'a [String],
+    order: &'a [usize],
+}
+
+/// The pretty JSON of one block (not yet indented into the report).
+fn block_text(r: &BlockRecord, keys: &[String], order: &[usize]) -> std::io::Result<Vec<u8>> {
+    let mut text = Vec::with_capacity(640);
+    let json = BlockJson {
+        record: r,
+        keys,
+        order,
+    };
+    serde_json::to_writer_pretty(&mut text, &json).map_err(std::io::Error::other)?;
+    Ok(text)
+}
+
+/// The per-axis values of a block, keyed (see [`BlockJson`]).
+struct AxisValues<'a>(&'a BlockJson<'a>);
+
+impl serde::Serialize for AxisValues<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let values = &self.0.record.compensation;
+        let mut map = s.serialize_map(Some(values.len().min(self.0.keys.len())))?;
+        for &k in self.0.order {
+            if let Some(v) = values.get(k) {
+                map.serialize_entry(&self.0.keys[k], v)?;
+            }
+        }
+        map.end()
+    }
+}
+
+impl serde::Serialize for BlockJson<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        let r = self.record;
+        let mut st = s.serialize_struct("BlockRecord", 9)?;
+        st.serialize_field("compensation", &AxisValues(self))?;
+        st.serialize_field("iterations", &r.iterations)?;
+        st.serialize_field("line", &r.line)?;
+        st.serialize_field(
+            "orientation_error_before_urad",
+            &r.orientation_error_before_urad,
+        )?;
+        st.serialize_field("orientation_residual_urad", &r.orientation_residual_urad)?;
+        st.serialize_field(
+            "orientation_residual_written_urad",
+            &r.orientation_residual_written_urad,
+        )?;
+        st.serialize_field("tip_error_before_mm", &r.tip_error_before_mm)?;
+        st.serialize_field("tip_residual_mm", &r.tip_residual_mm)?;
+        st.serialize_field("tip_residual_written_mm", &r.tip_residual_written_mm)?;
+        st.end()
+    }
 }
 
 /// `values` (output order) as an object keyed by `keys`.
@@ -30,7 +95,7 @@ impl<W: std::io::Write> ReportWriter<W> {
     /// (`{"X_mm": …, "C_deg": …}`).
     pub fn new(mut out: W, machine: &crate::machine::Machine) -> std::io::Result<Self> {
         out.write_all(b"{\n  \"blocks\": [")?;
-        let axis_keys = machine
+        let axis_keys: Vec<String> = machine
             .axes
             .iter()
             .map(|a| {
@@ -42,27 +107,45 @@ impl<W: std::io::Write> ReportWriter<W> {
                 format!("{}_{}", a.name, if revolute { "deg" } else { "mm" })
             })
             .collect();
+        let mut key_order: Vec<usize> = (0..axis_keys.len()).collect();
+        key_order.sort_by(|&a, &b| axis_keys[a].cmp(&axis_keys[b]));
         Ok(ReportWriter {
             out,
             blocks: 0,
             buf: Vec::with_capacity(512),
             axis_keys,
+            key_order,
         })
     }
 
     /// Appends one block.
     pub fn block(&mut self, r: &BlockRecord) -> std::io::Result<()> {
-        self.buf.clear();
-        self.buf
-            .extend_from_slice(if self.blocks == 0 { b"\n" } else { b",\n" });
-        let mut v = serde_json::to_value(r).map_err(std::io::Error::other)?;
-        if let Some(c) = v.get_mut("compensation") {
-            *c = by_axis(&self.axis_keys, c.take());
+        self.blocks(std::slice::from_ref(r))
+    }
+
+    /// Appends blocks, in order; their text is made on every core.
+    pub fn blocks(&mut self, records: &[BlockRecord]) -> std::io::Result<()> {
+        use rayon::prelude::*;
+        let (keys, order) = (&self.axis_keys, &self.key_order);
+        let texts: Vec<std::io::Result<Vec<u8>>> = records
+            .par_iter()
+            .map(|r| block_text(r, keys, order))
+            .collect();
+        for text in texts {
+            let text = text?;
+            self.buf.clear();
+            self.buf
+                .extend_from_slice(if self.blocks == 0 { b"\n" } else { b",\n" });
+            // serde_json writes UTF-8.
+            indent(
+                &mut self.buf,
+                std::str::from_utf8(&text).unwrap_or_default(),
+                "    ",
+                true,
+            );
+            self.out.write_all(&self.buf)?;
+            self.blocks += 1;
         }
-        let text = serde_json::to_string_pretty(&v).map_err(std::io::Error::other)?;
-        indent(&mut self.buf, &text, "    ", true);
-        self.out.write_all(&self.buf)?;
-        self.blocks += 1;
         Ok(())
     }
 
@@ -258,5 +341,50 @@ impl RunSummary {
             );
         }
         t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A block's text is what `serde_json::to_string_pretty` makes of the
+    /// record as a value with the compensation keyed by axis (the layout
+    /// the report promises), for axes out of alphabetical order, extreme
+    /// and non-finite numbers.
+    #[test]
+    fn block_text_is_the_pretty_value() {
+        let keys: Vec<String> = ["Z_mm", "X_mm", "C_deg", "B_deg"]
+            .iter()
+            .map(|k| k.to_string())
+            .collect();
+        let mut order: Vec<usize> = (0..keys.len()).collect();
+        order.sort_by(|&a, &b| keys[a].cmp(&keys[b]));
+        for (k, values) in [
+            [1e-300, -0.0, 123456.789, f64::MIN_POSITIVE],
+            [f64::NAN, 1.0, -2.5e-14, 3.0],
+            [0.1, 0.2, 0.30000000000000004, -1e21],
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let r = BlockRecord {
+                line: 7 + k,
+                iterations: k,
+                tip_error_before_mm: values[0],
+                tip_residual_mm: values[1],
+                orientation_error_before_urad: values[2],
+                orientation_residual_urad: values[3],
+                tip_residual_written_mm: values[3] * 3.0,
+                orientation_residual_written_urad: f64::INFINITY,
+                compensation: values.iter().copied().collect(),
+            };
+            let mut v = serde_json::to_value(&r).unwrap();
+            let c = v.get_mut("compensation").unwrap();
+            *c = by_axis(&keys, c.take());
+            let want = serde_json::to_string_pretty(&v).unwrap();
+            let got = block_text(&r, &keys, &order).unwrap();
+            assert_eq!(String::from_utf8(got).unwrap(), want);
+        }
     }
 }
