@@ -120,7 +120,12 @@ pub struct Analyzer<'a> {
     fixed_chains: Vec<(String, Chain)>,
     solver: IkSolver,
     previous: Option<Vec<f64>>,
+    /// The per-block results, when they are kept ([`Analyzer::keep_blocks`]).
     blocks: Vec<BlockResult>,
+    keep_blocks: bool,
+    /// The summary so far (its RMS fields hold sums of squares until
+    /// [`Analyzer::finish`]).
+    summary: Summary,
     term_stats: Vec<(f64, f64, f64)>,
     fixed_stats: Vec<(f64, f64, f64)>,
 }
@@ -157,9 +162,28 @@ impl<'a> Analyzer<'a> {
             solver: IkSolver::new(machine),
             previous: None,
             blocks: Vec::new(),
+            keep_blocks: true,
+            summary: Summary {
+                poses: 0,
+                tip_error_max_mm: 0.0,
+                tip_error_rms_mm: 0.0,
+                tip_error_max_line: 0,
+                orientation_error_max_urad: 0.0,
+                orientation_error_rms_urad: 0.0,
+                orientation_error_max_arcsec: 0.0,
+                orientation_error_max_line: 0,
+            },
             term_stats: vec![(0.0, 0.0, 0.0); n_terms],
             fixed_stats: vec![(0.0, 0.0, 0.0); n_fixed],
         })
+    }
+
+    /// Whether the per-block results are kept for [`Analysis::blocks`]
+    /// (default); without them memory does not grow with the program and
+    /// the blocks of the analysis are empty.
+    pub fn keep_blocks(mut self, keep: bool) -> Self {
+        self.keep_blocks = keep;
+        self
     }
 
     /// Analyses one programmed pose at `line`.
@@ -175,13 +199,30 @@ impl<'a> Analyzer<'a> {
         let actual = self.actual_chain.pose(&q, self.errors);
         // Seed 000's E and ε are against the designed pose.
         let d = actual.tip - target.tip;
-        self.blocks.push(BlockResult {
+        let b = BlockResult {
             line,
             tip_error_mm: d.norm(),
             tip_error_vector_mm: [d.x, d.y, d.z],
             orientation_error_urad: actual.axis_angle(target) * 1e6,
             axes: self.machine.to_external(&q).to_vec(),
-        });
+        };
+        let s = &mut self.summary;
+        s.poses += 1;
+        s.tip_error_rms_mm += b.tip_error_mm * b.tip_error_mm;
+        s.orientation_error_rms_urad += b.orientation_error_urad * b.orientation_error_urad;
+        if b.tip_error_mm > s.tip_error_max_mm || s.tip_error_max_line == 0 {
+            s.tip_error_max_mm = b.tip_error_mm;
+            s.tip_error_max_line = b.line;
+        }
+        if b.orientation_error_urad > s.orientation_error_max_urad
+            || s.orientation_error_max_line == 0
+        {
+            s.orientation_error_max_urad = b.orientation_error_urad;
+            s.orientation_error_max_line = b.line;
+        }
+        if self.keep_blocks {
+            self.blocks.push(b);
+        }
         for (k, (_, _, joint, component)) in self.terms.iter().enumerate() {
             let only = OnlyTerm {
                 inner: self.errors,
@@ -209,32 +250,9 @@ impl<'a> Analyzer<'a> {
 
     /// Finishes the analysis.
     pub fn finish(self) -> Analysis {
-        let n = self.blocks.len().max(1) as f64;
-        let mut s = Summary {
-            poses: self.blocks.len(),
-            tip_error_max_mm: 0.0,
-            tip_error_rms_mm: 0.0,
-            tip_error_max_line: 0,
-            orientation_error_max_urad: 0.0,
-            orientation_error_rms_urad: 0.0,
-            orientation_error_max_arcsec: 0.0,
-            orientation_error_max_line: 0,
-        };
-        let (mut se, mut so) = (0.0, 0.0);
-        for b in &self.blocks {
-            se += b.tip_error_mm * b.tip_error_mm;
-            so += b.orientation_error_urad * b.orientation_error_urad;
-            if b.tip_error_mm > s.tip_error_max_mm || s.tip_error_max_line == 0 {
-                s.tip_error_max_mm = b.tip_error_mm;
-                s.tip_error_max_line = b.line;
-            }
-            if b.orientation_error_urad > s.orientation_error_max_urad
-                || s.orientation_error_max_line == 0
-            {
-                s.orientation_error_max_urad = b.orientation_error_urad;
-                s.orientation_error_max_line = b.line;
-            }
-        }
+        let mut s = self.summary;
+        let n = s.poses.max(1) as f64;
+        let (se, so) = (s.tip_error_rms_mm, s.orientation_error_rms_urad);
         s.tip_error_rms_mm = (se / n).sqrt();
         s.orientation_error_rms_urad = (so / n).sqrt();
         s.orientation_error_max_arcsec = s.orientation_error_max_urad * 1e-6 * ARCSEC_PER_RAD;

@@ -181,22 +181,41 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
 
     // Joint values per block (theoretical IK for poses).
     let mut analyzer = match (&model, &bound) {
-        (Some(m), Some(b)) => Some(Analyzer::new(&machine, m, b)?),
+        // The per-block results only for the JSON and the plot: memory
+        // stays flat otherwise.
+        (Some(m), Some(b)) => {
+            Some(Analyzer::new(&machine, m, b)?.keep_blocks(a.json || a.svg.is_some()))
+        }
         _ => None,
     };
     let mut nonlinear: Vec<NonlinearBlock> = Vec::new();
     let mut prev_q: Option<Vec<f64>> = None;
     let axis_tolerance = a.axis_tolerance.rad()?;
     let nl_errors: &dyn crate::machine::JointErrors = &NoErrors;
+    // The text report needs only the largest and the count.
+    let keep_nonlinear = a.json || a.svg.is_some();
+    let mut nl_count = 0usize;
+    let mut nl_max: Option<NonlinearBlock> = None;
     let mut step = |line: usize, q: Vec<f64>| {
         if let (true, Some(p)) = (a.nonlinear, &prev_q) {
             let e = nonlinear_error(&machine.chain, nl_errors, p, &q);
-            nonlinear.push(NonlinearBlock {
+            let b = NonlinearBlock {
                 line,
                 max_mm: e.max_mm,
                 t_at_max: e.t_at_max,
                 estimate_mm: e.estimate_mm,
-            });
+            };
+            nl_count += 1;
+            // The last of equal largest, as `max_by` over the list gives.
+            if nl_max
+                .as_ref()
+                .is_none_or(|m| b.max_mm.total_cmp(&m.max_mm).is_ge())
+            {
+                nl_max = Some(b.clone());
+            }
+            if keep_nonlinear {
+                nonlinear.push(b);
+            }
         }
         prev_q = Some(q);
     };
@@ -222,10 +241,6 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         },
     )?;
     let analysis = analyzer.map(|an| an.finish());
-    let nl_max = nonlinear
-        .iter()
-        .cloned()
-        .max_by(|x, y| x.max_mm.total_cmp(&y.max_mm));
 
     if let Some(svg) = &a.svg {
         let mut panels = Vec::new();
@@ -323,7 +338,7 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
                     b.line,
                     b.t_at_max,
                     b.estimate_mm * 1e3,
-                    nonlinear.len()
+                    nl_count
                 )
                 .map_err(io)?,
                 None => writeln!(o, "  no blocks").map_err(io)?,
