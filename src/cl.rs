@@ -483,24 +483,8 @@ impl Arg<'_> {
     /// checks the two agree.
     fn number(&self) -> Option<f64> {
         // Plain decimals (`-45.9945172`, most of them) exactly here.
-        let (negative, unsigned) = match self.text.split_first() {
-            Some((b'-', rest)) => (true, rest),
-            Some((b'+', rest)) => (false, rest),
-            _ => (false, self.text),
-        };
-        let mut digits = crate::numeric::Digits::default();
-        let int_digits = digits.scan(unsigned);
-        let point = unsigned.get(int_digits) == Some(&b'.');
-        let frac_digits = if point {
-            digits.scan(&unsigned[int_digits + 1..])
-        } else {
-            0
-        };
-        // Digits, a point and digits, nothing else (no exponent).
-        let plain = int_digits + frac_digits > 0
-            && unsigned.len() == int_digits + usize::from(point) + frac_digits;
-        if plain && let Some(v) = digits.exact(frac_digits) {
-            return Some(if negative { -v } else { v });
+        if let Some(v) = crate::numeric::plain_decimal(self.text) {
+            return Some(v);
         }
         let v: f64 = std::str::from_utf8(self.text).ok()?.parse().ok()?;
         v.is_finite().then_some(v)

@@ -105,6 +105,30 @@ impl Digits {
     }
 }
 
+/// The value of `text` when it is a plain decimal — an optional sign,
+/// digits, a point and digits (either side may be empty, not both), nothing
+/// else — that [`Digits::exact`] computes exactly; `None` otherwise (an
+/// exponent, blanks, more than 19 digits: use [`str::parse`]).
+pub fn plain_decimal(text: &[u8]) -> Option<f64> {
+    let (negative, unsigned) = match text.split_first() {
+        Some((b'-', rest)) => (true, rest),
+        Some((b'+', rest)) => (false, rest),
+        _ => (false, text),
+    };
+    let mut digits = Digits::default();
+    let int_digits = digits.scan(unsigned);
+    let point = unsigned.get(int_digits) == Some(&b'.');
+    let frac_digits = if point {
+        digits.scan(&unsigned[int_digits + 1..])
+    } else {
+        0
+    };
+    let plain = int_digits + frac_digits > 0
+        && unsigned.len() == int_digits + usize::from(point) + frac_digits;
+    let v = digits.exact(frac_digits).filter(|_| plain)?;
+    Some(if negative { -v } else { v })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -145,6 +169,39 @@ mod tests {
                 }
                 assert_eq!(d.count, want);
             }
+        }
+    }
+
+    /// A plain decimal is what the standard parser reads; anything else is
+    /// left to it.
+    #[test]
+    fn plain_decimals() {
+        for t in ["0", "-0", "+5.", "-.5", "45.994517200", "-100.00", "007"] {
+            assert_eq!(
+                plain_decimal(t.as_bytes()),
+                Some(t.parse::<f64>().unwrap()),
+                "{t}"
+            );
+            assert_eq!(
+                plain_decimal(t.as_bytes()).map(f64::is_sign_negative),
+                Some(t.starts_with('-')),
+                "{t}"
+            );
+        }
+        for t in [
+            "",
+            ".",
+            "-",
+            "1e5",
+            "1.5E-3",
+            " 1",
+            "1 ",
+            "1.2.3",
+            "--1",
+            "nan",
+            "12345678901234567890",
+        ] {
+            assert_eq!(plain_decimal(t.as_bytes()), None, "{t}");
         }
     }
 

@@ -267,25 +267,8 @@ fn parse_number(text: &str) -> std::result::Result<f64, &'static str> {
     }
     // A plain decimal (`-0.0017216`) exactly by the digit scan, as the
     // program readers do; anything else by the standard parser.
-    let bytes = text.as_bytes();
-    let (negative, unsigned) = match bytes.split_first() {
-        Some((b'-', rest)) => (true, rest),
-        Some((b'+', rest)) => (false, rest),
-        _ => (false, bytes),
-    };
-    let mut digits = crate::numeric::Digits::default();
-    let int_digits = digits.scan(unsigned);
-    let point = unsigned.get(int_digits) == Some(&b'.');
-    let frac_digits = if point {
-        digits.scan(&unsigned[int_digits + 1..])
-    } else {
-        0
-    };
-    if int_digits + frac_digits > 0
-        && unsigned.len() == int_digits + usize::from(point) + frac_digits
-        && let Some(v) = digits.exact(frac_digits)
-    {
-        return Ok(if negative { -v } else { v });
+    if let Some(v) = crate::numeric::plain_decimal(text.as_bytes()) {
+        return Ok(v);
     }
     let owned;
     let t = if text.contains('\u{2212}') {
