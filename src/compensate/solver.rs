@@ -153,7 +153,7 @@ impl CompensatingSolver<'_> {
         refine(&self.actual_chain, self.errors, pose, th, &self.options)
     }
 
-    /// [`written_residual`] with this solver's machine, errors and decimals.
+    /// The free function `written_residual` with this solver's machine, errors and decimals.
     pub fn written_residual(&self, pose: &Pose, q: &[f64], lag: &[f64]) -> (f64, f64) {
         written_residual(
             self.machine,
