@@ -134,7 +134,6 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
     let work = |pose: &Pose, job: &mut Job| {
         let r = refine(&chain, errors, pose, &job.th, &options);
         if written_here {
-            let lag = [0.0; crate::machine::chain::MAX_JOINTS];
             job.written = Some(written_residual(
                 machine,
                 &chain,
@@ -142,7 +141,7 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
                 &decimals,
                 pose,
                 &r.q,
-                &lag[..r.q.len()],
+                &[],
             ));
         }
         job.refined = Some(r);

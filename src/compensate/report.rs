@@ -118,11 +118,6 @@ impl<W: std::io::Write> ReportWriter<W> {
         })
     }
 
-    /// Appends one block.
-    pub fn block(&mut self, r: &BlockRecord) -> std::io::Result<()> {
-        self.blocks(std::slice::from_ref(r))
-    }
-
     /// Appends blocks, in order; their text is made on every core.
     pub fn blocks(&mut self, records: &[BlockRecord]) -> std::io::Result<()> {
         use rayon::prelude::*;

@@ -153,19 +153,6 @@ impl CompensatingSolver<'_> {
         refine(&self.actual_chain, self.errors, pose, th, &self.options)
     }
 
-    /// The free function `written_residual` with this solver's machine, errors and decimals.
-    pub fn written_residual(&self, pose: &Pose, q: &[f64], lag: &[f64]) -> (f64, f64) {
-        written_residual(
-            self.machine,
-            &self.actual_chain,
-            self.errors,
-            &self.decimals,
-            pose,
-            q,
-            lag,
-        )
-    }
-
     /// Stage 3 (in block order): the failure policy, backlash
     /// pre-compensation and the block's record.
     pub fn commit(
@@ -260,7 +247,15 @@ impl CompensatingSolver<'_> {
             match written {
                 // Worked out beside the refinement, for these very axes.
                 Some(w) if q == r.q && lag.iter().all(|&l| l == 0.0) => w,
-                _ => self.written_residual(pose, &q, &lag),
+                _ => written_residual(
+                    self.machine,
+                    &self.actual_chain,
+                    self.errors,
+                    &self.decimals,
+                    pose,
+                    &q,
+                    &lag,
+                ),
             }
         };
         let ext_c = self.machine.to_external(&q);
@@ -299,7 +294,7 @@ impl CompensatingSolver<'_> {
 /// (`chain` with `errors`) at the axes as written: `q` (chain order, with
 /// the backlash pre-compensation `lag` added) rounded to `decimals` (per
 /// axis of `machine`), the lag taken off again (the machine's play takes
-/// it back).
+/// it back). A joint beyond the end of `lag` has none (`&[]`: no lag).
 pub fn written_residual(
     machine: &crate::machine::Machine,
     chain: &Chain,
