@@ -378,6 +378,24 @@ impl Write for Writeback {
     }
 }
 
+/// Writes `bytes` to a new file at `target` (for files that belong to
+/// kinpost itself, such as the fitted-model cache, not to outputs named on
+/// the command line): a temporary in the same directory, registered for
+/// removal on a signal and removed on failure, then renamed over `target`.
+/// Whatever `target` was (a file or a symbolic link) is replaced, never
+/// followed; a reader sees the old entry or the whole new one. Not synced
+/// to disk: callers treat a damaged file as absent.
+pub fn replace_file(target: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let dir = match target.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let (tmp, mut file) = Temporary::new(&dir, None)?;
+    file.write_all(bytes)?;
+    drop(file);
+    tmp.persist(target)
+}
+
 /// Number of hard links of an existing file (1 when unknown).
 fn nlink(m: Option<&Metadata>) -> u64 {
     #[cfg(unix)]

@@ -2,6 +2,7 @@
 //!
 //! * [`table`]: the error-table CSV of `formats.md` §1 ([`parse_tables`]).
 //! * [`bspline`]: least-squares cubic B-splines with cross-validated knots.
+//! * [`cache`]: the fitted-model cache of the tables given to `--errors`.
 //! * [`effects`]: the catalogue of effects (`formats.md` §4) that a model may
 //!   carry besides its tables; [`effect_spec`] their command-line syntax;
 //!   [`error_motion`] a rotary axis's error motion as a Fourier series.
@@ -16,6 +17,7 @@
 
 pub mod axis_errors;
 pub mod bspline;
+pub mod cache;
 pub mod effect_spec;
 pub mod effects;
 pub mod error_motion;

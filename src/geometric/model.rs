@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 
 pub use super::axis_errors::{AxisErrors, ColumnSpline, Origin};
 use super::bspline::{self, BSpline, Extrapolation, KnotChoice, SplineOptions};
+use super::cache::{FitCache, Hit};
 use super::iso230_2::{self, Iso230_2};
 use super::table::{
     Component, ErrorTable, RAD_PER_ARCSEC, angle_unit, is_rotary_axis, length_unit, parse_tables,
@@ -248,6 +249,13 @@ impl FitReport {
         }
         s
     }
+}
+
+/// Whether `text` is a model JSON (first character after a byte-order mark
+/// and blanks is `{`) rather than an error table.
+fn is_model_json(text: &str) -> bool {
+    text.trim_start_matches(['\u{feff}', ' ', '\t', '\r', '\n'])
+        .starts_with('{')
 }
 
 /// Error location for a table (header line).
@@ -559,18 +567,77 @@ impl ErrorModel {
                 "an error model (JSON from `kinpost fit`) or an error table (CSV)",
             ));
         }
-        Self::from_str_auto(&text, &name)
+        if is_model_json(&text) {
+            Self::from_json_str(&text, &name)
+        } else {
+            Self::fit_table_cached(&text, &name)
+        }
     }
 
-    /// Like [`ErrorModel::load`], from text already read.
+    /// Like [`ErrorModel::load`], from text already read (without the
+    /// fitted-model cache: the text need not be a file's).
     pub fn from_str_auto(text: &str, file: &str) -> Result<ErrorModel> {
-        let trimmed = text.trim_start_matches(['\u{feff}', ' ', '\t', '\r', '\n']);
-        if trimmed.starts_with('{') {
+        if is_model_json(text) {
             Self::from_json_str(text, file)
         } else {
-            let tables = parse_tables(text, file)?;
-            Ok(Self::fit(&tables, &FitOptions::default())?.0)
+            Self::fit_table(text, file)
         }
+    }
+
+    /// The error table `text` fitted with default options.
+    fn fit_table(text: &str, file: &str) -> Result<ErrorModel> {
+        let tables = parse_tables(text, file)?;
+        Ok(Self::fit(&tables, &FitOptions::default())?.0)
+    }
+
+    /// [`ErrorModel::fit_table`] through the fitted-model cache
+    /// ([`super::cache`]): the model of an entry for these exact bytes if
+    /// there is one, else the fit, stored for the next run. The cache never
+    /// changes the result: an entry is used only if it reads back, and a
+    /// model is stored only if its JSON reads back equal to it.
+    fn fit_table_cached(text: &str, file: &str) -> Result<ErrorModel> {
+        let Some(cache) = FitCache::from_env() else {
+            return Self::fit_table(text, file);
+        };
+        let opts = FitOptions::default();
+        let key = cache.key(text.as_bytes(), &format!("{opts:?}"));
+        if let Some(model) = cache
+            .get(&key, file)
+            .and_then(|hit| Self::from_cache_hit(hit, file))
+        {
+            return Ok(model);
+        }
+        let tables = parse_tables(text, file)?;
+        let model = Self::fit(&tables, &opts)?.0;
+        if let Some(json) = model.json_reading_back_equal(file) {
+            let origins: Vec<Origin> = model.axes.iter().map(|a| a.origin.clone()).collect();
+            // Best effort: a cache that cannot be written is no cache.
+            let _ = cache.put(&key, &json, &origins);
+        }
+        Ok(model)
+    }
+
+    /// The model of a cache entry, named after the table `file` as a fit of
+    /// it would be; `None` if the entry does not make a model.
+    fn from_cache_hit(hit: Hit, file: &str) -> Option<ErrorModel> {
+        let mut model = Self::from_json_str(&hit.model, file).ok()?;
+        if model.axes.len() != hit.origins.len() || !model.effects.is_empty() {
+            return None;
+        }
+        for (axis, origin) in model.axes.iter_mut().zip(hit.origins) {
+            axis.origin = origin;
+        }
+        if model.meta.source.is_some() {
+            model.meta.source = Some(file.to_string());
+        }
+        Some(model)
+    }
+
+    /// The model's JSON, if it reads back as an equal model.
+    fn json_reading_back_equal(&self, file: &str) -> Option<serde_json::Value> {
+        let json = self.to_json();
+        let back = Self::from_json_str(&json.to_string(), file).ok()?;
+        (back == *self).then_some(json)
     }
 
     /// Binds the model to a chain: every modelled axis must be a joint of the

@@ -37,6 +37,7 @@ mod diagnose_untidy;
 mod diagnose_vibration;
 mod filter_corpus;
 mod fit;
+mod fit_cache;
 mod fit_fixtures;
 mod freecad_wrapper;
 mod gcode_differential;
