@@ -228,13 +228,14 @@ impl<F: Format, J> Default for Chunk<F, J> {
 /// 3. `work` runs on the stage's jobs, independent per pose, in parallel;
 /// 4. a last pass in order (the same task as stage 2, before it) commits
 ///    the jobs ([`Stage::commit`]) and converts them; this thread writes the
-///    chunk.
+///    chunk's text in the next round.
 ///
 /// The stages are pipelined: while the pool works on chunk *k* (stage 3)
 /// and prepares chunk *k + 2* (stage 1), one pool task converts chunk
 /// *k − 1* (stage 4) and runs the first pass of chunk *k + 1* (stage 2),
-/// and this thread reads chunk *k + 3*, then joins the pool; at most five
-/// chunks are alive.
+/// and this thread writes the text of chunk *k − 2* and reads chunk
+/// *k + 3*, then joins the pool (so the output's system calls overlap the
+/// conversion); at most five chunks are alive.
 #[allow(clippy::too_many_arguments)]
 pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
     mut format: F,
@@ -247,7 +248,10 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
 ) -> Result<PostStats> {
     use rayon::prelude::*;
     let mut bytes_read = 0u64;
+    // The text of the chunk being converted, and that of the chunk before,
+    // which this thread writes out while the pool converts the next.
     let mut buf = Vec::new();
+    let mut ready: Vec<u8> = Vec::new();
     let mut eof = false;
     // Reads the next chunk's units into `c` (this thread).
     let mut read_chunk = |c: &mut Chunk<F, S::Job>| -> Result<()> {
@@ -287,6 +291,7 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
         let mut written: Result<()> = Ok(());
         let mut next: Option<Chunk<F, S::Job>> = None;
         let mut read_result: Result<()> = Ok(());
+        let mut out_result: std::io::Result<()> = Ok(());
         buf.clear();
         rayon::in_place_scope(|scope| {
             // The in-order task first: it is the pipeline's critical path,
@@ -322,16 +327,25 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
                 let units = &mut c.units[..c.count];
                 scope.spawn(move |_| units.iter_mut().for_each(F::prepare));
             }
-            // Read the chunk after while the pool works.
+            // Write the chunk before and read the chunk after while the
+            // pool works.
+            out_result = out.write_all(&ready);
             if !stopped {
                 read_result = read_chunk(&mut next_reading);
             }
         });
+        out_result.map_err(|e| Error::io("<output>", e))?;
+        ready.clear();
         if let Some(p) = previous.take() {
             spare.push(p);
-            out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
+            // Written out in the next round (or after the last).
+            std::mem::swap(&mut buf, &mut ready);
             after_chunk(stage)?;
-            written?;
+            if written.is_err() {
+                out.write_all(&ready)
+                    .map_err(|e| Error::io("<output>", e))?;
+                written?;
+            }
         }
         // No chunk after one whose first pass stopped.
         stopped |= next.as_ref().is_some_and(|c| c.stop.is_some());
@@ -343,6 +357,8 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
         prepared = if stopped { None } else { to_prepare };
         reading = next_reading;
     }
+    out.write_all(&ready)
+        .map_err(|e| Error::io("<output>", e))?;
     buf.clear();
     format.end(&mut buf);
     out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
