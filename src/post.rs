@@ -365,7 +365,6 @@ impl<'a> GcodeConverter<'a> {
             let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);
             Location::new(&opts.file_name, line.number, col)
         };
-        let program_end = crate::program::integrity::ends_program(line);
         crate::program::integrity::check_line(line, &opts.file_name, self.modal.pose_mode)?;
         let mut words = recycle(std::mem::take(&mut self.words));
         let mut keywords = Vec::new();
@@ -426,7 +425,9 @@ impl<'a> GcodeConverter<'a> {
         }
         let Some((tip, axis)) = meaning.pose else {
             let text = String::from_utf8_lossy(&line.bytes);
-            let unended = !line.bytes.ends_with(b"\n") && !text.trim().is_empty() && !program_end;
+            let unended = !line.bytes.ends_with(b"\n")
+                && !text.trim().is_empty()
+                && !crate::program::integrity::ends_program(line);
             if unended {
                 self.stats.warnings.push(format!(
                     "{}: the file ends without a line end after `{}`: a truncated file? (passed on unchanged)",
