@@ -24,6 +24,11 @@ pub struct SimulateArgs {
     #[command(flatten)]
     pub job: super::JobArgs,
     /// Known geometric errors of the machine (model JSON or error table CSV).
+    ///
+    /// A table is fitted once: its fitted model is kept in a cache
+    /// (KINPOST_CACHE_DIR, else $XDG_CACHE_HOME/kinpost or ~/.cache/kinpost)
+    /// and read back by later runs with the same table bytes, with the same
+    /// result; KINPOST_CACHE_DIR=off disables it.
     #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
     pub errors: Option<PathBuf>,
     /// Program to run: tool poses (G-code or APT CL) or machine axes.
@@ -308,6 +313,11 @@ pub struct DiagnoseArgs {
     #[command(flatten)]
     pub job: super::JobArgs,
     /// Known geometric errors of the machine (model JSON or error table CSV).
+    ///
+    /// A table is fitted once: its fitted model is kept in a cache
+    /// (KINPOST_CACHE_DIR, else $XDG_CACHE_HOME/kinpost or ~/.cache/kinpost)
+    /// and read back by later runs with the same table bytes, with the same
+    /// result; KINPOST_CACHE_DIR=off disables it.
     #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
     pub errors: Option<PathBuf>,
     /// The recording (formats.md §2): commanded axes and measured tool tip.

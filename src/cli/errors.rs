@@ -108,6 +108,11 @@ pub struct AnalyzeArgs {
     pub job: super::JobArgs,
     /// Error model: model JSON from `kinpost fit`, or an error table CSV
     /// (fitted on the fly). Required unless --nonlinear.
+    ///
+    /// A table is fitted once: its fitted model is kept in a cache
+    /// (KINPOST_CACHE_DIR, else $XDG_CACHE_HOME/kinpost or ~/.cache/kinpost)
+    /// and read back by later runs with the same table bytes, with the same
+    /// result; KINPOST_CACHE_DIR=off disables it.
     #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
     pub errors: Option<PathBuf>,
     /// Report the exact nonlinear error of every block (largest distance of
@@ -381,6 +386,11 @@ pub struct CompensateArgs {
     #[command(flatten)]
     pub job: super::JobArgs,
     /// Error model: model JSON from `kinpost fit`, or an error table CSV.
+    ///
+    /// A table is fitted once: its fitted model is kept in a cache
+    /// (KINPOST_CACHE_DIR, else $XDG_CACHE_HOME/kinpost or ~/.cache/kinpost)
+    /// and read back by later runs with the same table bytes, with the same
+    /// result; KINPOST_CACHE_DIR=off disables it.
     #[arg(long, short = 'e', value_name = "MODEL|TABLE.csv")]
     pub errors: PathBuf,
     /// Write the output here (atomically). Default: standard output.
