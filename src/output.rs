@@ -60,7 +60,10 @@ impl FileId {
 }
 
 /// The inputs opened by this process so far (identity and name as given).
-static INPUTS: Mutex<Vec<(FileId, String)>> = Mutex::new(Vec::new());
+/// (A handle of each input is kept open with it: while a file is open its
+/// inode cannot be given to another file, so the identity stays the
+/// input's even if its name is removed during the run.)
+static INPUTS: Mutex<Vec<(FileId, String, Option<File>)>> = Mutex::new(Vec::new());
 
 /// Temporary files that exist right now; removed on a signal.
 static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
@@ -70,8 +73,8 @@ static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 pub fn note_input(f: &File, name: &str) {
     if let Some(id) = f.metadata().ok().as_ref().and_then(FileId::of) {
         let mut inputs = INPUTS.lock().unwrap_or_else(|e| e.into_inner());
-        if !inputs.iter().any(|(i, _)| *i == id) {
-            inputs.push((id, name.to_string()));
+        if !inputs.iter().any(|(i, _, _)| *i == id) {
+            inputs.push((id, name.to_string(), f.try_clone().ok()));
         }
     }
 }
@@ -89,8 +92,8 @@ fn input_named(m: &Metadata) -> Option<String> {
     let inputs = INPUTS.lock().unwrap_or_else(|e| e.into_inner());
     inputs
         .iter()
-        .find(|(i, _)| *i == id)
-        .map(|(_, n)| n.clone())
+        .find(|(i, _, _)| *i == id)
+        .map(|(_, n, _)| n.clone())
 }
 
 /// The error for writing over input `input` through output `path`.
@@ -514,6 +517,29 @@ pub fn remove_temporaries_on_signal() {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An input whose name is removed during the run keeps its identity: a
+    /// new file may not get its inode and be taken for it. (Inputs were
+    /// recorded by device and inode alone; a file created after an input
+    /// was removed could get the same inode and was refused as an input.)
+    #[cfg(unix)]
+    #[test]
+    fn a_removed_input_lends_its_identity_to_no_new_file() {
+        let dir = tempfile::tempdir().unwrap();
+        for k in 0..20 {
+            let input = dir.path().join(format!("gone-{k}.nc"));
+            std::fs::write(&input, b"program").unwrap();
+            drop(open_input(&input).unwrap());
+            std::fs::remove_file(&input).unwrap();
+            let out = dir.path().join(format!("new-{k}.nc"));
+            std::fs::write(&out, b"old").unwrap();
+            write_atomically(Some(&out), |w| {
+                w.write_all(b"new").map_err(|e| Error::io("new.nc", e))
+            })
+            .unwrap_or_else(|e| panic!("round {k}: {e}"));
+            assert_eq!(std::fs::read(&out).unwrap(), b"new");
+        }
+    }
 
     /// An output of several write-back steps, in writes of every size
     /// (small ones through the buffer, large ones past it), arrives whole
