@@ -304,37 +304,17 @@ pub fn written_residual(
     q: &[f64],
     lag: &[f64],
 ) -> (f64, f64) {
-    use crate::machine::rotary::{input_value, output_value};
-    // Each axis as written (file units, rounded to its decimals), back in
-    // chain order and internal units (a joint without an axis at 0), as
-    // `Machine::to_external`, the rounding and `Machine::to_internal` give
-    // it, without the round trip through vectors.
-    let mut written = [0.0; crate::machine::chain::MAX_JOINTS];
-    let n = chain.dof().min(written.len());
-    for (k, axis) in machine.axes.iter().enumerate() {
-        if axis.joint >= n {
-            continue;
+    let mut ext = machine.to_external(q);
+    for (v, &d) in ext.iter_mut().zip(decimals) {
+        let scale = 10f64.powi(d as i32);
+        if let Some(i) = crate::numeric::round_half_away(*v * scale) {
+            *v = i as f64 / scale;
         }
-        let mut v = output_value(axis, q.get(axis.joint).copied().unwrap_or(0.0));
-        if let Some(&d) = decimals.get(k) {
-            let scale = POW10
-                .get(d as usize)
-                .copied()
-                .unwrap_or_else(|| 10f64.powi(d as i32));
-            if let Some(i) = crate::numeric::round_half_away(v * scale) {
-                v = i as f64 / scale;
-            }
-        }
-        written[axis.joint] = input_value(axis, v);
     }
-    for (w, l) in written[..n].iter_mut().zip(lag) {
+    let mut written = machine.to_internal(&ext);
+    for (w, l) in written.iter_mut().zip(lag) {
         *w -= l;
     }
-    let p = chain.pose(&written[..n], errors);
+    let p = chain.pose(&written, errors);
     (p.tip_distance(pose), p.axis_angle(pose))
 }
-
-/// Powers of ten for the decimals of an axis (exact in f64).
-const POW10: [f64; 16] = [
-    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15,
-];
