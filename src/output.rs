@@ -299,10 +299,7 @@ pub fn write_atomically<T>(
         Some(_) => std::fs::canonicalize(path).map_err(|e| Error::io(&display, e))?,
         None => path.to_path_buf(),
     };
-    let dir = match target.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
+    let dir = directory_of(&target);
     let (tmp, file) = Temporary::new(&dir, meta.as_ref()).map_err(|e| Error::io(&display, e))?;
     let mut w = BufWriter::with_capacity(BUFFER_BYTES, Writeback::new(file));
     let value = f(&mut w)?;
@@ -389,14 +386,28 @@ impl Write for Writeback {
 /// followed; a reader sees the old entry or the whole new one. Not synced
 /// to disk: callers treat a damaged file as absent.
 pub fn replace_file(target: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let dir = match target.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let (tmp, mut file) = Temporary::new(&dir, None)?;
+    let (tmp, mut file) = Temporary::new(&directory_of(target), None)?;
     file.write_all(bytes)?;
     drop(file);
     tmp.persist(target)
+}
+
+/// The directory `path` is in (`.` for a bare file name): where its
+/// temporary goes, so that the rename stays on one file system.
+fn directory_of(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// Whether two metadata are of the same file (device and inode); `true`
+/// where the system does not say.
+pub fn same_file(a: &Metadata, b: &Metadata) -> bool {
+    match (FileId::of(a), FileId::of(b)) {
+        (Some(x), Some(y)) => x == y,
+        _ => true,
+    }
 }
 
 /// Number of hard links of an existing file (1 when unknown).

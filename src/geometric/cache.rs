@@ -322,26 +322,12 @@ fn read_regular_file(path: &Path) -> Option<String> {
     }
     let f = std::fs::File::open(path).ok()?;
     let opened = f.metadata().ok()?;
-    if !opened.is_file() || !same_file(&meta, &opened) {
+    if !opened.is_file() || !crate::output::same_file(&meta, &opened) {
         return None;
     }
     let mut text = String::new();
     f.take(MAX_ENTRY_BYTES).read_to_string(&mut text).ok()?;
     Some(text)
-}
-
-/// Whether two metadata are of the same file (always true where unknown).
-fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata) -> bool {
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::MetadataExt;
-        a.dev() == b.dev() && a.ino() == b.ino()
-    }
-    #[cfg(not(unix))]
-    {
-        let _ = (a, b);
-        true
-    }
 }
 
 /// Creates the cache directory (and its parents) if missing, private to the
