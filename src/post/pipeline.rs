@@ -291,7 +291,7 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
         let mut written: Result<()> = Ok(());
         let mut next: Option<Chunk<F, S::Job>> = None;
         let mut read_result: Result<()> = Ok(());
-        let mut out_result: std::io::Result<()> = Ok(());
+        let mut out_result: Result<()> = Ok(());
         buf.clear();
         rayon::in_place_scope(|scope| {
             // The in-order task first: it is the pipeline's critical path,
@@ -329,12 +329,12 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
             }
             // Write the chunk before and read the chunk after while the
             // pool works.
-            out_result = out.write_all(&ready);
+            out_result = write_out(out, &ready);
             if !stopped {
                 read_result = read_chunk(&mut next_reading);
             }
         });
-        out_result.map_err(|e| Error::io("<output>", e))?;
+        out_result?;
         ready.clear();
         if let Some(p) = previous.take() {
             spare.push(p);
@@ -342,8 +342,7 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
             std::mem::swap(&mut buf, &mut ready);
             after_chunk(stage)?;
             if written.is_err() {
-                out.write_all(&ready)
-                    .map_err(|e| Error::io("<output>", e))?;
+                write_out(out, &ready)?;
                 written?;
             }
         }
@@ -357,12 +356,16 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
         prepared = if stopped { None } else { to_prepare };
         reading = next_reading;
     }
-    out.write_all(&ready)
-        .map_err(|e| Error::io("<output>", e))?;
+    write_out(out, &ready)?;
     buf.clear();
     format.end(&mut buf);
-    out.write_all(&buf).map_err(|e| Error::io("<output>", e))?;
+    write_out(out, &buf)?;
     Ok(format.stats())
+}
+
+/// Writes converted text to the driver's output.
+fn write_out<W: Write + ?Sized>(out: &mut W, text: &[u8]) -> Result<()> {
+    out.write_all(text).map_err(|e| Error::io("<output>", e))
 }
 
 /// Stage 2 of a prepared chunk: the modal state and [`Stage::first`] of
