@@ -2,7 +2,7 @@
 //! the analytic IK in order, the Newton refinements in parallel, the failure
 //! policy, backlash and records in order.
 
-use super::refine::{Refined, refine};
+use super::refine::{Refined, refine_near};
 use super::solver::{BlockRecord, CompensatingSolver, written_residual};
 use crate::machine::chain::{JointValues, Pose};
 use crate::post::pipeline::{Stage, Step};
@@ -132,7 +132,10 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
     let decimals = solver.decimals.clone();
     let written_here = solver.backlash.is_empty() && !decimals.is_empty();
     let work = |pose: &Pose, job: &mut Job| {
-        let r = refine(&chain, errors, pose, &job.th, &options);
+        // The sines and cosines at the theoretical solution serve the
+        // refinement and the axes as written, both near it.
+        let near = chain.trig_at(&job.th);
+        let r = refine_near(&chain, errors, pose, &job.th, &options, &near);
         if written_here {
             job.written = Some(written_residual(
                 machine,
@@ -142,6 +145,7 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
                 pose,
                 &r.q,
                 &[],
+                Some(&near),
             ));
         }
         job.refined = Some(r);

@@ -4,7 +4,7 @@
 
 use super::step::{Factored, Method, Options, residual, step_svd};
 use crate::machine::chain::{
-    Chain, JacobianColumns, JointErrors, JointValues, MAX_JOINTS, NoErrors, Pose,
+    Chain, JacobianColumns, JointErrors, JointValues, MAX_JOINTS, NearTrig, NoErrors, Pose,
 };
 use nalgebra::{DMatrix, DVector, Vector3};
 
@@ -81,22 +81,43 @@ pub fn refine(
     q0: &[f64],
     opts: &Options,
 ) -> Refined {
-    thread_local! {
-        /// The factorisations of [`refine`], kept per thread (a few kB that
-        /// would otherwise be cleared for every pose).
-        static FACTORS: std::cell::RefCell<Factored> =
-            const { std::cell::RefCell::new(Factored::EMPTY) };
-    }
-    FACTORS.with_borrow_mut(|factors| refine_with(chain, errors, target, q0, opts, factors))
+    let near = (opts.method == Method::Exact).then(|| chain.trig_at(q0));
+    FACTORS.with_borrow_mut(|factors| {
+        refine_with(chain, errors, target, q0, opts, near.as_ref(), factors)
+    })
 }
 
-/// [`refine`] with the caller's factorisation space.
-pub(super) fn refine_with(
+/// [`refine`] with the sines and cosines of the revolute joints at `q0`
+/// given (`chain.trig_at(q0)`), for a caller that evaluates the chain near
+/// `q0` again afterwards ([`super::solver::written_residual`]); only the
+/// exact method uses them.
+pub fn refine_near(
     chain: &Chain,
     errors: &dyn JointErrors,
     target: &Pose,
     q0: &[f64],
     opts: &Options,
+    near: &NearTrig,
+) -> Refined {
+    let near = (opts.method == Method::Exact).then_some(near);
+    FACTORS.with_borrow_mut(|factors| refine_with(chain, errors, target, q0, opts, near, factors))
+}
+
+thread_local! {
+    /// The factorisations of [`refine`], kept per thread (a few kB that
+    /// would otherwise be cleared for every pose).
+    static FACTORS: std::cell::RefCell<Factored> =
+        const { std::cell::RefCell::new(Factored::EMPTY) };
+}
+
+/// [`refine`] with the caller's factorisation space.
+fn refine_with(
+    chain: &Chain,
+    errors: &dyn JointErrors,
+    target: &Pose,
+    q0: &[f64],
+    opts: &Options,
+    near: Option<&NearTrig>,
     factors: &mut Factored,
 ) -> Refined {
     let n = q0.len();
@@ -127,7 +148,6 @@ pub(super) fn refine_with(
     // by the addition theorem with the exact offsets (`NearTrig::shifted`),
     // so large angles cost no precision; the other methods evaluate at the
     // rounded values, as printed.
-    let near = (opts.method == Method::Exact).then(|| chain.trig_at(q0));
     let at = |d: &[f64]| -> [f64; MAX_JOINTS] {
         let mut q = [0.0; MAX_JOINTS];
         for k in 0..n {
@@ -137,7 +157,7 @@ pub(super) fn refine_with(
     };
     let eval = |d: &[f64], jac: &mut JacobianColumns| -> Pose {
         let q = at(d);
-        match (opts.method, &near) {
+        match (opts.method, near) {
             (Method::Exact, Some(near)) => {
                 chain.pose_and_jacobian_near(&q[..n], errors, jac, &near.shifted(d))
             }
@@ -151,7 +171,7 @@ pub(super) fn refine_with(
     // The pose alone, where the Jacobian is not needed.
     let eval_pose = |d: &[f64]| -> Pose {
         let q = at(d);
-        match &near {
+        match near {
             Some(near) => chain.pose_near(&q[..n], errors, &near.shifted(d)),
             None => chain.pose(&q[..n], errors),
         }

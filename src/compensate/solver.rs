@@ -4,7 +4,7 @@
 
 use super::refine::{Refined, refine};
 use super::step::{Method, Options};
-use crate::machine::chain::{Chain, JointErrors, JointValues, Pose};
+use crate::machine::chain::{Chain, JointErrors, JointValues, NearTrig, Pose};
 
 /// Per-block record of a compensation run.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -255,6 +255,7 @@ impl CompensatingSolver<'_> {
                     pose,
                     &q,
                     &lag,
+                    None,
                 ),
             }
         };
@@ -295,6 +296,11 @@ impl CompensatingSolver<'_> {
 /// the backlash pre-compensation `lag` added) rounded to `decimals` (per
 /// axis of `machine`), the lag taken off again (the machine's play takes
 /// it back). A joint beyond the end of `lag` has none (`&[]`: no lag).
+/// `near`: the revolute joints' sines and cosines at joint values near `q`
+/// ([`Chain::trig_at`] of the theoretical solution), when the caller has
+/// them: the rotations of the written values then follow from them by the
+/// addition theorem ([`NearTrig`]) instead of a `sin_cos` each.
+#[allow(clippy::too_many_arguments)]
 pub fn written_residual(
     machine: &crate::machine::Machine,
     chain: &Chain,
@@ -303,6 +309,7 @@ pub fn written_residual(
     pose: &Pose,
     q: &[f64],
     lag: &[f64],
+    near: Option<&NearTrig>,
 ) -> (f64, f64) {
     let mut ext = machine.to_external(q);
     for (v, &d) in ext.iter_mut().zip(decimals) {
@@ -315,6 +322,9 @@ pub fn written_residual(
     for (w, l) in written.iter_mut().zip(lag) {
         *w -= l;
     }
-    let p = chain.pose(&written, errors);
+    let p = match near {
+        Some(near) => chain.pose_near(&written, errors, near),
+        None => chain.pose(&written, errors),
+    };
     (p.tip_distance(pose), p.axis_angle(pose))
 }
