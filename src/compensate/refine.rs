@@ -145,9 +145,9 @@ fn refine_with(
     // themselves: a rotary at thousands of degrees resolves its value to
     // 1e-14 rad or so, its offset to far below that. The exact method
     // takes its rotaries' sines and cosines at `q0 + d` from those at `q0`
-    // by the addition theorem with the exact offsets (`NearTrig::shifted`),
-    // so large angles cost no precision; the other methods evaluate at the
-    // rounded values, as printed.
+    // by the addition theorem with the exact offsets
+    // (`Chain::pose_at_offsets`), so large angles cost no precision; the
+    // other methods evaluate at the rounded values, as printed.
     let at = |d: &[f64]| -> [f64; MAX_JOINTS] {
         let mut q = [0.0; MAX_JOINTS];
         for k in 0..n {
@@ -159,7 +159,7 @@ fn refine_with(
         let q = at(d);
         match (opts.method, near) {
             (Method::Exact, Some(near)) => {
-                chain.pose_and_jacobian_near(&q[..n], errors, jac, &near.shifted(d))
+                chain.pose_and_jacobian_at_offsets(&q[..n], errors, jac, near, d)
             }
             (Method::Exact, None) => chain.pose_and_jacobian_into(&q[..n], errors, jac),
             (Method::Theoretical | Method::Paper, _) => {
@@ -172,7 +172,7 @@ fn refine_with(
     let eval_pose = |d: &[f64]| -> Pose {
         let q = at(d);
         match near {
-            Some(near) => chain.pose_near(&q[..n], errors, &near.shifted(d)),
+            Some(near) => chain.pose_at_offsets(&q[..n], errors, near, d),
             None => chain.pose(&q[..n], errors),
         }
     };

@@ -384,7 +384,8 @@ impl Chain {
     pub fn pose_and_jacobian(&self, q: &[f64], errors: &dyn JointErrors) -> (Pose, Jacobian) {
         let n = self.joints.len();
         let mut cols = [[0.0; 6]; MAX_JOINTS];
-        let pose = compiled::pose_jacobian(&self.compiled, q, errors, &mut cols, None);
+        let pose =
+            compiled::pose_jacobian(&self.compiled, q, errors, &mut cols, Rotations::Compute);
         (pose, Jacobian::from_fn(n, |r, c| cols[c][r]))
     }
 
@@ -397,7 +398,7 @@ impl Chain {
         errors: &dyn JointErrors,
         jac: &mut JacobianColumns,
     ) -> Pose {
-        compiled::pose_jacobian(&self.compiled, q, errors, jac, None)
+        compiled::pose_jacobian(&self.compiled, q, errors, jac, Rotations::Compute)
     }
 
     /// The sines and cosines of the revolute joints at `q0`, for poses and
@@ -412,16 +413,33 @@ impl Chain {
         compiled::pose_backward(&self.compiled, q, errors, Rotations::Near(near))
     }
 
-    /// [`Chain::pose_and_jacobian_into`] with the revolute joints' sines
-    /// and cosines taken from `near` where `q` is near its `q0`.
-    pub fn pose_and_jacobian_near(
+    /// [`Chain::pose`] at `q0 + d`, where `q0` is `near`'s and `q` holds
+    /// `q0 + d` rounded: the revolute joints' sines and cosines follow from
+    /// `near`'s by the addition theorem with the exact offsets `d`
+    /// ([`NearTrig::sin_cos_offset`]), the error motions from `q`. The
+    /// Newton refinement's trial points, which move from `q0` by offsets
+    /// far below the resolution of a rotary at thousands of degrees.
+    pub fn pose_at_offsets(
+        &self,
+        q: &[f64],
+        errors: &dyn JointErrors,
+        near: &NearTrig,
+        d: &[f64],
+    ) -> Pose {
+        compiled::pose_backward(&self.compiled, q, errors, Rotations::Offsets(near, d))
+    }
+
+    /// [`Chain::pose_and_jacobian_into`] at `q0 + d`, as
+    /// [`Chain::pose_at_offsets`].
+    pub fn pose_and_jacobian_at_offsets(
         &self,
         q: &[f64],
         errors: &dyn JointErrors,
         jac: &mut JacobianColumns,
         near: &NearTrig,
+        d: &[f64],
     ) -> Pose {
-        compiled::pose_jacobian(&self.compiled, q, errors, jac, Some(near))
+        compiled::pose_jacobian(&self.compiled, q, errors, jac, Rotations::Offsets(near, d))
     }
 
     /// Theoretical forward kinematics (no errors) and, for each prismatic

@@ -47,29 +47,25 @@ impl NearTrig {
     /// Largest |q − q0| handled by the addition theorem, rad.
     const NEAR_RAD: f64 = 1e-4;
 
-    /// The sines and cosines at `q0 + d`, with the offsets `d` (rad for the
-    /// revolute joints) taken exactly: they need not be representable as a
-    /// change of `q0 + d` in floating point. For a rotary at thousands of
-    /// degrees, `q0 + d` resolves only 1e-14 rad or so (1e-12 mm at a
-    /// 100 mm radius); the refinement steps by its offsets through this
-    /// and loses nothing. Evaluate the chain at `q0 + d` (rounded) with the
-    /// result: the rotations come from here, the error motions from the
-    /// rounded values, where their resolution does not matter.
-    pub fn shifted(&self, d: &[f64]) -> NearTrig {
-        let mut t = *self;
-        for (j, &dj) in d.iter().enumerate().take(MAX_JOINTS) {
-            t.q0[j] = self.q0[j] + dj;
-            if dj == 0.0 || !self.revolute[j] {
-                continue;
-            }
-            let d = if dj.abs() <= Self::NEAR_RAD {
-                small_sin_cos(dj)
-            } else {
-                dj.sin_cos()
-            };
-            t.sc[j] = add_angles(self.sc[j], d);
+    /// `(sin, cos)` of joint `j` at `q0 + d`, with the offset `d` (rad)
+    /// taken exactly: it need not be representable as a change of
+    /// `q0 + d` in floating point. For a rotary at thousands of degrees,
+    /// `q0 + d` resolves only 1e-14 rad or so (1e-12 mm at a 100 mm
+    /// radius); the refinement steps by its offsets through this and loses
+    /// nothing ([`Rotations::Offsets`]: the rotations come from here, the
+    /// error motions from the rounded `q0 + d`, where their resolution does
+    /// not matter).
+    #[inline]
+    pub fn sin_cos_offset(&self, j: usize, d: f64) -> (f64, f64) {
+        if d == 0.0 {
+            return self.sc[j];
         }
-        t
+        let sd = if d.abs() <= Self::NEAR_RAD {
+            small_sin_cos(d)
+        } else {
+            d.sin_cos()
+        };
+        add_angles(self.sc[j], sd)
     }
 
     /// `(sin q, cos q)` of joint `j`.
@@ -112,6 +108,22 @@ pub(super) enum Rotations<'a> {
     Given(&'a [[[f64; 3]; 3]; MAX_JOINTS]),
     /// From sines and cosines near known ones.
     Near(&'a NearTrig),
+    /// From those at `q0` and the exact offsets from it, by joint index
+    /// ([`NearTrig::sin_cos_offset`]).
+    Offsets(&'a NearTrig, &'a [f64]),
+}
+
+impl Rotations<'_> {
+    /// `(sin q, cos q)` of revolute joint `j` at `q` when they come from
+    /// known ones; `None`: compute them from `q`.
+    #[inline]
+    fn sin_cos(&self, j: usize, q: f64) -> Option<(f64, f64)> {
+        match self {
+            Rotations::Near(near) => Some(near.sin_cos(j, q)),
+            Rotations::Offsets(near, d) => Some(near.sin_cos_offset(j, d[j])),
+            Rotations::Compute | Rotations::Given(_) => None,
+        }
+    }
 }
 
 /// An affine transform `[R | t]` (row-major, the last row `0 0 0 1`
@@ -418,11 +430,10 @@ pub(super) fn pose_backward(
                     JointKind::Revolute => {
                         let r = match rots {
                             Rotations::Given(rots) => rots[*j],
-                            Rotations::Near(near) => {
-                                let (s, c) = near.sin_cos(*j, v);
-                                jc.rotation_sc(s, c)
-                            }
-                            Rotations::Compute => jc.rotation(v),
+                            _ => match rots.sin_cos(*j, v) {
+                                Some((s, c)) => jc.rotation_sc(s, c),
+                                None => jc.rotation(v),
+                            },
                         };
                         let rot = |x: &[f64; 3]| -> [f64; 3] {
                             std::array::from_fn(|i| {
@@ -444,13 +455,14 @@ pub(super) fn pose_backward(
 
 /// The pose and the analytic Jacobian of the precomputed chain (see
 /// [`super::Chain::pose_and_jacobian`]); revolute sines and cosines from
-/// `near` when given.
+/// `rots` where it has them (computed from `q` for
+/// [`Rotations::Compute`] and [`Rotations::Given`]).
 pub(super) fn pose_jacobian(
     c: &Compiled,
     q: &[f64],
     errors: &dyn JointErrors,
     jac: &mut JacobianColumns,
-    near: Option<&NearTrig>,
+    rots: Rotations<'_>,
 ) -> Pose {
     let n = c.joints.len();
     debug_assert_eq!(q.len(), n);
@@ -466,9 +478,11 @@ pub(super) fn pose_jacobian(
         } else {
             errors.error_and_derivative(j, q[j])
         };
-        let sc = near
-            .filter(|_| c.joints[j].kind == JointKind::Revolute)
-            .map(|t| t.sin_cos(j, q[j]));
+        let sc = if c.joints[j].kind == JointKind::Revolute {
+            rots.sin_cos(j, q[j])
+        } else {
+            None
+        };
         (g[j], rot[j]) = c.joints[j].motion(q[j], sc, e.as_ref().map(|(e, _)| e));
         de[j] = e.map(|(_, d)| d);
     }
