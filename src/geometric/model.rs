@@ -698,10 +698,12 @@ impl ErrorModel {
             .iter()
             .map(|a| a.and_then(super::merged::MergedAxis::new))
             .collect();
+        let empty = per_joint.iter().all(Option::is_none) && terms.is_empty();
         Ok(BoundErrors {
             per_joint,
             merged,
             terms,
+            empty,
         })
     }
 
@@ -855,6 +857,9 @@ pub struct BoundErrors<'a> {
     merged: Vec<Option<super::merged::MergedAxis>>,
     /// Static diagnosed effects in error-motion form.
     terms: Vec<StaticTerm>,
+    /// No joint has errors ([`JointErrors::is_empty`], asked at every
+    /// evaluation of the chain: kept, not recounted).
+    empty: bool,
 }
 
 impl BoundErrors<'_> {
@@ -909,7 +914,7 @@ impl JointErrors for BoundErrors<'_> {
         if self.terms.is_empty()
             && let Some(m) = self.merged.get(joint).and_then(Option::as_ref)
         {
-            self.per_joint.get(joint).copied().flatten()?;
+            // (A merged axis is one of `per_joint`'s.)
             let pos = if m.is_rotary() { q.to_degrees() } else { q };
             return Some(m.value_at(pos));
         }
@@ -921,7 +926,7 @@ impl JointErrors for BoundErrors<'_> {
     }
 
     fn is_empty(&self) -> bool {
-        self.per_joint.iter().all(Option::is_none) && self.terms.is_empty()
+        self.empty
     }
 }
 
