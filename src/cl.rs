@@ -432,7 +432,7 @@ fn major_word(i: In) -> PResult<In> {
 fn major_words(i: In) -> PResult<In> {
     recognize((
         major_word,
-        nom::multi::many0((take_while1(is_blank), major_word)),
+        nom::multi::fold_many0((take_while1(is_blank), major_word), || (), |(), _| ()),
     ))
     .parse_complete(i)
 }
@@ -507,9 +507,13 @@ impl Arg<'_> {
     }
 }
 
+/// The arguments of a statement: those of the statements read most (up to
+/// 8: `GOTO` has 6) without an allocation.
+type Args<'a> = smallvec::SmallVec<[Arg<'a>; 8]>;
+
 /// Split `args` (starting at `offset` of the logical text) at commas.
-fn split_args(args: &[u8], offset: usize) -> Vec<Arg<'_>> {
-    let mut out = Vec::with_capacity(8);
+fn split_args(args: &[u8], offset: usize) -> Args<'_> {
+    let mut out = Args::new();
     let mut start = 0;
     for piece in args.split(|&b| b == b',') {
         let lead = piece
