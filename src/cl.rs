@@ -751,12 +751,18 @@ fn known_major(word: &[u8]) -> Option<&'static str> {
 
 /// Uppercase, blanks collapsed to one space.
 fn collapse_upper(s: &[u8]) -> String {
-    String::from_utf8_lossy(s)
+    let mut out = String::with_capacity(s.len());
+    for word in String::from_utf8_lossy(s)
         .split([' ', '\t'])
         .filter(|w| !w.is_empty())
-        .collect::<Vec<_>>()
-        .join(" ")
-        .to_ascii_uppercase()
+    {
+        if !out.is_empty() {
+            out.push(' ');
+        }
+        out.push_str(word);
+    }
+    out.make_ascii_uppercase();
+    out
 }
 
 fn feed_unit(a: &Arg) -> Option<FeedUnit> {

@@ -332,12 +332,7 @@ impl<R: BufRead> Lowered<R> {
                 return Err(self.err(r, format!("{major} moves the tool or changes how it moves and kinpost does not convert it; refused rather than kept as a comment")));
             }
             _ => {
-                match self.commented.get_mut(major) {
-                    Some(n) => *n += 1,
-                    None => {
-                        self.commented.insert(major.to_string(), 1);
-                    }
-                }
+                self.count_commented(major);
                 return Ok(true);
             }
         }
@@ -388,7 +383,7 @@ impl<R: BufRead> Lowered<R> {
             }
             ClStatement::Other { major, text } => self.other(&r, major, text)?,
             ClStatement::Multax(_) => {
-                *self.commented.entry("MULTAX".into()).or_default() += 1;
+                self.count_commented("MULTAX");
                 true
             }
             _ => true,
@@ -399,6 +394,16 @@ impl<R: BufRead> Lowered<R> {
             self.inner.recycle(r.text);
         }
         Ok(())
+    }
+
+    /// Counts a statement of `major` kept as a comment (for [`Self::summary`]).
+    fn count_commented(&mut self, major: &str) {
+        match self.commented.get_mut(major) {
+            Some(n) => *n += 1,
+            None => {
+                self.commented.insert(major.to_string(), 1);
+            }
+        }
     }
 
     fn summary(&mut self) {
