@@ -168,15 +168,24 @@ pub struct ClRecord {
 /// An [`Iterator`] of `Result<ClRecord, Error>`. Blank lines are skipped.
 /// After a statement error the reader goes on with the next statement; after
 /// an I/O error it stops. Memory depends on the longest statement, not on
-/// the length of the file.
+/// the length of the file; the text of a record done with can be given back
+/// ([`ClReader::recycle`]) for a record to come, so that reading allocates
+/// nothing.
 #[derive(Debug)]
 pub struct ClReader<R: BufRead> {
     reader: R,
     file: String,
     line: usize,
     buf: Vec<u8>,
+    /// A statement continued on other lines, joined (kept for its memory).
+    logical: Logical,
+    /// Texts of records given back, for the next records' texts.
+    spare: Vec<Vec<u8>>,
     done: bool,
 }
+
+/// The most texts given back that a reader keeps.
+const MAX_SPARE: usize = 16;
 
 /// A piece of a logical statement that came from one physical line:
 /// `logical[offset..]` starts at `line`, `col`.
@@ -188,6 +197,7 @@ struct Segment {
 }
 
 /// A statement joined from its physical lines.
+#[derive(Debug, Default)]
 struct Logical {
     /// The statement text, continuations joined, `$$` comments and the
     /// continuation `$` removed.
@@ -219,8 +229,24 @@ impl<R: BufRead> ClReader<R> {
             file: file.into(),
             line: 0,
             buf: Vec::with_capacity(256),
+            logical: Logical::default(),
+            spare: Vec::new(),
             done: false,
         }
+    }
+
+    /// Takes back the text of a record done with: a record read later
+    /// reuses its memory.
+    pub fn recycle(&mut self, mut text: Vec<u8>) {
+        if self.spare.len() < MAX_SPARE && text.capacity() > 0 {
+            text.clear();
+            self.spare.push(text);
+        }
+    }
+
+    /// An empty text for a record: one given back if there is one.
+    pub(crate) fn text_buffer(&mut self) -> Vec<u8> {
+        self.spare.pop().unwrap_or_default()
     }
 
     /// Read one physical line into `self.buf`; `Ok(false)` at end of file.
@@ -256,7 +282,8 @@ impl<R: BufRead> ClReader<R> {
                 break (self.line, col);
             }
         };
-        let mut text = self.buf.clone();
+        let mut text = self.text_buffer();
+        text.extend_from_slice(&self.buf);
 
         // A whole-line `$$` comment.
         let start = &self.buf[col - 1..];
@@ -285,14 +312,14 @@ impl<R: BufRead> ClReader<R> {
             });
         }
 
-        let mut logical = Logical {
-            text: Vec::new(),
-            segments: Vec::new(),
-        };
+        // Each physical line from its first non-blank byte (the first line
+        // from the statement's start) is read from `self.buf`.
+        self.logical.text.clear();
+        self.logical.segments.clear();
         let mut seg_col = col;
-        let mut content = start.to_vec();
         loop {
-            let (piece, continued) = statement_piece(&content);
+            let (piece, continued) = statement_piece(&self.buf[seg_col - 1..]);
+            let logical = &mut self.logical;
             logical.segments.push(Segment {
                 offset: logical.text.len(),
                 line: self.line,
@@ -316,16 +343,12 @@ impl<R: BufRead> ClReader<R> {
             }
             text.extend_from_slice(&self.buf);
             seg_col = first_non_blank(&self.buf).unwrap_or(1);
-            content = self.buf[seg_col - 1..].to_vec();
-            if strip_eol(&content).is_empty() {
-                content.clear();
-            }
         }
 
-        let statement = match parse_statement(&logical.text) {
+        let statement = match parse_statement(&self.logical.text) {
             Ok(s) => s,
             Err(e) => {
-                let (line, col) = logical.position(e.offset);
+                let (line, col) = self.logical.position(e.offset);
                 let snippet = physical_line(&text, line.saturating_sub(first));
                 return Some(Err(self.error(line, col, e.message, snippet)));
             }
@@ -432,7 +455,7 @@ fn major_word(i: In) -> PResult<In> {
 fn major_words(i: In) -> PResult<In> {
     recognize((
         major_word,
-        nom::multi::many0((take_while1(is_blank), major_word)),
+        nom::multi::fold_many0((take_while1(is_blank), major_word), || (), |(), _| ()),
     ))
     .parse_complete(i)
 }
@@ -507,9 +530,13 @@ impl Arg<'_> {
     }
 }
 
+/// The arguments of a statement: those of the statements read most (up to
+/// 8: `GOTO` has 6) without an allocation.
+type Args<'a> = smallvec::SmallVec<[Arg<'a>; 8]>;
+
 /// Split `args` (starting at `offset` of the logical text) at commas.
-fn split_args(args: &[u8], offset: usize) -> Vec<Arg<'_>> {
-    let mut out = Vec::with_capacity(8);
+fn split_args(args: &[u8], offset: usize) -> Args<'_> {
+    let mut out = Args::new();
     let mut start = 0;
     for piece in args.split(|&b| b == b',') {
         let lead = piece
@@ -724,12 +751,18 @@ fn known_major(word: &[u8]) -> Option<&'static str> {
 
 /// Uppercase, blanks collapsed to one space.
 fn collapse_upper(s: &[u8]) -> String {
-    String::from_utf8_lossy(s)
+    let mut out = String::with_capacity(s.len());
+    for word in String::from_utf8_lossy(s)
         .split([' ', '\t'])
         .filter(|w| !w.is_empty())
-        .collect::<Vec<_>>()
-        .join(" ")
-        .to_ascii_uppercase()
+    {
+        if !out.is_empty() {
+            out.push(' ');
+        }
+        out.push_str(word);
+    }
+    out.make_ascii_uppercase();
+    out
 }
 
 fn feed_unit(a: &Arg) -> Option<FeedUnit> {

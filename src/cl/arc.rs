@@ -3,6 +3,8 @@
 //! converter turns into `G2`/`G3` when the arc lies in a plane of the
 //! machine (`src/post/cl_motion.rs`), else into the linearised moves.
 
+use std::io::BufRead;
+
 use super::state::{Circle, Lowered};
 use super::vec3::{add, cross, dot, norm, num, scale, sub};
 use super::{ClRecord, ClStatement};
@@ -32,7 +34,7 @@ pub struct ArcMove {
     pub moves: Vec<ClStatement>,
 }
 
-impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
+impl<R: BufRead> Lowered<R> {
     /// The arc from the current point to `end`; the tool axis turns from
     /// `from_axis` to the current one in proportion to the angle.
     pub(super) fn arc(
@@ -148,7 +150,7 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
     }
 }
 
-impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
+impl<R: BufRead> Lowered<R> {
     /// CATIA's circular move: `INDIRV/i,j,k` (the direction at the start),
     /// then `TLON,GOFWD/(CIRCLE/xc,yc,zc,r),ON,(LINE/xc,yc,zc,xe,ye,ze)`:
     /// along the circle about the tool axis through the centre, starting in

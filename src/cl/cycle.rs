@@ -4,6 +4,8 @@
 //! converter writes it as a canned cycle (`G81`…`G89`, `G73`) when the tool
 //! is along the machine's Z axis, else as the expansion into moves.
 
+use std::io::BufRead;
+
 use super::state::{Cycle, CycleKind, Lowered, absurd_feed, feed_statements};
 use super::vec3::{add, dot, norm, num, scale, sub};
 use super::{Arg, ClRecord, ClStatement, FeedUnit};
@@ -70,7 +72,7 @@ impl Cycle {
     }
 }
 
-impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
+impl<R: BufRead> Lowered<R> {
     pub(super) fn hole(&mut self, r: &ClRecord, c: &Cycle, top: [f64; 3]) -> Result<(), Error> {
         let per_rev_before = self.per_rev;
         let mark = self.out.len();
@@ -147,11 +149,11 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
         // The same feed changes for the canned form.
         let mut per_rev = per_rev_before;
         let feed_before = match c.feed {
-            Some((f, u)) => feed_statements(&mut per_rev, f, u),
+            Some((f, u)) => feed_statements(&mut per_rev, f, u).into_iter().collect(),
             None => Vec::new(),
         };
         let feed_after = match (old_feed, c.feed) {
-            (Some((f, u)), Some(_)) => feed_statements(&mut per_rev, f, u),
+            (Some((f, u)), Some(_)) => feed_statements(&mut per_rev, f, u).into_iter().collect(),
             _ => Vec::new(),
         };
         let hole = HoleMove {

@@ -23,11 +23,12 @@
 //!   record with its canned-cycle code and its expansion into moves.
 
 use std::collections::{BTreeMap, VecDeque};
+use std::io::BufRead;
 
 pub use super::state::Lowered;
 use super::state::{Circle, MAX_FEED_MM_MIN, MAX_FEED_MM_REV, absurd_feed};
 use super::vec3::{add, norm, num, scale};
-use super::{ClRecord, ClStatement, ClUnits, split_args};
+use super::{ClReader, ClRecord, ClStatement, ClUnits, split_args};
 use crate::error::Error;
 
 /// Default chord tolerance of linearised arcs, mm.
@@ -49,12 +50,12 @@ pub const MOTION_MAJORS: &[&str] = &[
 ///
 /// `default_units`: the units of a program without `UNITS` (`None`:
 /// millimetres, with a warning at the first motion).
-pub fn lower<I: Iterator<Item = Result<ClRecord, Error>>>(
-    inner: I,
+pub fn lower<R: BufRead>(
+    inner: ClReader<R>,
     file: impl Into<String>,
     arc_tolerance_mm: f64,
     default_units: Option<ClUnits>,
-) -> Lowered<I> {
+) -> Lowered<R> {
     let mut out = VecDeque::new();
     if let Some(u) = default_units {
         out.push_back(ClRecord {
@@ -90,7 +91,7 @@ pub fn lower<I: Iterator<Item = Result<ClRecord, Error>>>(
     }
 }
 
-impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
+impl<R: BufRead> Lowered<R> {
     pub(super) fn goto(
         &mut self,
         r: &ClRecord,
@@ -121,7 +122,10 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
         Ok(())
     }
 
-    fn other(&mut self, r: &ClRecord, major: &str, text: &str) -> Result<(), Error> {
+    /// Lowers `r`, an [`ClStatement::Other`] `major`/`text`; `true` when it
+    /// is kept as it is (a statement that does not move the tool, written
+    /// as a comment).
+    fn other(&mut self, r: &ClRecord, major: &str, text: &str) -> Result<bool, Error> {
         let args = split_args(text.as_bytes(), 0);
         let a = |k: usize| args.get(k).map(|a| a.upper()).unwrap_or_default();
         match major {
@@ -328,19 +332,16 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
                 return Err(self.err(r, format!("{major} moves the tool or changes how it moves and kinpost does not convert it; refused rather than kept as a comment")));
             }
             _ => {
-                *self.commented.entry(major.to_string()).or_default() += 1;
-                self.emit(
-                    r,
-                    ClStatement::Other {
-                        major: major.to_string(),
-                        text: text.to_string(),
-                    },
-                );
+                self.count_commented(major);
+                return Ok(true);
             }
         }
-        Ok(())
+        Ok(false)
     }
 
+    /// Lowers `r`: kept as it is, or turned into the records it stands for
+    /// (none, one or more); its text is given back to the reader when not
+    /// kept.
     fn step(&mut self, r: ClRecord) -> Result<(), Error> {
         if self.circle.is_some()
             && !matches!(
@@ -350,10 +351,15 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
         {
             return Err(self.err(&r, "CIRCLE must be followed by the GOTO that ends the arc"));
         }
-        match &r.statement {
-            ClStatement::Goto { tip, axis } => self.goto(&r, *tip, *axis)?,
+        // Whether `r` is kept as it is.
+        let keep = match &r.statement {
+            ClStatement::Goto { tip, axis } => {
+                self.goto(&r, *tip, *axis)?;
+                false
+            }
             ClStatement::TlAxis(a) => {
                 self.axis = *a;
+                false
             }
             ClStatement::Fedrat { value, unit } => {
                 if absurd_feed(*value, *unit, self.mm_per_unit) {
@@ -361,6 +367,7 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
                 }
                 self.feed = Some((*value, *unit));
                 self.feed_record(&r, *value, *unit);
+                false
             }
             ClStatement::Units(u) => {
                 self.units_seen = true;
@@ -368,23 +375,35 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
                     ClUnits::Mm => 1.0,
                     ClUnits::Inches => 25.4,
                 };
-                self.out.push_back(r);
+                true
             }
             ClStatement::LoadTl(n) => {
                 self.tool = Some(*n);
-                self.out.push_back(r);
+                true
             }
-            ClStatement::Other { major, text } => {
-                let (major, text) = (major.clone(), text.clone());
-                self.other(&r, &major, &text)?;
-            }
+            ClStatement::Other { major, text } => self.other(&r, major, text)?,
             ClStatement::Multax(_) => {
-                *self.commented.entry("MULTAX".into()).or_default() += 1;
-                self.out.push_back(r);
+                self.count_commented("MULTAX");
+                true
             }
-            _ => self.out.push_back(r),
+            _ => true,
+        };
+        if keep {
+            self.out.push_back(r);
+        } else {
+            self.inner.recycle(r.text);
         }
         Ok(())
+    }
+
+    /// Counts a statement of `major` kept as a comment (for [`Self::summary`]).
+    fn count_commented(&mut self, major: &str) {
+        match self.commented.get_mut(major) {
+            Some(n) => *n += 1,
+            None => {
+                self.commented.insert(major.to_string(), 1);
+            }
+        }
     }
 
     fn summary(&mut self) {
@@ -412,7 +431,7 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
     }
 }
 
-impl<I: Iterator<Item = Result<ClRecord, Error>>> Iterator for Lowered<I> {
+impl<R: BufRead> Iterator for Lowered<R> {
     type Item = Result<ClRecord, Error>;
 
     fn next(&mut self) -> Option<Self::Item> {

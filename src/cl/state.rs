@@ -2,9 +2,12 @@
 //! lowering module uses: errors, emitted records, the set-up frame, feeds.
 
 use std::collections::{BTreeMap, VecDeque};
+use std::io::BufRead;
+
+use arrayvec::ArrayVec;
 
 use super::vec3::sub;
-use super::{Arg, ClRecord, ClStatement, FeedUnit};
+use super::{Arg, ClReader, ClRecord, ClStatement, FeedUnit};
 use crate::error::{Error, Location};
 
 /// Largest feed accepted, mm/min (per minute) or mm/rev (per revolution).
@@ -52,11 +55,13 @@ pub(super) struct Cycle {
 pub(super) const MAX_FEED_MM_MIN: f64 = 1e6;
 pub(super) const MAX_FEED_MM_REV: f64 = 100.0;
 
-/// The lowering iterator: wraps a [`super::ClReader`] (or any iterator of
-/// records) and yields records the converter writes directly.
+/// The lowering iterator: wraps a [`ClReader`] and yields records the
+/// converter writes directly.
 #[derive(Debug)]
-pub struct Lowered<I> {
-    pub(super) inner: I,
+pub struct Lowered<R: BufRead> {
+    /// The reader; it also keeps the texts given back
+    /// ([`Lowered::recycle`]), for its records and those emitted here.
+    pub(super) inner: ClReader<R>,
     pub(super) file: String,
     pub(super) out: VecDeque<ClRecord>,
     pub(super) finished: bool,
@@ -82,8 +87,12 @@ pub struct Lowered<I> {
 
 /// The statements of a feed change: `G95` or `G94` when the feed mode
 /// (`per_rev`) changes, then the feed (per revolution in mm/rev).
-pub(super) fn feed_statements(per_rev: &mut bool, value: f64, unit: FeedUnit) -> Vec<ClStatement> {
-    let mut out = Vec::new();
+pub(super) fn feed_statements(
+    per_rev: &mut bool,
+    value: f64,
+    unit: FeedUnit,
+) -> ArrayVec<ClStatement, 2> {
+    let mut out = ArrayVec::new();
     let rev = matches!(unit, FeedUnit::Mmpr | FeedUnit::Ipr);
     if rev != *per_rev {
         *per_rev = rev;
@@ -109,7 +118,7 @@ pub(super) fn absurd_feed(value: f64, unit: FeedUnit, mm_per_unit: f64) -> bool 
     }
 }
 
-impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
+impl<R: BufRead> Lowered<R> {
     pub(super) fn err(&self, r: &ClRecord, message: impl Into<String>) -> Error {
         Error::input_with(
             Location::new(self.file.clone(), r.line, r.col),
@@ -118,13 +127,24 @@ impl<I: Iterator<Item = Result<ClRecord, Error>>> Lowered<I> {
         )
     }
 
+    /// Emits `statement` with the place and text of `r` (its text copied
+    /// into one given back, so that no allocation is made in the steady
+    /// state).
     pub(super) fn emit(&mut self, r: &ClRecord, statement: ClStatement) {
+        let mut text = self.inner.text_buffer();
+        text.extend_from_slice(&r.text);
         self.out.push_back(ClRecord {
             line: r.line,
             col: r.col,
-            text: r.text.clone(),
+            text,
             statement,
         });
+    }
+
+    /// Takes back the text of a record done with (one this iterator gave
+    /// out): a record read or emitted later reuses its memory.
+    pub fn recycle(&mut self, text: Vec<u8>) {
+        self.inner.recycle(text);
     }
 
     pub(super) fn block(&mut self, r: &ClRecord, b: impl Into<String>) {

@@ -109,6 +109,10 @@ pub fn convert_cl<S: Stage, R: BufRead, W: Write + ?Sized>(
         if failed {
             return Ok(None);
         }
+        // The text of the record the unit held is read into again.
+        if let Some(Ok(old)) = unit.take() {
+            records.recycle(old.text);
+        }
         *unit = records.next();
         Ok(match unit {
             None => None,

@@ -204,6 +204,8 @@ pub fn cl_poses<R: BufRead>(
             }
             _ => {}
         }
+        // The next record is read into its text.
+        records.recycle(record.text);
     }
     Ok(())
 }

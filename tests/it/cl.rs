@@ -325,6 +325,28 @@ fn reader_goes_on_after_a_statement_error() {
     assert_eq!(results[1].as_ref().unwrap().statement, ClStatement::Rapid);
 }
 
+/// A text given back is what a record read later is read into.
+#[test]
+fn recycled_text_is_read_into() {
+    let src = b"GOTO/1,2,3\nGOTO/4,$\n  5,6\nGOTO/7,8,9\n";
+    let mut reader = ClReader::new(&src[..], "t");
+    let first = reader.next().unwrap().unwrap();
+    let second = reader.next().unwrap().unwrap();
+    assert_eq!(second.text, b"GOTO/4,$\n  5,6\n");
+    let at = first.text.as_ptr();
+    reader.recycle(first.text);
+    let third = reader.next().unwrap().unwrap();
+    assert_eq!(third.text.as_ptr(), at);
+    assert_eq!(third.text, b"GOTO/7,8,9\n");
+    assert_eq!(
+        third.statement,
+        ClStatement::Goto {
+            tip: [7.0, 8.0, 9.0],
+            axis: None
+        }
+    );
+}
+
 #[test]
 fn non_utf8_bytes_are_tolerated() {
     let r: Vec<_> = ClReader::new(&b"$$ caf\xe9\nPARTNO \xff\n"[..], "t")
