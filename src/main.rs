@@ -17,6 +17,7 @@ mod cli;
 fn main() {
     let cli = cli::Cli::parse();
     kinpost::output::remove_temporaries_on_signal();
+    kinpost::output::remove_temporaries_on_panic();
     cli::use_this_thread_as_worker();
     if let Err(e) = cli::run(cli) {
         // A reader that stopped early (`kinpost post p.nc | head`) is not an

@@ -525,6 +525,25 @@ pub fn remove_temporaries_on_signal() {
     }
 }
 
+/// Installs a panic hook that removes every temporary output file before
+/// the panic's message is printed. The release build aborts on a panic
+/// (`panic = "abort"`, Cargo.toml): nothing unwinds, so the temporaries'
+/// own clean-up never runs. A panic is a bug (docs/robustness.md); this
+/// keeps it from leaving half-written files behind. For the binary only:
+/// in a test process the hook would take other tests' temporaries.
+pub fn remove_temporaries_on_panic() {
+    let previous = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        // Not blocking: the panicking thread may hold the list itself.
+        if let Ok(temporaries) = TEMPORARIES.try_lock() {
+            for p in temporaries.iter() {
+                let _ = std::fs::remove_file(p);
+            }
+        }
+        previous(info);
+    }));
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
