@@ -58,6 +58,7 @@ mod linkage_fixtures;
 mod linuxcnc_import;
 mod model_file_strict;
 mod output_safety;
+mod panic_cleanup;
 mod parse_throughput;
 mod post;
 mod robustness_parse;

@@ -52,9 +52,9 @@ impl NearTrig {
     /// `q0 + d` in floating point. For a rotary at thousands of degrees,
     /// `q0 + d` resolves only 1e-14 rad or so (1e-12 mm at a 100 mm
     /// radius); the refinement steps by its offsets through this and loses
-    /// nothing ([`Rotations::Offsets`]: the rotations come from here, the
-    /// error motions from the rounded `q0 + d`, where their resolution does
-    /// not matter).
+    /// nothing ([`super::Chain::pose_at_offsets`]: the rotations come from
+    /// here, the error motions from the rounded `q0 + d`, where their
+    /// resolution does not matter).
     #[inline]
     pub fn sin_cos_offset(&self, j: usize, d: f64) -> (f64, f64) {
         if d == 0.0 {
