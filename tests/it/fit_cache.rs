@@ -55,22 +55,9 @@ impl Scratch {
     fn compensate(&self, cache: &str, table: &str) -> (Vec<u8>, Vec<u8>) {
         let _ = std::fs::remove_file(self.path("out.nc"));
         let _ = std::fs::remove_file(self.path("report.json"));
-        let o = self.run(
-            cache,
-            &[
-                "compensate",
-                "--machine",
-                "zhao2022-xzbc",
-                "--errors",
-                table,
-                "p.ngc",
-                "-o",
-                "out.nc",
-                "--report",
-                "report.json",
-                "--quiet",
-            ],
-        );
+        let mut args = compensate_args(table);
+        args.extend(["--report", "report.json", "--quiet"]);
+        let o = self.run(cache, &args);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         (
             std::fs::read(self.path("out.nc")).unwrap(),
@@ -88,6 +75,21 @@ impl Scratch {
     fn entries(&self) -> Vec<PathBuf> {
         entries_in(&self.cache())
     }
+}
+
+/// The command line of `compensate` of p.ngc on zhao2022-xzbc with
+/// `table`, written to out.nc.
+fn compensate_args(table: &str) -> Vec<&str> {
+    vec![
+        "compensate",
+        "--machine",
+        "zhao2022-xzbc",
+        "--errors",
+        table,
+        "p.ngc",
+        "-o",
+        "out.nc",
+    ]
 }
 
 fn entries_in(dir: &Path) -> Vec<PathBuf> {
@@ -304,18 +306,7 @@ fn a_link_in_place_of_an_entry_is_not_followed() {
 #[test]
 fn messages_name_the_table_as_without_the_cache() {
     let s = Scratch::new();
-    let args = |table: &'static str| {
-        [
-            "compensate",
-            "--machine",
-            "zhao2022-xzbc",
-            "--errors",
-            table,
-            "p.ngc",
-            "-o",
-            "out.nc",
-        ]
-    };
+    let args = compensate_args;
     let cache = s.cache();
     let cache = cache.to_str().unwrap();
     let uncached = s.run("off", &args("w.csv"));
