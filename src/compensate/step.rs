@@ -166,10 +166,14 @@ pub(super) struct Factored {
     /// The tip step is solved through the Gram matrix (see
     /// [`Factored::factor_gram`]) instead of `scaled`.
     pub(super) gram: bool,
-    /// Rows of `J_p S` (Gram path).
-    pub(super) a_rows: [Col; 3],
-    /// `((J_p S)(J_p S)ᵀ)⁻¹` (Gram path).
-    pub(super) gram_inv: [[f64; 3]; 3],
+    /// Gram path: the tip step's matrix `S Aᵀ (A Aᵀ)⁻¹` (n × 3), so that
+    /// `Δ₁ = T r_p`.
+    pub(super) tip_map: [[f64; 3]; MAX_JOINTS],
+    /// One free direction: the axis part is `Δ₂ = z (cᵀ r_o − fᵀ Δ₁)`
+    /// with `c = W b / |b|²` and `fᵀ = bᵀ W J_o / |b|²` (`b = W J_o z`).
+    pub(super) axis_c: [f64; 3],
+    /// See `axis_c`.
+    pub(super) axis_f: Col,
 }
 
 impl Factored {
@@ -188,8 +192,9 @@ impl Factored {
         b: [[0.0; linalg::ROWS]; 3],
         aux: Qr::EMPTY,
         gram: false,
-        a_rows: [[0.0; linalg::ROWS]; 3],
-        gram_inv: [[0.0; 3]; 3],
+        tip_map: [[0.0; 3]; MAX_JOINTS],
+        axis_c: [0.0; 3],
+        axis_f: [0.0; linalg::ROWS],
     };
 
     /// Factors the step for the Jacobian `jac` (columns, chain order), in
@@ -203,7 +208,26 @@ impl Factored {
         caps: &Joints,
     ) -> bool {
         self.usable = self.factor_qr(jac, n, opts, caps);
+        if self.usable && self.free == 1 {
+            self.factor_one_free();
+        }
         self.usable
+    }
+
+    /// The linear map of the axis part for one free direction (`axis_c`,
+    /// `axis_f`): `y = bᵀ W (r_o − J_o Δ₁) / |b|²`, `Δ₂ = z y`.
+    fn factor_one_free(&mut self) {
+        let b = &self.b[0];
+        let nn: f64 = b[..3].iter().map(|x| x * x).sum();
+        let w = self.weights;
+        self.axis_c = std::array::from_fn(|r| w[r] * b[r] / nn);
+        self.axis_f = [0.0; linalg::ROWS];
+        for k in 0..self.n {
+            self.axis_f[k] = (0..3)
+                .map(|r| b[r] * w[r] * self.jo_rows[r][k])
+                .sum::<f64>()
+                / nn;
+        }
     }
 
     pub(super) fn factor_qr(
@@ -391,8 +415,11 @@ impl Factored {
             let movable = col[..3].iter().any(|x| *x != 0.0);
             self.free = if movable { 1 } else { 0 };
         }
-        self.a_rows = *a;
-        self.gram_inv = inv;
+        for (k, (t, cap)) in self.tip_map.iter_mut().zip(self.caps).take(n).enumerate() {
+            *t = std::array::from_fn(|j| {
+                cap * (a[0][k] * inv[0][j] + a[1][k] * inv[1][j] + a[2][k] * inv[2][j])
+            });
+        }
         self.gram = true;
         true
     }
@@ -416,27 +443,31 @@ impl Factored {
             d1[..n].copy_from_slice(&x[..n]);
             return (d1, d2);
         }
-        let x = if self.gram {
-            // Aᵀ (A Aᵀ)⁻¹ r_p.
-            let g = &self.gram_inv;
-            let y: [f64; 3] =
-                std::array::from_fn(|i| g[i][0] * rp.x + g[i][1] * rp.y + g[i][2] * rp.z);
-            let a = &self.a_rows;
-            let mut x = [0.0; linalg::ROWS];
-            for k in 0..n {
-                x[k] = a[0][k] * y[0] + a[1][k] * y[1] + a[2][k] * y[2];
+        if self.gram {
+            // S Aᵀ (A Aᵀ)⁻¹ r_p.
+            for (d, t) in d1.iter_mut().zip(&self.tip_map).take(n) {
+                *d = t[0] * rp.x + t[1] * rp.y + t[2] * rp.z;
             }
-            x
         } else {
-            self.scaled
-                .min_norm_transposed(&[rp.x, rp.y, rp.z, 0.0, 0.0, 0.0])
-        };
-        for k in 0..n {
-            d1[k] = x[k] * self.caps[k];
+            let x = self
+                .scaled
+                .min_norm_transposed(&[rp.x, rp.y, rp.z, 0.0, 0.0, 0.0]);
+            for k in 0..n {
+                d1[k] = x[k] * self.caps[k];
+            }
         }
         damp_into_caps(&self.jp_rows, rp, &self.caps, n, &mut d1);
         let free = self.free;
         if free == 0 {
+            return (d1, d2);
+        }
+        if free == 1 {
+            let c = &self.axis_c;
+            let y = c[0] * ro.x + c[1] * ro.y + c[2] * ro.z
+                - (0..n).map(|k| self.axis_f[k] * d1[k]).sum::<f64>();
+            for (d, z) in d2.iter_mut().zip(&self.z[0]).take(n) {
+                *d = z * y;
+            }
             return (d1, d2);
         }
         // v = W r_o − W J_o Δ₁.
@@ -505,9 +536,174 @@ pub(super) fn step_svd(
             lambda *= 10.0;
         }
     }
-    let jp_pinv = pinv(&jp);
-    let null = DMatrix::identity(n, n) - &jp_pinv * &jp;
-    let jon = &jo * &null;
-    let dq2 = &null * (pinv(&jon) * (ro - &jo * &dq1));
+    // An orthonormal basis Z of the null space of J_p: the right singular
+    // vectors of its singular values at the cut-off or below (J_p padded
+    // with zero rows to n × n, so that the SVD gives all n of them). The
+    // axis part is then Δ₂ = Z (W J_o Z)⁺ W (r_o − J_o Δ₁). (Not with the
+    // projector N = I − J_p⁺ J_p: (W J_o N)⁺ is the pseudo-inverse of a
+    // rank-deficient matrix, which nalgebra's SVD gets wrong by up to
+    // 1e-4 relative, and with no null space N is rounding noise.)
+    let mut padded = DMatrix::zeros(n.max(3), n);
+    padded.rows_mut(0, 3).copy_from(&jp);
+    let svd = padded.svd(false, true);
+    let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
+    let cut = crate::linalg::rank::jacobian_cutoff(smax, 3, n);
+    let v_t = svd.v_t.expect("right singular vectors were asked for");
+    let null: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&i| svd.singular_values[i] <= cut)
+        .collect();
+    if null.is_empty() {
+        return (out(&dq1), [0.0; MAX_JOINTS]);
+    }
+    let z = DMatrix::from_fn(n, null.len(), |r, c| v_t[(null[c], r)]);
+    let dq2 = &z * (pinv(&(&jo * &z)) * (ro - &jo * &dq1));
     (out(&dq1), out(&dq2))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A well-conditioned Jacobian of `n` joints with entries of either
+    /// sign, deterministic (the tip rows millimetres per unit, the axis
+    /// rows smaller, as on a machine).
+    fn jacobian(n: usize, seed: u64) -> JacobianColumns {
+        let mut state = seed;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let mut jac = [[0.0; 6]; MAX_JOINTS];
+        for col in jac.iter_mut().take(n) {
+            for (r, x) in col.iter_mut().enumerate() {
+                *x = next() * if r < 3 { 50.0 } else { 0.5 };
+            }
+        }
+        jac
+    }
+
+    /// The task-priority step by its definition, with LU solves only:
+    /// the tip part is the minimum-norm solution of `J_p Δ₁ = r_p` in the
+    /// metric of the caps (`Δ₁ = S Aᵀ (A Aᵀ)⁻¹ r_p`, `A = J_p S`); the axis
+    /// part minimises `|W (r_o − J_o (Δ₁ + Δ₂))|` over `J_p Δ₂ = 0` (the
+    /// KKT system). The paper's step: least squares on the stacked 6×n
+    /// Jacobian (normal equations).
+    fn by_definition(
+        jac: &JacobianColumns,
+        n: usize,
+        rp: &Vector3<f64>,
+        ro: &Vector3<f64>,
+        opts: &Options,
+        caps: &[f64],
+    ) -> (Vec<f64>, Vec<f64>) {
+        if opts.method == Method::Paper {
+            let j = DMatrix::from_fn(6, n, |r, c| jac[c][r]);
+            let r = DVector::from_vec(vec![rp.x, rp.y, rp.z, ro.x, ro.y, ro.z]);
+            let x = (j.transpose() * &j)
+                .lu()
+                .solve(&(j.transpose() * r))
+                .unwrap();
+            return (x.as_slice().to_vec(), vec![0.0; n]);
+        }
+        let a = DMatrix::from_fn(3, n, |r, c| jac[c][r] * caps[c]);
+        let y = (&a * a.transpose()).lu().solve(rp).unwrap();
+        let x = a.transpose() * y;
+        let d1: Vec<f64> = (0..n).map(|k| x[k] * caps[k]).collect();
+        let w = opts.axis_weights;
+        let wjo = DMatrix::from_fn(3, n, |r, c| w[r] * jac[c][r + 3]);
+        let v = DVector::from_fn(3, |r, _| {
+            w[r] * (ro[r] - (0..n).map(|k| jac[k][r + 3] * d1[k]).sum::<f64>())
+        });
+        let mut kkt = DMatrix::zeros(n + 3, n + 3);
+        kkt.view_mut((0, 0), (n, n))
+            .copy_from(&(wjo.transpose() * &wjo));
+        for r in 0..3 {
+            for c in 0..n {
+                kkt[(n + r, c)] = jac[c][r];
+                kkt[(c, n + r)] = jac[c][r];
+            }
+        }
+        let mut rhs = DVector::zeros(n + 3);
+        rhs.rows_mut(0, n).copy_from(&(wjo.transpose() * v));
+        let sol = kkt.lu().solve(&rhs).unwrap();
+        (d1, sol.as_slice()[..n].to_vec())
+    }
+
+    /// The stack-based step (closed-form Gram for three or four joints,
+    /// Householder QR otherwise, the axis part's linear map for one free
+    /// direction) is the task-priority step by its definition, tip part
+    /// and axis part, for three to six joints, and the paper's stacked
+    /// step is its least squares.
+    #[test]
+    fn factored_step_is_the_step_by_definition() {
+        let caps = [5e-2, 5e-4, 5e-2, 5e-4, 5e-2, 5e-4, 5e-2];
+        let rp = Vector3::new(3e-4, -2e-4, 1e-4);
+        let ro = Vector3::new(-2e-6, 1e-6, 3e-6);
+        for method in [Method::Exact, Method::Paper] {
+            let opts = Options {
+                method,
+                axis_weights: [1.0, 0.5, 2.0],
+                ..Options::default()
+            };
+            for n in 3..=6 {
+                for seed in 1..20 {
+                    let jac = jacobian(n, seed * 7 + n as u64);
+                    let mut f = Factored::EMPTY;
+                    assert!(f.factor(&jac, n, &opts, &caps), "n {n} seed {seed}");
+                    let (d1, d2) = f.step(&rp, &ro);
+                    let (e1, e2) = by_definition(&jac, n, &rp, &ro, &opts, &caps[..n]);
+                    let scale = (0..n).fold(0.0f64, |m, k| m.max(e1[k].abs() + e2[k].abs()));
+                    for k in 0..n {
+                        assert!(
+                            (d1[k] - e1[k]).abs() <= 1e-8 * scale
+                                && (d2[k] - e2[k]).abs() <= 1e-8 * scale,
+                            "{method:?} n {n} seed {seed} joint {k}: {:e} {:e} against {:e} {:e}",
+                            d1[k],
+                            d2[k],
+                            e1[k],
+                            e2[k]
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// The SVD form (the fallback where the Jacobian is ill-conditioned)
+    /// is the step by its definition too. Before, it inverted the
+    /// rounding noise of the null-space projection where there is no null
+    /// space (three joints: an axis part larger than the tip part), and
+    /// its axis part missed by up to 2e-4 relative elsewhere (the
+    /// pseudo-inverse of the rank-deficient projected axis rows).
+    #[test]
+    fn svd_step_is_the_step_by_definition() {
+        let caps = [5e-2, 5e-4, 5e-2, 5e-4, 5e-2, 5e-4, 5e-2];
+        let rp = Vector3::new(3e-4, -2e-4, 1e-4);
+        let ro = Vector3::new(-2e-6, 1e-6, 3e-6);
+        let opts = Options {
+            axis_weights: [1.0, 0.5, 2.0],
+            ..Options::default()
+        };
+        for n in 3..=6 {
+            for seed in 1..20 {
+                let jac = jacobian(n, seed * 7 + n as u64);
+                let (d1, d2) = step_svd(&jac, n, &rp, &ro, &opts, &caps[..n]);
+                let (e1, e2) = by_definition(&jac, n, &rp, &ro, &opts, &caps[..n]);
+                let scale = (0..n).fold(0.0f64, |m, k| m.max(e1[k].abs() + e2[k].abs()));
+                for k in 0..n {
+                    assert!(
+                        (d1[k] - e1[k]).abs() <= 1e-8 * scale
+                            && (d2[k] - e2[k]).abs() <= 1e-8 * scale,
+                        "n {n} seed {seed} joint {k}: {:e} {:e} against {:e} {:e}",
+                        d1[k],
+                        d2[k],
+                        e1[k],
+                        e2[k]
+                    );
+                }
+            }
+        }
+    }
 }
