@@ -232,6 +232,11 @@ struct JointConst {
     u: [f64; 3],
     k: [[f64; 3]; 3],
     kk: [[f64; 3]; 3],
+    /// For an axis along a coordinate axis (`u = ±e_k`, the usual machine
+    /// axis): the plane `(i, j)` it turns (`(k+1, k+2)` cyclically) and the
+    /// sign of `u`, so that a rotation turns two coordinates only
+    /// ([`JointConst::rotate_sc`]).
+    plane: Option<(usize, usize, f64)>,
 }
 
 impl JointConst {
@@ -240,11 +245,41 @@ impl JointConst {
         let k = joint.axis.cross_matrix();
         let kk = k * k;
         let arr = |m: &Matrix3<f64>| std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)]));
+        let u = [u.x, u.y, u.z];
+        let plane = (0..3)
+            .find(|&a| u[a].abs() == 1.0 && u[(a + 1) % 3] == 0.0 && u[(a + 2) % 3] == 0.0)
+            .map(|a| ((a + 1) % 3, (a + 2) % 3, u[a]));
         JointConst {
             kind: joint.kind,
-            u: [u.x, u.y, u.z],
+            u,
             k: arr(&k),
             kk: arr(&kk),
+            plane,
+        }
+    }
+
+    /// `a` and `b` turned by [`JointConst::rotation_sc`]`(s, c)`, the same
+    /// numbers: for an axis along a coordinate axis only the two
+    /// coordinates of its plane change, `i' = (1 − (1 − c)) x_i ∓ s x_j`,
+    /// `j' = ± s x_i + (1 − (1 − c)) x_j` (the matrix's entries as Rodrigues
+    /// gives them; its zero entries add nothing but the sign of a zero).
+    #[inline]
+    fn rotate_sc(&self, s: f64, c: f64, a: &mut [f64; 3], b: &mut [f64; 3]) {
+        match self.plane {
+            Some((i, j, sign)) => {
+                let cc = 1.0 - (1.0 - c);
+                let ss = sign * s;
+                for x in [a, b] {
+                    let (xi, xj) = (x[i], x[j]);
+                    x[i] = cc * xi + (-ss) * xj;
+                    x[j] = ss * xi + cc * xj;
+                }
+            }
+            None => {
+                let r = self.rotation_sc(s, c);
+                *a = rot3_apply(&r, a);
+                *b = rot3_apply(&r, b);
+            }
         }
     }
 
@@ -427,22 +462,16 @@ pub(super) fn pose_backward(
                             *t += u * v;
                         }
                     }
-                    JointKind::Revolute => {
-                        let r = match rots {
-                            Rotations::Given(rots) => rots[*j],
-                            _ => match rots.sin_cos(*j, v) {
-                                Some((s, c)) => jc.rotation_sc(s, c),
-                                None => jc.rotation(v),
-                            },
-                        };
-                        let rot = |x: &[f64; 3]| -> [f64; 3] {
-                            std::array::from_fn(|i| {
-                                r[i][0] * x[0] + r[i][1] * x[1] + r[i][2] * x[2]
-                            })
-                        };
-                        tip = rot(&tip);
-                        ax = rot(&ax);
-                    }
+                    JointKind::Revolute => match rots {
+                        Rotations::Given(rots) => {
+                            tip = rot3_apply(&rots[*j], &tip);
+                            ax = rot3_apply(&rots[*j], &ax);
+                        }
+                        _ => {
+                            let (s, c) = rots.sin_cos(*j, v).unwrap_or_else(|| v.sin_cos());
+                            jc.rotate_sc(s, c, &mut tip, &mut ax);
+                        }
+                    },
                 }
             }
         }
