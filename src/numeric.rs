@@ -54,6 +54,15 @@ pub fn round_half_away(x: f64) -> Option<i64> {
     })
 }
 
+/// `10^d`: from a table up to 10^19 (exact), else by `powi` (the same
+/// numbers: 10^d is exact up to 10^22 either way).
+pub fn pow10(d: u32) -> f64 {
+    POW10
+        .get(d as usize)
+        .copied()
+        .unwrap_or_else(|| 10f64.powi(d as i32))
+}
+
 /// Powers of ten up to 10^19, all exact in an f64.
 const POW10: [f64; 20] = [
     1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16,
@@ -202,6 +211,16 @@ mod tests {
             "12345678901234567890",
         ] {
             assert_eq!(plain_decimal(t.as_bytes()), None, "{t}");
+        }
+    }
+
+    /// The table of powers of ten gives what `powi` gives (and the parser:
+    /// the exact decimal), over the table's end too.
+    #[test]
+    fn pow10_is_the_exact_power() {
+        for d in 0..=25u32 {
+            assert_eq!(pow10(d), 10f64.powi(d as i32), "10^{d}");
+            assert_eq!(pow10(d), format!("1e{d}").parse::<f64>().unwrap(), "10^{d}");
         }
     }
 

@@ -313,7 +313,7 @@ pub fn written_residual(
 ) -> (f64, f64) {
     let mut ext = machine.to_external(q);
     for (v, &d) in ext.iter_mut().zip(decimals) {
-        let scale = 10f64.powi(d as i32);
+        let scale = crate::numeric::pow10(d);
         if let Some(i) = crate::numeric::round_half_away(*v * scale) {
             *v = i as f64 / scale;
         }
