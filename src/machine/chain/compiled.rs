@@ -646,3 +646,50 @@ pub(super) fn pose_and_prismatic_directions(
     // The pose: one backward pass of the tip and the axis.
     pose_backward(c, q, &NoErrors, Rotations::Given(&rots))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Unit, Vector3};
+
+    /// A revolute joint along a coordinate axis turns a vector to the very
+    /// numbers of the Rodrigues matrix (`==`: a zero's sign aside), for
+    /// every coordinate axis and both signs; a skew axis has no plane.
+    #[test]
+    fn plane_rotation_is_the_matrix_rotation() {
+        let joint = |axis: Vector3<f64>| {
+            JointConst::new(&Joint {
+                name: "A".into(),
+                kind: JointKind::Revolute,
+                axis: Unit::new_normalize(axis),
+                element: 0,
+            })
+        };
+        let mut state = 7u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        for k in 0..3 {
+            for sign in [1.0, -1.0] {
+                let mut u = Vector3::zeros();
+                u[k] = sign;
+                let jc = joint(u);
+                assert!(jc.plane.is_some(), "axis {k} sign {sign}");
+                for _ in 0..200 {
+                    let theta = next() * 1e3;
+                    let (s, c) = theta.sin_cos();
+                    let mut a = [next() * 100.0, next() * 100.0, next() * 100.0];
+                    let mut b = [next(), next(), next()];
+                    let r = jc.rotation_sc(s, c);
+                    let (ra, rb) = (rot3_apply(&r, &a), rot3_apply(&r, &b));
+                    jc.rotate_sc(s, c, &mut a, &mut b);
+                    assert_eq!((a, b), (ra, rb), "axis {k} sign {sign} θ {theta}");
+                }
+            }
+        }
+        assert!(joint(Vector3::new(0.0, 0.6, 0.8)).plane.is_none());
+    }
+}
