@@ -279,6 +279,10 @@ pub enum RankCut {
 /// full-rank matrices and exact zero rows or columns were not affected in
 /// the characterisation.
 ///
+/// nalgebra's own `ColPivQR` is not used: it pivots on the largest single
+/// entry of the remaining matrix, not on the largest column norm, which
+/// does not reveal the rank reliably.
+///
 /// The rank decision is made on the pivoted diagonal of R instead of the
 /// singular values: `σ_{r+1} ≤ √(n − r) · cut-off`, and for the matrices
 /// of this crate (a clear gap between rounding noise and the kept

@@ -48,13 +48,17 @@ pub(super) fn residual(target: &Pose, p: &Pose) -> (Vector3<f64>, Vector3<f64>) 
     (target.tip - p.tip, target.axis - p.axis)
 }
 
-/// Moore–Penrose pseudo-inverse via SVD with a relative singular-value cut-off.
-pub(super) fn pinv(m: &DMatrix<f64>) -> DMatrix<f64> {
-    let svd = m.clone().svd(true, true);
-    let smax = svd.singular_values.iter().cloned().fold(0.0, f64::max);
-    let eps = crate::linalg::rank::jacobian_cutoff(smax, m.nrows(), m.ncols());
-    svd.pseudo_inverse(eps)
-        .unwrap_or_else(|_| DMatrix::zeros(m.ncols(), m.nrows()))
+/// The minimum-norm least-squares solution `m⁺ b`, the rank cut as for a
+/// kinematic Jacobian ([`crate::linalg::rank::JACOBIAN`] per dimension,
+/// relative): by complete orthogonal decomposition
+/// ([`crate::linalg::MinNorm`]), since nalgebra's SVD can miss the
+/// pseudo-inverse of a rank-deficient matrix (the steps here are taken
+/// where the Jacobian is ill-conditioned). Zero for a matrix with a
+/// non-finite entry.
+pub(super) fn min_norm(m: &DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
+    let cut = crate::linalg::rank::JACOBIAN * m.nrows().max(m.ncols()) as f64;
+    crate::linalg::MinNorm::new(m, crate::linalg::RankCut::Relative(cut))
+        .map_or_else(|| DVector::zeros(m.ncols()), |f| f.solve(b))
 }
 
 /// Damped least-squares solution of `J Δ = r` with joint scaling `scale`
@@ -69,7 +73,7 @@ pub(super) fn damped(
     let n = j.ncols();
     let js = DMatrix::from_fn(j.nrows(), n, |row, c| j[(row, c)] * scale[c]);
     let sol = if lambda == 0.0 {
-        pinv(&js) * r
+        min_norm(&js, r)
     } else {
         let a = &js * js.transpose() + DMatrix::identity(j.nrows(), j.nrows()) * (lambda * lambda);
         match a.lu().solve(r) {
@@ -494,8 +498,9 @@ impl Factored {
     }
 }
 
-/// One step of the chosen method with heap matrices and SVD pseudo-inverses,
-/// split into its tip part and its axis part (the paper's stacked step is
+/// One step of the chosen method with heap matrices (the null space of
+/// `J_p` from an SVD, minimum-norm solves by [`min_norm`]), split into its
+/// tip part and its axis part (the paper's stacked step is
 /// all "tip part"). The tip part is damped just enough to stay inside the
 /// trust region `caps` (Levenberg–Marquardt). The reference form of
 /// the QR path of [`Factored`], used where that one declines
@@ -517,7 +522,7 @@ pub(super) fn step_svd(
     if opts.method == Method::Paper {
         let j = DMatrix::from_fn(6, n, |r, c| jac[c][r]);
         let r = DVector::from_vec(vec![rp.x, rp.y, rp.z, ro.x, ro.y, ro.z]);
-        return (out(&(pinv(&j) * r)), [0.0; MAX_JOINTS]);
+        return (out(&min_norm(&j, &r)), [0.0; MAX_JOINTS]);
     }
     let jp = DMatrix::from_fn(3, n, |r, c| jac[c][r]);
     let w = &opts.axis_weights;
@@ -556,7 +561,7 @@ pub(super) fn step_svd(
         return (out(&dq1), [0.0; MAX_JOINTS]);
     }
     let z = DMatrix::from_fn(n, null.len(), |r, c| v_t[(null[c], r)]);
-    let dq2 = &z * (pinv(&(&jo * &z)) * (ro - &jo * &dq1));
+    let dq2 = &z * min_norm(&(&jo * &z), &(ro - &jo * &dq1));
     (out(&dq1), out(&dq2))
 }
 
