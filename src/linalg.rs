@@ -372,35 +372,33 @@ impl MinNorm {
         self.rank
     }
 
-    /// Applies `Qᵀ` (the first `rank` reflections) to `x` in place.
-    fn apply_qt(&self, x: &mut DVector<f64>) {
+    /// Applies reflection `j` (`H_j = I − β_j v_j v_jᵀ`, its own inverse)
+    /// to `x` in place.
+    fn reflect(&self, j: usize, x: &mut DVector<f64>) {
         let m = self.qr.nrows();
-        for (j, &b) in self.beta.iter().enumerate() {
-            let mut s = x[j];
-            for i in j + 1..m {
-                s += self.qr[(i, j)] * x[i];
-            }
-            s *= b;
-            x[j] -= s;
-            for i in j + 1..m {
-                x[i] -= s * self.qr[(i, j)];
-            }
+        let mut s = x[j];
+        for i in j + 1..m {
+            s += self.qr[(i, j)] * x[i];
+        }
+        s *= self.beta[j];
+        x[j] -= s;
+        for i in j + 1..m {
+            x[i] -= s * self.qr[(i, j)];
         }
     }
 
-    /// Applies `Q` to `x` in place.
+    /// Applies `Qᵀ = H_{r−1} ⋯ H_0` (the first `rank` reflections) to `x` in
+    /// place.
+    fn apply_qt(&self, x: &mut DVector<f64>) {
+        for j in 0..self.beta.len() {
+            self.reflect(j, x);
+        }
+    }
+
+    /// Applies `Q = H_0 ⋯ H_{r−1}` to `x` in place.
     fn apply_q(&self, x: &mut DVector<f64>) {
-        let m = self.qr.nrows();
-        for (j, &b) in self.beta.iter().enumerate().rev() {
-            let mut s = x[j];
-            for i in j + 1..m {
-                s += self.qr[(i, j)] * x[i];
-            }
-            s *= b;
-            x[j] -= s;
-            for i in j + 1..m {
-                x[i] -= s * self.qr[(i, j)];
-            }
+        for j in (0..self.beta.len()).rev() {
+            self.reflect(j, x);
         }
     }
 

@@ -636,6 +636,27 @@ mod tests {
         (d1, sol.as_slice()[..n].to_vec())
     }
 
+    /// Asserts that a step's tip and axis parts are `reference`'s to 1e-8
+    /// of the step's size (`n` joints; `what` names the case).
+    fn assert_same_step(
+        (d1, d2): &(Joints, Joints),
+        (e1, e2): &(Vec<f64>, Vec<f64>),
+        n: usize,
+        what: &str,
+    ) {
+        let scale = (0..n).fold(0.0f64, |m, k| m.max(e1[k].abs() + e2[k].abs()));
+        for k in 0..n {
+            assert!(
+                (d1[k] - e1[k]).abs() <= 1e-8 * scale && (d2[k] - e2[k]).abs() <= 1e-8 * scale,
+                "{what} joint {k}: {:e} {:e} against {:e} {:e}",
+                d1[k],
+                d2[k],
+                e1[k],
+                e2[k]
+            );
+        }
+    }
+
     /// The stack-based step (closed-form Gram for three or four joints,
     /// Householder QR otherwise, the axis part's linear map for one free
     /// direction) is the task-priority step by its definition, tip part
@@ -657,20 +678,14 @@ mod tests {
                     let jac = jacobian(n, seed * 7 + n as u64);
                     let mut f = Factored::EMPTY;
                     assert!(f.factor(&jac, n, &opts, &caps), "n {n} seed {seed}");
-                    let (d1, d2) = f.step(&rp, &ro);
-                    let (e1, e2) = by_definition(&jac, n, &rp, &ro, &opts, &caps[..n]);
-                    let scale = (0..n).fold(0.0f64, |m, k| m.max(e1[k].abs() + e2[k].abs()));
-                    for k in 0..n {
-                        assert!(
-                            (d1[k] - e1[k]).abs() <= 1e-8 * scale
-                                && (d2[k] - e2[k]).abs() <= 1e-8 * scale,
-                            "{method:?} n {n} seed {seed} joint {k}: {:e} {:e} against {:e} {:e}",
-                            d1[k],
-                            d2[k],
-                            e1[k],
-                            e2[k]
-                        );
-                    }
+                    let step = f.step(&rp, &ro);
+                    let reference = by_definition(&jac, n, &rp, &ro, &opts, &caps[..n]);
+                    assert_same_step(
+                        &step,
+                        &reference,
+                        n,
+                        &format!("{method:?} n {n} seed {seed}"),
+                    );
                 }
             }
         }
@@ -694,20 +709,9 @@ mod tests {
         for n in 3..=6 {
             for seed in 1..20 {
                 let jac = jacobian(n, seed * 7 + n as u64);
-                let (d1, d2) = step_svd(&jac, n, &rp, &ro, &opts, &caps[..n]);
-                let (e1, e2) = by_definition(&jac, n, &rp, &ro, &opts, &caps[..n]);
-                let scale = (0..n).fold(0.0f64, |m, k| m.max(e1[k].abs() + e2[k].abs()));
-                for k in 0..n {
-                    assert!(
-                        (d1[k] - e1[k]).abs() <= 1e-8 * scale
-                            && (d2[k] - e2[k]).abs() <= 1e-8 * scale,
-                        "n {n} seed {seed} joint {k}: {:e} {:e} against {:e} {:e}",
-                        d1[k],
-                        d2[k],
-                        e1[k],
-                        e2[k]
-                    );
-                }
+                let step = step_svd(&jac, n, &rp, &ro, &opts, &caps[..n]);
+                let reference = by_definition(&jac, n, &rp, &ro, &opts, &caps[..n]);
+                assert_same_step(&step, &reference, n, &format!("n {n} seed {seed}"));
             }
         }
     }
