@@ -22,6 +22,8 @@ pub mod post;
 pub mod program;
 pub mod progress;
 pub mod report;
+#[cfg(test)]
+pub(crate) mod test_support;
 pub mod text;
 pub mod trajectory;
 

@@ -573,17 +573,11 @@ mod tests {
     /// sign, deterministic (the tip rows millimetres per unit, the axis
     /// rows smaller, as on a machine).
     fn jacobian(n: usize, seed: u64) -> JacobianColumns {
-        let mut state = seed;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut rng = crate::test_support::Lcg(seed);
         let mut jac = [[0.0; 6]; MAX_JOINTS];
         for col in jac.iter_mut().take(n) {
             for (r, x) in col.iter_mut().enumerate() {
-                *x = next() * if r < 3 { 50.0 } else { 0.5 };
+                *x = rng.signed() * if r < 3 { 50.0 } else { 0.5 };
             }
         }
         jac

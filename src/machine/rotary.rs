@@ -145,11 +145,9 @@ mod tests {
 
     #[test]
     fn rounding_and_wrapping_match_the_library() {
-        let mut s: u64 = 3;
+        let mut rng = crate::test_support::Lcg(3);
         for _ in 0..100_000 {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            let s = rng.next_u64();
             let x = ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 10f64.powi((s % 7) as i32);
             assert_eq!(round_half_away(x), x.round(), "{x}");
             let d = x * 100.0;

@@ -241,11 +241,9 @@ mod tests {
                 check(n, d);
             }
         }
-        let mut s: u64 = 7;
+        let mut rng = crate::test_support::Lcg(7);
         for _ in 0..200_000 {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            let s = rng.next_u64();
             let bits = (s >> 33) % 50;
             let n = ((s >> 11) & ((1u64 << bits) - 1)) as i64;
             let n = if s & 1 == 1 { -n } else { n };
@@ -273,11 +271,9 @@ mod tests {
         }
         assert_eq!(scaled_integer(f64::NAN), None);
         assert_eq!(scaled_integer(1e16), None);
-        let mut s: u64 = 11;
+        let mut rng = crate::test_support::Lcg(11);
         for _ in 0..200_000 {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
+            let s = rng.next_u64();
             let x = ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 10f64.powi((s % 16) as i32);
             assert_eq!(scaled_integer(x), Some(x.round() as i64), "{x}");
         }

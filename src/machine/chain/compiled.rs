@@ -665,13 +665,8 @@ mod tests {
                 element: 0,
             })
         };
-        let mut state = 7u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut rng = crate::test_support::Lcg(7);
+        let mut next = || rng.signed();
         for k in 0..3 {
             for sign in [1.0, -1.0] {
                 let mut u = Vector3::zeros();
