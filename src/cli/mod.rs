@@ -464,8 +464,9 @@ pub struct MachineArgs {
     #[arg(long, value_name = "FAMILY", conflicts_with = "json")]
     pub template: Option<String>,
     /// Write a machine file for a LinuxCNC configuration: its `[KINS]`
-    /// KINEMATICS (xyzac-trt-kins, xyzbc-trt-kins, 5axiskins) and the HAL
-    /// setp values of its HAL files.
+    /// KINEMATICS (xyzac-trt-kins, xyzbc-trt-kins, 5axiskins with the HAL
+    /// setp values of its HAL files; trivkins with X Y Z and at most one
+    /// rotary table) and its axis limits, inch converted to mm.
     #[arg(long, value_name = "INI", conflicts_with_all = ["json", "list", "template"])]
     pub from_linuxcnc: Option<PathBuf>,
     /// With --from-linuxcnc: the tool length in mm (the last element of the

@@ -21,8 +21,21 @@
 //!   `[0,0,1]`, revolute B `[0,−1,0]`, translate `[0,0,−(L+T)]`
 //!   (L = `pivot-length`, default 250).
 //!
-//! `maxkins` is refused: it turns the X/Y slides with C but adds the B
-//! head's offset unturned, which no rigid chain reproduces.
+//! - `trivkins` (identity kinematics, the common mill): its axes are those
+//!   of its `coordinates=` parameter, else `[TRAJ] COORDINATES`. X, Y, Z
+//!   alone: prismatic X, Y, Z, translate `[0,0,−T]`. X, Y, Z and one rotary
+//!   L of A, B, C: a rotary table turning the part about +X, +Y or +Z
+//!   through the workpiece origin, a positive command turning it by +q
+//!   (LinuxCNC's table kinematics with `conventional-directions` 0), so
+//!   revolute L `−e` first, then prismatic X, Y, Z and translate
+//!   `[0,0,−T]`. U, V, W are not part of the chain. Without Y (a lathe), or
+//!   with two or more rotaries (whose arrangement the configuration does
+//!   not say), it is refused.
+//!
+//! Lengths in inch (`[TRAJ] LINEAR_UNITS = inch`) are converted to mm: the
+//! linear limits and the HAL lengths. `maxkins` is refused: it turns the X/Y
+//! slides with C but adds the B head's offset unturned, which no rigid chain
+//! reproduces.
 
 use crate::error::{Error, Location, Result};
 use serde_json::{Map, Value, json};
@@ -253,6 +266,12 @@ enum Kins {
     FiveAxis,
 }
 
+/// The modules named in messages.
+const SUPPORTED: &str = "xyzac-trt-kins, xyzbc-trt-kins, 5axiskins or trivkins";
+
+/// mm per inch.
+const MM_PER_INCH: f64 = 25.4;
+
 /// Reads the LinuxCNC configuration `ini` and returns the machine file
 /// (JSON) for its kinematics. `tool_length_mm` (T) overrides the
 /// kinematics' `tool-offset` pin (trt; default 0).
@@ -262,14 +281,21 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
     let ini = Ini::parse(text, file.clone());
     let whole = |msg: String| Error::input(Location::new(&file, 0, 0), msg);
 
-    let kins_e = ini
-        .get("KINS", "KINEMATICS")
-        .ok_or_else(|| whole("no [KINS] KINEMATICS entry; expected the kinematics module (xyzac-trt-kins, xyzbc-trt-kins or 5axiskins)".into()))?;
+    let kins_e = ini.get("KINS", "KINEMATICS").ok_or_else(|| {
+        whole(format!(
+            "no [KINS] KINEMATICS entry; expected the kinematics module ({SUPPORTED})"
+        ))
+    })?;
     let module = kins_e.value.split_whitespace().next().unwrap_or("");
     let kins = match module {
         "xyzac-trt-kins" | "xyzac-trt" => Kins::TrtAc,
         "xyzbc-trt-kins" | "xyzbc-trt" => Kins::TrtBc,
         "5axiskins" => Kins::FiveAxis,
+        "trivkins" => {
+            let mm_per_unit = linear_unit(&ini)?;
+            angular_unit(&ini)?;
+            return trivial_machine(ini_path, &ini, kins_e, mm_per_unit, tool_length_mm);
+        }
         "maxkins" => {
             return Err(ini.err(
                 kins_e,
@@ -279,24 +305,12 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
         other => {
             return Err(ini.err(
                 kins_e,
-                format!("kinematics `{other}` is not supported; expected xyzac-trt-kins, xyzbc-trt-kins or 5axiskins"),
+                format!("kinematics `{other}` is not supported; expected {SUPPORTED}"),
             ));
         }
     };
-    if let Some(u) = ini.get("TRAJ", "LINEAR_UNITS")
-        && !matches!(
-            u.value.to_ascii_lowercase().as_str(),
-            "mm" | "metric" | "millimeter" | "millimetre"
-        )
-    {
-        return Err(ini.err(
-            u,
-            format!(
-                "LINEAR_UNITS `{}`: machine files are in mm; expected a configuration in mm",
-                u.value
-            ),
-        ));
-    }
+    let mm_per_unit = linear_unit(&ini)?;
+    angular_unit(&ini)?;
 
     // HAL sources, in the order HAL runs them.
     let dir: PathBuf = ini_path
@@ -331,11 +345,15 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
         Kins::FiveAxis => "5axiskins",
     };
     let pin = |p: &str| format!("{prefix}.{p}");
+    // A HAL length in the configuration's units, in mm.
+    let length = |hal: &Hal, p: &str, default: f64| -> Result<f64> {
+        Ok(to_mm(hal.number(p, default)?, mm_per_unit))
+    };
     let tool = |hal: &Hal| -> Result<f64> {
         match tool_length_mm {
             Some(t) => Ok(t),
             None if kins == Kins::FiveAxis => Ok(0.0),
-            None => hal.number(&pin("tool-offset"), 0.0),
+            None => length(hal, &pin("tool-offset"), 0.0),
         }
     };
     let t = tool(&hal)?;
@@ -350,21 +368,21 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
                 -1.0
             };
             let r = [
-                hal.number(&pin("x-rot-point"), 0.0)?,
-                hal.number(&pin("y-rot-point"), 0.0)?,
-                hal.number(&pin("z-rot-point"), 0.0)?,
+                length(&hal, &pin("x-rot-point"), 0.0)?,
+                length(&hal, &pin("y-rot-point"), 0.0)?,
+                length(&hal, &pin("z-rot-point"), 0.0)?,
             ];
             let d = if kins == Kins::TrtAc {
                 [
                     0.0,
-                    hal.number(&pin("y-offset"), 0.0)?,
-                    hal.number(&pin("z-offset"), 0.0)?,
+                    length(&hal, &pin("y-offset"), 0.0)?,
+                    length(&hal, &pin("z-offset"), 0.0)?,
                 ]
             } else {
                 [
-                    hal.number(&pin("x-offset"), 0.0)?,
+                    length(&hal, &pin("x-offset"), 0.0)?,
                     0.0,
-                    hal.number(&pin("z-offset"), 0.0)?,
+                    length(&hal, &pin("z-offset"), 0.0)?,
                 ]
             };
             let (tilt, tilt_axis) = if kins == Kins::TrtAc {
@@ -396,7 +414,7 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
             (chain, vec!["X", "Y", "Z", tilt, "C"], summary)
         }
         Kins::FiveAxis => {
-            let l = hal.number(&pin("pivot-length"), 250.0)?;
+            let l = length(&hal, &pin("pivot-length"), 250.0)?;
             let chain = vec![
                 joint("prismatic", "X", v3(1.0, 0.0, 0.0)),
                 joint("prismatic", "Y", v3(0.0, 1.0, 0.0)),
@@ -414,9 +432,213 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
         }
     };
 
-    // Axis limits from [AXIS_L].
+    let axes = axis_limits(&ini, &order, mm_per_unit)?;
+
+    let name = machine_name(ini_path, &ini);
+    let mut description = format!(
+        "From the LinuxCNC configuration {file} ({module}{}): {summary}, tool length {t} mm at the end of the chain. Run kinpost's output under identity kinematics with zero work offsets and no tool length compensation (docs/integration.md).",
+        inch_note(mm_per_unit)
+    );
+    if !skipped.is_empty() {
+        description.push_str(&format!(
+            " HAL files not read (library or Tcl files): {}.",
+            skipped.join(", ")
+        ));
+    }
+    Ok(json!({
+        "name": name,
+        "description": description,
+        "source": format!("kinpost machine --from-linuxcnc {file}"),
+        "chain": chain,
+        "axes": axes,
+        "output_order": order,
+        "tool_length": t,
+    }))
+}
+
+/// The machine of a `trivkins` configuration (see the module docs):
+/// three linear axes and at most one rotary table.
+fn trivial_machine(
+    ini_path: &Path,
+    ini: &Ini,
+    kins_e: &IniEntry,
+    mm_per_unit: f64,
+    tool_length_mm: Option<f64>,
+) -> Result<Value> {
+    let file = ini_path.display().to_string();
+    // The axes: the module's `coordinates=`, else [TRAJ] COORDINATES.
+    let param = kins_e.value.split_whitespace().find_map(|p| {
+        let (k, v) = p.split_once('=')?;
+        k.eq_ignore_ascii_case("coordinates").then_some(v)
+    });
+    let (letters, from) = match (param, ini.get("TRAJ", "COORDINATES")) {
+        (Some(v), _) => (v.to_string(), kins_e),
+        (None, Some(e)) => (e.value.clone(), e),
+        (None, None) => {
+            return Err(ini.err(
+                kins_e,
+                "trivkins without coordinates= and without [TRAJ] COORDINATES: the axes of the machine are not given; expected e.g. KINEMATICS = trivkins coordinates=xyz",
+            ));
+        }
+    };
+    let letters = letters.to_ascii_uppercase();
+    if let Some(c) = letters
+        .chars()
+        .find(|c| !c.is_whitespace() && !"XYZABCUVW".contains(*c))
+    {
+        return Err(ini.err(
+            from,
+            format!("coordinates `{letters}`: `{c}` is not an axis; expected letters of XYZABCUVW"),
+        ));
+    }
+    let has = |c: char| letters.contains(c);
+    if !(has('X') && has('Y') && has('Z')) {
+        return Err(ini.err(
+            from,
+            format!(
+                "trivkins with coordinates `{letters}`: the machine lacks X, Y or Z (a lathe, a foam cutter), and kinpost converts tool poses for mills with all three; describe such a machine by hand (kinpost machine --template)"
+            ),
+        ));
+    }
+    let rotaries: Vec<&str> = ["A", "B", "C"]
+        .into_iter()
+        .filter(|l| letters.contains(*l))
+        .collect();
+    let (rotary, about) = match rotaries.as_slice() {
+        [] => (None, ""),
+        ["A"] => (Some(("A", [-1.0, 0.0, 0.0])), "X"),
+        ["B"] => (Some(("B", [0.0, -1.0, 0.0])), "Y"),
+        ["C"] => (Some(("C", [0.0, 0.0, -1.0])), "Z"),
+        _ => {
+            return Err(ini.err(
+                from,
+                format!(
+                    "trivkins with the rotary axes {}: identity kinematics do not say how they are arranged (table-table, head-head, head-table) nor where they turn; describe the machine by hand (kinpost machine --template 2R3T)",
+                    rotaries.join(" and ")
+                ),
+            ));
+        }
+    };
+    let t = tool_length_mm.unwrap_or(0.0);
+    let joint =
+        |kind: &str, name: &str, axis: [f64; 3]| json!({ kind: {"name": name, "axis": axis} });
+    let mut chain = Vec::new();
+    let mut order = vec!["X", "Y", "Z"];
+    if let Some((name, axis)) = rotary {
+        chain.push(joint("revolute", name, axis));
+        order.push(name);
+    }
+    chain.push(joint("prismatic", "X", [1.0, 0.0, 0.0]));
+    chain.push(joint("prismatic", "Y", [0.0, 1.0, 0.0]));
+    chain.push(joint("prismatic", "Z", [0.0, 0.0, 1.0]));
+    chain.push(json!({ "translate": [0.0, 0.0, -t] }));
+    let axes = axis_limits(ini, &order, mm_per_unit)?;
+    let others: String = letters.chars().filter(|c| "UVW".contains(*c)).collect();
+    let mut description = match rotary {
+        None => format!(
+            "From the LinuxCNC configuration {file} (trivkins, coordinates {letters}{}): a three-axis mill, the tool along +Z, tool length {t} mm at the end of the chain.",
+            inch_note(mm_per_unit)
+        ),
+        Some((name, _)) => format!(
+            "From the LinuxCNC configuration {file} (trivkins, coordinates {letters}{}): a rotary table {name} turning the part about {about} through the workpiece origin (set the work offset there, as four-axis CAM output assumes), a positive {name} turning the part by +{name} about +{about} (LinuxCNC's table kinematics with conventional-directions 0; negate the axis of {name} in this file for the opposite sense), tool length {t} mm at the end of the chain.",
+            inch_note(mm_per_unit)
+        ),
+    };
+    if !others.is_empty() {
+        description.push_str(&format!(
+            " The axes {others} are not part of the chain: kinpost writes no words for them."
+        ));
+    }
+    Ok(json!({
+        "name": machine_name(ini_path, ini),
+        "description": description,
+        "source": format!("kinpost machine --from-linuxcnc {file}"),
+        "chain": chain,
+        "axes": axes,
+        "output_order": order,
+        "tool_length": t,
+    }))
+}
+
+/// `[TRAJ] LINEAR_UNITS`: mm per unit of the configuration (1 for mm,
+/// 25.4 for inch; mm when absent, LinuxCNC's default).
+fn linear_unit(ini: &Ini) -> Result<f64> {
+    let Some(u) = ini.get("TRAJ", "LINEAR_UNITS") else {
+        return Ok(1.0);
+    };
+    match u.value.to_ascii_lowercase().as_str() {
+        "mm" | "metric" | "millimeter" | "millimetre" => Ok(1.0),
+        "inch" | "in" | "imperial" => Ok(MM_PER_INCH),
+        _ => Err(ini.err(
+            u,
+            format!(
+                "LINEAR_UNITS `{}` is not a length unit; expected mm or inch",
+                u.value
+            ),
+        )),
+    }
+}
+
+/// `[TRAJ] ANGULAR_UNITS` must be degrees (the machine file's unit).
+fn angular_unit(ini: &Ini) -> Result<()> {
+    match ini.get("TRAJ", "ANGULAR_UNITS") {
+        Some(u)
+            if !matches!(
+                u.value.to_ascii_lowercase().as_str(),
+                "deg" | "degree" | "degrees"
+            ) =>
+        {
+            Err(ini.err(
+                u,
+                format!(
+                    "ANGULAR_UNITS `{}`: machine files are in degrees; expected a configuration in degrees",
+                    u.value
+                ),
+            ))
+        }
+        _ => Ok(()),
+    }
+}
+
+/// A length of the configuration in mm. Converted from inch it is rounded
+/// to 1e-9 mm: a value of up to five decimal places in inch has six in mm,
+/// and the rounding drops the binary noise of the product (3 × 25.4 is
+/// 76.19999999999999 in f64).
+fn to_mm(v: f64, mm_per_unit: f64) -> f64 {
+    if mm_per_unit == 1.0 {
+        v
+    } else {
+        (v * mm_per_unit * 1e9).round() / 1e9
+    }
+}
+
+/// The description's note on a configuration in inch.
+fn inch_note(mm_per_unit: f64) -> &'static str {
+    if mm_per_unit == 1.0 {
+        ""
+    } else {
+        "; its lengths in inch, converted to mm"
+    }
+}
+
+/// The machine's name: `[EMC] MACHINE`, else the INI's file name.
+fn machine_name(ini_path: &Path, ini: &Ini) -> String {
+    ini.get("EMC", "MACHINE")
+        .map(|e| e.value.clone())
+        .unwrap_or_else(|| {
+            ini_path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "linuxcnc".into())
+        })
+}
+
+/// The axes of `order` with their limits from `[AXIS_L] MIN_LIMIT` and
+/// `MAX_LIMIT` (linear ones converted to mm by `mm_per_unit`), rotary mode
+/// and decimals.
+fn axis_limits(ini: &Ini, order: &[&str], mm_per_unit: f64) -> Result<Map<String, Value>> {
     let mut axes = Map::new();
-    for name in &order {
+    for name in order {
         let section = format!("AXIS_{name}");
         let num = |key: &str| -> Result<Option<f64>> {
             match ini.get(&section, key) {
@@ -452,40 +674,13 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
                 if let (Some(lo), Some(hi)) = (lo, hi)
                     && lo <= hi
                 {
-                    o.insert("min".into(), lo.into());
-                    o.insert("max".into(), hi.into());
+                    o.insert("min".into(), to_mm(lo, mm_per_unit).into());
+                    o.insert("max".into(), to_mm(hi, mm_per_unit).into());
                 }
             }
         }
         o.insert("decimals".into(), 4.into());
         axes.insert((*name).to_string(), Value::Object(o));
     }
-
-    let name = ini
-        .get("EMC", "MACHINE")
-        .map(|e| e.value.clone())
-        .unwrap_or_else(|| {
-            ini_path
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| "linuxcnc".into())
-        });
-    let mut description = format!(
-        "From the LinuxCNC configuration {file} ({module}): {summary}, tool length {t} mm at the end of the chain. Run kinpost's output under identity kinematics with zero work offsets and no tool length compensation (docs/integration.md)."
-    );
-    if !skipped.is_empty() {
-        description.push_str(&format!(
-            " HAL files not read (library or Tcl files): {}.",
-            skipped.join(", ")
-        ));
-    }
-    Ok(json!({
-        "name": name,
-        "description": description,
-        "source": format!("kinpost machine --from-linuxcnc {file}"),
-        "chain": chain,
-        "axes": axes,
-        "output_order": order,
-        "tool_length": t,
-    }))
+    Ok(axes)
 }

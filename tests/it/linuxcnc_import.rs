@@ -294,3 +294,173 @@ fn the_command_writes_a_machine_file() {
         "conventional-directions 1: C about +Z"
     );
 }
+
+/// A configuration in inch: the HAL lengths and the linear limits are
+/// converted to mm, so that the machine with its joints in mm puts the tip
+/// where LinuxCNC's forward kinematics in inch put it, times 25.4.
+#[test]
+fn an_inch_configuration_is_converted_to_mm() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = config(dir.path(), "xyzac-trt.ini", 1);
+    let text = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(
+        &path,
+        text.replace("LINEAR_UNITS = mm", "LINEAR_UNITS = inch"),
+    )
+    .unwrap();
+    let file = machine_from_linuxcnc(&path, None).unwrap_or_else(|e| panic!("{e}"));
+    let m = Machine::from_json_str(&file.to_string(), "inch.json").unwrap();
+    // The fixture's values, now read as inch.
+    let g = Geometry {
+        r: [12.5, -7.75, -3.25],
+        d: [0.0, 20.5, 10.125],
+        t: 42.5,
+        con: 1.0,
+        pivot: 0.0,
+    };
+    let mut rng = Lcg(0x1ac4);
+    let mut worst = 0.0f64;
+    for _ in 0..500 {
+        let j_inch = [
+            10.0 * rng.next(),
+            10.0 * rng.next(),
+            10.0 * rng.next(),
+            180.0 * rng.next(),
+            720.0 * rng.next(),
+        ];
+        let j_mm = [
+            j_inch[0] * 25.4,
+            j_inch[1] * 25.4,
+            j_inch[2] * 25.4,
+            j_inch[3],
+            j_inch[4],
+        ];
+        let tip = m.chain.pose(&m.to_internal(&j_mm), &NoErrors).tip;
+        let want = lcnc_xyzac(&g, j_inch);
+        let d = ((tip.x - 25.4 * want[0]).powi(2)
+            + (tip.y - 25.4 * want[1]).powi(2)
+            + (tip.z + 25.4 * g.t - 25.4 * want[2]).powi(2))
+        .sqrt();
+        worst = worst.max(d);
+    }
+    assert!(worst <= 1e-11, "{worst:e} mm");
+    assert_eq!(file["tool_length"], 42.5 * 25.4);
+    let z = m.axis("Z").unwrap();
+    assert_eq!((z.min, z.max), (Some(-250.0 * 25.4), Some(150.0 * 25.4)));
+    assert!(
+        file["description"]
+            .as_str()
+            .unwrap()
+            .contains("in inch, converted to mm"),
+        "{}",
+        file["description"]
+    );
+}
+
+/// trivkins, three axes in inch: the identity chain, limits in mm to the
+/// digit (3 inch is 76.2 mm, not 76.19999999999999), no HAL file read.
+#[test]
+fn trivkins_three_axes_in_inch() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = config(dir.path(), "trivkins-xyz-inch.ini", 0);
+    let file = machine_from_linuxcnc(&path, None).unwrap_or_else(|e| panic!("{e}"));
+    let m = Machine::from_json_str(&file.to_string(), "xyz.json").unwrap();
+    assert_eq!(m.name, "test-trivkins-inch");
+    let limits = |n: &str| {
+        let a = m.axis(n).unwrap();
+        (a.min.unwrap(), a.max.unwrap())
+    };
+    assert_eq!(limits("X"), (-76.2, 254.0));
+    assert_eq!(limits("Y"), (-0.0254, 313.580018));
+    assert_eq!(limits("Z"), (-203.2, 3.048));
+    assert_eq!(file["output_order"], serde_json::json!(["X", "Y", "Z"]));
+    let mut rng = Lcg(0x3a);
+    for _ in 0..200 {
+        let j = [300.0 * rng.next(), 300.0 * rng.next(), 300.0 * rng.next()];
+        let p = m.chain.pose(&m.to_internal(&j), &NoErrors);
+        assert_eq!([p.tip.x, p.tip.y, p.tip.z], j);
+        assert_eq!([p.axis.x, p.axis.y, p.axis.z], [0.0, 0.0, 1.0]);
+    }
+}
+
+/// trivkins with a fourth axis: a rotary table A about X through the
+/// workpiece origin, a positive A turning the part by +A about +X. The
+/// reference turns the tool's machine position back into the part:
+/// `p_part = Rx(−A) · (X, Y, Z − T)`, the tool axis `Rx(−A) · (0, 0, 1)`.
+#[test]
+fn trivkins_fourth_axis_is_a_rotary_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = config(dir.path(), "trivkins-xyza.ini", 0);
+    for t in [0.0, 25.0] {
+        let file = machine_from_linuxcnc(&path, Some(t)).unwrap_or_else(|e| panic!("{e}"));
+        let m = Machine::from_json_str(&file.to_string(), "xyza.json").unwrap();
+        assert_eq!(
+            file["output_order"],
+            serde_json::json!(["X", "Y", "Z", "A"])
+        );
+        assert_eq!(
+            m.axis("A").unwrap().rotary,
+            kinpost::machine::RotaryMode::Continuous
+        );
+        let mut rng = Lcg(0x4a);
+        let mut worst = 0.0f64;
+        for _ in 0..1000 {
+            let j = [
+                200.0 * rng.next(),
+                100.0 * rng.next(),
+                150.0 * rng.next(),
+                1080.0 * rng.next(),
+            ];
+            let p = m.chain.pose(&m.to_internal(&j), &NoErrors);
+            let (s, c) = (-j[3]).to_radians().sin_cos();
+            let rx = |v: [f64; 3]| [v[0], c * v[1] - s * v[2], s * v[1] + c * v[2]];
+            let tip = rx([j[0], j[1], j[2] - t]);
+            let axis = rx([0.0, 0.0, 1.0]);
+            for k in 0..3 {
+                worst = worst.max((p.tip[k] - tip[k]).abs());
+                worst = worst.max((p.axis[k] - axis[k]).abs());
+            }
+        }
+        assert!(worst <= 1e-12, "tool length {t}: {worst:e}");
+    }
+}
+
+/// trivkins configurations kinpost cannot describe are refused at the
+/// entry that says why: a lathe (no Y), two rotaries (their arrangement is
+/// not in the file), no axes given; units other than mm, inch and degrees.
+#[test]
+fn trivkins_and_unit_refusals() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "[KINS]\nKINEMATICS = trivkins coordinates=xz\n",
+            "2:14: trivkins with coordinates `XZ`: the machine lacks X, Y or Z",
+        ),
+        (
+            "[KINS]\nKINEMATICS = trivkins\n[TRAJ]\nCOORDINATES = XYZAC\n",
+            "4:15: trivkins with the rotary axes A and C: identity kinematics do not say how they are arranged",
+        ),
+        (
+            "[KINS]\nKINEMATICS = trivkins\n",
+            "2:14: trivkins without coordinates= and without [TRAJ] COORDINATES",
+        ),
+        (
+            "[KINS]\nKINEMATICS = trivkins coordinates=xyq\n",
+            "2:14: coordinates `XYQ`: `Q` is not an axis",
+        ),
+        (
+            "[KINS]\nKINEMATICS = trivkins coordinates=xyz\n[TRAJ]\nLINEAR_UNITS = furlong\n",
+            "4:16: LINEAR_UNITS `furlong` is not a length unit; expected mm or inch",
+        ),
+        (
+            "[KINS]\nKINEMATICS = 5axiskins\n[TRAJ]\nANGULAR_UNITS = grad\n",
+            "4:17: ANGULAR_UNITS `grad`: machine files are in degrees",
+        ),
+    ];
+    for (i, (text, want)) in cases.iter().enumerate() {
+        let path = dir.path().join(format!("r{i}.ini"));
+        std::fs::write(&path, text).unwrap();
+        let e = machine_from_linuxcnc(&path, None).unwrap_err().to_string();
+        assert!(e.contains(&format!("r{i}.ini:{want}")), "{e}");
+    }
+}
