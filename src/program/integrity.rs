@@ -1,5 +1,7 @@
-//! Lines that must not pass: a NUL byte (a damaged or binary file), and a
-//! last line cut short while in pose mode (`X12.3` of `X12.345`).
+//! Lines that must not pass: a NUL byte (a damaged or binary file), a
+//! last line cut short while in pose mode (`X12.3` of `X12.345`), and a
+//! Heidenhain conversational block that gives tool poses
+//! ([`super::heidenhain`]).
 
 use crate::error::{Error, Location, Result};
 use crate::gcode::Line;
@@ -16,7 +18,8 @@ pub fn ends_program(line: &Line) -> bool {
 /// Refuses `line` of `file` when it holds a NUL byte (a text NC program
 /// never does), or when it is the last line, lacks its line end, does not
 /// end the program and pose mode is on (the rest of it may have been a
-/// pose).
+/// pose), or when it is a Heidenhain conversational block that switches
+/// TCPM on or gives a tool vector ([`super::heidenhain::check_block`]).
 pub fn check_line(line: &Line, file: &str, pose_mode: bool) -> Result<()> {
     // Only the last line of a file can lack its line end.
     if pose_mode
@@ -40,5 +43,5 @@ pub fn check_line(line: &Line, file: &str, pose_mode: bool) -> Result<()> {
             String::from_utf8_lossy(&line.bytes),
         ));
     }
-    Ok(())
+    super::heidenhain::check_block(&line.bytes, file, line.number)
 }

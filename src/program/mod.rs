@@ -1,6 +1,7 @@
 //! NC programs as sequences of blocks: modal state, poses, output formatting.
 
 pub mod format;
+pub mod heidenhain;
 pub mod integrity;
 pub mod inverse_time;
 pub mod modal;

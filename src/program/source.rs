@@ -261,6 +261,7 @@ impl MachineAxisTracker {
         line: &crate::gcode::Line,
         file: &str,
     ) -> Result<Option<MachineBlock>> {
+        super::heidenhain::check_machine_block(&line.bytes, file, line.number)?;
         let mut modal_words = Vec::new();
         let mut axis_items = Vec::new();
         for (i, item) in line.items.iter().enumerate() {

@@ -45,6 +45,7 @@ mod gcode_parse;
 mod gcode_proptest;
 mod gcode_snapshot;
 mod grammar;
+mod heidenhain;
 mod integration_docs;
 mod inverse_time;
 mod job_setup;
