@@ -18,6 +18,7 @@
 // Numerical code: several parallel arrays are indexed by one counter.
 #![allow(clippy::needless_range_loop)]
 
+mod csv;
 pub mod feedback;
 pub mod fit;
 pub mod motion_components;

@@ -22,6 +22,7 @@
 use std::io::{BufRead, Write};
 use std::path::Path;
 
+use super::csv::{Dialect, column_name};
 use crate::error::{Error, Location, Result};
 
 /// One recorded sample.
@@ -55,6 +56,11 @@ pub struct Recording {
 /// Column layout found in a header.
 #[derive(Debug, Clone)]
 struct Layout {
+    /// Separator and number form (`super::csv`).
+    dialect: Dialect,
+    /// Per field, the factor to the units of `formats.md` (a unit in the
+    /// column's name; 1 without).
+    factor: Vec<f64>,
     n_fields: usize,
     t: usize,
     block: Option<usize>,
@@ -77,25 +83,6 @@ pub struct RecordingReader<R: BufRead> {
     /// The raw bytes of the current line (checked to be UTF-8 into `buf`).
     bytes: Vec<u8>,
     done: bool,
-}
-
-/// Splits a CSV line into trimmed fields with their 1-based byte columns.
-pub(crate) fn fields(line: &str) -> Vec<(usize, &str)> {
-    let mut out = Vec::new();
-    let mut start = 0;
-    for (i, c) in line.char_indices() {
-        if c == ',' {
-            out.push((start, &line[start..i]));
-            start = i + 1;
-        }
-    }
-    out.push((start, &line[start..]));
-    out.into_iter()
-        .map(|(s, f)| {
-            let lead = f.len() - f.trim_start().len();
-            (s + lead + 1, f.trim())
-        })
-        .collect()
 }
 
 pub(crate) fn is_skippable(line: &str) -> bool {
@@ -139,11 +126,14 @@ impl<R: BufRead> RecordingReader<R> {
             }
         }
         let header = buf.clone();
-        let fs = fields(&header);
+        let dialect = Dialect::of_header(&header);
+        let fs = dialect.fields(&header);
         let loc = |col: usize| Location::new(file, line_no, col);
+        let factor = super::csv::factors(&fs)
+            .map_err(|(i, msg)| Error::input_with(loc(fs[i].0), msg, header.clone()))?;
         let mut names: Vec<String> = Vec::new();
         for (col, f) in &fs {
-            let lower = f.to_ascii_lowercase();
+            let (lower, _) = column_name(f);
             if !lower.is_empty() && names.contains(&lower) {
                 return Err(Error::input_with(
                     loc(*col),
@@ -201,7 +191,7 @@ impl<R: BufRead> RecordingReader<R> {
         for (i, (_, f)) in fs.iter().enumerate() {
             if names[i].starts_with("temp") {
                 temps.push(i);
-                temp_names.push(f.to_string());
+                temp_names.push(f.split('[').next().unwrap_or(f).trim().to_string());
             }
         }
         Ok(RecordingReader {
@@ -209,6 +199,8 @@ impl<R: BufRead> RecordingReader<R> {
             file: file.to_string(),
             line_no,
             layout: Layout {
+                dialect,
+                factor,
                 n_fields: fs.len(),
                 t,
                 block,
@@ -238,7 +230,7 @@ impl<R: BufRead> RecordingReader<R> {
 
     fn parse_line(&mut self) -> Result<Sample> {
         let line = self.buf.as_str();
-        let fs = fields(line);
+        let fs = self.layout.dialect.fields(line);
         let loc = |col: usize| Location::new(self.file.clone(), self.line_no, col);
         if fs.len() < self.layout.n_fields {
             let col = line.len() + 1;
@@ -254,13 +246,13 @@ impl<R: BufRead> RecordingReader<R> {
         }
         let num = |idx: usize, what: &str| -> Result<f64> {
             let (col, f) = fs[idx];
-            let v: f64 = f.parse().map_err(|_| {
+            let v = self.layout.dialect.number(f).ok_or_else(|| {
                 Error::input_with(
                     loc(col),
                     format!("{what}: `{f}` is not a number"),
                     line.to_string(),
                 )
-            })?;
+            })? * self.layout.factor[idx];
             if !v.is_finite() {
                 return Err(Error::input_with(
                     loc(col),

@@ -25,6 +25,7 @@ mod compensate_robust;
 mod compensate_stream;
 mod corpus_roundtrip;
 mod demo_fixtures;
+mod diagnose_csv_dialects;
 mod diagnose_docs;
 mod diagnose_effects;
 mod diagnose_error_motion;

@@ -33,8 +33,14 @@ use std::process::{Command, Stdio};
 
 use crate::util::BIN;
 
-/// Programs per machine.
-const SEEDS: u64 = 3;
+/// Programs per machine: 3, or `KINPOST_SCENARIO_SEEDS` for a longer
+/// search (`docs/robustness.md`, Scenario generators).
+fn seeds() -> u64 {
+    std::env::var("KINPOST_SCENARIO_SEEDS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(3)
+}
 
 /// Pose blocks per program.
 const BLOCKS: usize = 600;
@@ -233,9 +239,10 @@ fn random_machines_and_programs_through_every_command() {
     let d = kept.as_deref().unwrap_or(dir.path());
     let mut checked = 0;
     let mut refused = 0;
+    let seeds = seeds();
     for file in &files {
-        for seed in 0..SEEDS {
-            let mut rng = SplitMix64::new(1000 * seed + checked as u64 + 17);
+        for seed in 0..seeds {
+            let mut rng = SplitMix64::new(1000 * seed + checked + 17);
             let m = random_machine(file, &mut rng, &d.join("m.json"));
             if m.chain
                 .joints()
@@ -474,9 +481,9 @@ fn random_machines_and_programs_through_every_command() {
             checked += 1;
         }
     }
-    assert!(checked >= 18, "only {checked} scenarios ran");
+    assert!(checked >= 6 * seeds, "only {checked} scenarios ran");
     assert!(
-        refused <= SEEDS,
+        refused <= seeds,
         "linkage refused {refused} lens-machine scenarios"
     );
 }

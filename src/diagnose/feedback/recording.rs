@@ -5,7 +5,8 @@
 
 use std::io::{BufRead, Write};
 
-use super::super::recording::{fields, is_skippable, strip_eol};
+use super::super::csv::{Dialect, column_name, factors};
+use super::super::recording::{is_skippable, strip_eol};
 use crate::error::{Error, Location, Result};
 
 /// A joint-feedback recording: per traced axis, command and feedback.
@@ -30,9 +31,10 @@ pub struct FeedbackRecording {
 /// Whether a header line is that of a joint-feedback recording: it has an
 /// `fb_` column and no `meas_x`.
 pub fn is_feedback_header(header: &str) -> bool {
-    let names: Vec<String> = fields(header)
+    let names: Vec<String> = Dialect::of_header(header)
+        .fields(header)
         .iter()
-        .map(|(_, f)| f.to_ascii_lowercase())
+        .map(|(_, f)| column_name(f).0)
         .collect();
     names.iter().any(|n| n.starts_with("fb_")) && !names.iter().any(|n| n == "meas_x")
 }
@@ -77,9 +79,12 @@ impl FeedbackRecording {
                 "empty recording: expected a header line `t,block,<axes>,fb_<axis>,…`",
             ));
         }
-        let hf = fields(&header);
-        let names: Vec<String> = hf.iter().map(|(_, f)| f.to_ascii_lowercase()).collect();
+        let dialect = Dialect::of_header(&header);
+        let hf = dialect.fields(&header);
+        let names: Vec<String> = hf.iter().map(|(_, f)| column_name(f).0).collect();
         let hloc = |col: usize| Location::new(file, line_no, col);
+        let factor = factors(&hf)
+            .map_err(|(i, msg)| Error::input_with(hloc(hf[i].0), msg, header.clone()))?;
         let find = |n: &str| names.iter().position(|c| c == n);
         let mut traced: Vec<(usize, usize, usize)> = Vec::new(); // (joint, cmd col, fb col)
         for (k, n) in names.iter().enumerate() {
@@ -163,7 +168,7 @@ impl FeedbackRecording {
             if is_skippable(&line) {
                 continue;
             }
-            let fs = fields(&line);
+            let fs = dialect.fields(&line);
             let loc = |col: usize| Location::new(file, line_no, col);
             if fs.len() < hf.len() {
                 return Err(Error::input_with(
@@ -178,8 +183,8 @@ impl FeedbackRecording {
             }
             let num = |idx: usize, what: &str| -> Result<f64> {
                 let (col, f) = fs[idx];
-                match f.parse::<f64>() {
-                    Ok(v) if v.is_finite() => Ok(v),
+                match dialect.number(f).map(|v| v * factor[idx]) {
+                    Some(v) if v.is_finite() => Ok(v),
                     _ => Err(Error::input_with(
                         loc(col),
                         format!("{what}: `{f}` is not a finite number"),

@@ -1,0 +1,239 @@
+//! The CSV dialect of a recording as controllers and trace tools export it:
+//! the separator, quoted fields, a decimal comma, and a unit in a column's
+//! name (`formats.md` §2, §2c; `docs/diagnose.md`, Reading a recording).
+//!
+//! - The separator is that of the header line: a comma if it has one, else
+//!   a semicolon, else a tab (the rule of the error tables).
+//! - A field in double quotes (`"meas_x"`, `"0.125"`) is read without them.
+//! - With a semicolon or tab as the separator, a number may have a decimal
+//!   comma (`-20,00516`: a German-locale export); with commas it cannot.
+//! - A column name may carry its unit in brackets, `t [ms]`, `X[um]`,
+//!   `B [rad]`, `temp_spindle [°C]`: the values are converted to the units of
+//!   `formats.md` (s, mm, deg, °C). A unit of the wrong kind, or one not
+//!   known, is refused at the column.
+
+use crate::geometric::table::{angle_unit, length_unit};
+
+/// The separator and number form of one recording.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Dialect {
+    /// The field separator.
+    sep: u8,
+    /// Whether a number may have a decimal comma.
+    decimal_comma: bool,
+}
+
+impl Dialect {
+    /// The dialect of a recording whose header line is `header`.
+    pub(crate) fn of_header(header: &str) -> Dialect {
+        let sep = if header.contains(',') {
+            b','
+        } else if header.contains(';') {
+            b';'
+        } else if header.contains('\t') {
+            b'\t'
+        } else {
+            b','
+        };
+        Dialect {
+            sep,
+            decimal_comma: sep != b',',
+        }
+    }
+
+    /// The fields of `line`, trimmed and without their double quotes, with
+    /// their 1-based byte columns.
+    pub(crate) fn fields<'a>(&self, line: &'a str) -> Vec<(usize, &'a str)> {
+        let mut out = Vec::with_capacity(12);
+        let mut start = 0;
+        for piece in line.split(self.sep as char) {
+            let lead = piece.len() - piece.trim_start().len();
+            let mut text = piece.trim();
+            let mut col = start + lead + 1;
+            if text.len() >= 2 && text.starts_with('"') && text.ends_with('"') {
+                text = text[1..text.len() - 1].trim();
+                col += 1;
+            }
+            out.push((col, text));
+            start += piece.len() + 1;
+        }
+        out
+    }
+
+    /// `text` as a number: a plain decimal or exponent form, with a decimal
+    /// comma where the dialect allows one. `None` when it is not one.
+    pub(crate) fn number(&self, text: &str) -> Option<f64> {
+        if let Ok(v) = text.parse::<f64>() {
+            return Some(v);
+        }
+        if self.decimal_comma && text.bytes().filter(|b| *b == b',').count() == 1 {
+            return text.replacen(',', ".", 1).parse().ok();
+        }
+        None
+    }
+}
+
+/// What a column holds, for the check of its unit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Quantity {
+    /// Time, s.
+    Time,
+    /// A length, mm.
+    Length,
+    /// An angle, deg.
+    Angle,
+    /// A temperature, °C.
+    Temperature,
+    /// A number without a unit (block number, direction cosine).
+    Plain,
+}
+
+impl Quantity {
+    /// The unit values of this quantity are converted to.
+    pub(crate) fn unit(self) -> &'static str {
+        match self {
+            Quantity::Time => "s",
+            Quantity::Length => "mm",
+            Quantity::Angle => "deg",
+            Quantity::Temperature => "°C",
+            Quantity::Plain => "no unit",
+        }
+    }
+
+    /// The factor from `unit` to this quantity's unit, or `None` when
+    /// `unit` is not one of it.
+    pub(crate) fn factor(self, unit: &str) -> Option<f64> {
+        let u = unit.trim();
+        match self {
+            Quantity::Time => match u {
+                "s" | "sec" => Some(1.0),
+                "ms" => Some(1e-3),
+                "us" | "µs" | "μs" => Some(1e-6),
+                _ => None,
+            },
+            Quantity::Length => match u.to_ascii_lowercase().as_str() {
+                "in" | "inch" => Some(25.4),
+                _ => length_unit(u),
+            },
+            Quantity::Angle => angle_unit(u).map(|f| f.to_degrees()),
+            Quantity::Temperature => {
+                matches!(u, "°C" | "C" | "degC" | "℃" | "°c" | "c" | "degc").then_some(1.0)
+            }
+            Quantity::Plain => matches!(u, "" | "1" | "-").then_some(1.0),
+        }
+    }
+}
+
+/// A column name split into its lower-case name and its unit, if it has
+/// one in brackets (`X [um]` → `("x", Some("um"))`).
+pub(crate) fn column_name(field: &str) -> (String, Option<&str>) {
+    match field.find('[') {
+        Some(open) if field.trim_end().ends_with(']') => {
+            let unit = &field[open + 1..field.trim_end().len() - 1];
+            (field[..open].trim().to_ascii_lowercase(), Some(unit.trim()))
+        }
+        _ => (field.trim().to_ascii_lowercase(), None),
+    }
+}
+
+/// The quantity of a spatial-recording or feedback column by its name:
+/// `t`, an axis (A, B, C angles; other letters lengths), `fb_<axis>`,
+/// `meas_x`…`meas_z` (lengths), `meas_i`…`meas_k` (plain), `temp…`.
+pub(crate) fn quantity(name: &str) -> Quantity {
+    let axis = |a: &str| match a {
+        "a" | "b" | "c" => Quantity::Angle,
+        _ => Quantity::Length,
+    };
+    match name {
+        "t" => Quantity::Time,
+        "block" | "meas_i" | "meas_j" | "meas_k" => Quantity::Plain,
+        "meas_x" | "meas_y" | "meas_z" => Quantity::Length,
+        n if n.starts_with("temp") => Quantity::Temperature,
+        n => axis(n.strip_prefix("fb_").unwrap_or(n)),
+    }
+}
+
+/// The factor of each header field to the units of `formats.md`, or the
+/// index of the first field whose unit is unknown or of the wrong kind and
+/// the message for it.
+pub(crate) fn factors(fields: &[(usize, &str)]) -> Result<Vec<f64>, (usize, String)> {
+    fields
+        .iter()
+        .enumerate()
+        .map(|(i, (_, f))| {
+            let (name, unit) = column_name(f);
+            let Some(unit) = unit else {
+                return Ok(1.0);
+            };
+            let q = quantity(&name);
+            q.factor(unit).ok_or_else(|| {
+                (
+                    i,
+                    format!(
+                        "column `{f}`: `{unit}` is not a unit of {} (expected {}{})",
+                        match q {
+                            Quantity::Time => "time",
+                            Quantity::Length => "length",
+                            Quantity::Angle => "angle",
+                            Quantity::Temperature => "temperature",
+                            Quantity::Plain => "this column, which has none",
+                        },
+                        q.unit(),
+                        match q {
+                            Quantity::Time => ", ms or µs",
+                            Quantity::Length => ", µm, nm, m or inch",
+                            Quantity::Angle => ", rad, mrad, µrad, arcmin or arcsec",
+                            _ => "",
+                        }
+                    ),
+                )
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn separators_quotes_and_decimal_commas() {
+        let d = Dialect::of_header("t;X;meas_x");
+        assert_eq!(
+            d.fields("0,5; \"-20,25\" ;3"),
+            vec![(1, "0,5"), (6, "-20,25"), (14, "3")]
+        );
+        assert_eq!(d.number("-20,25"), Some(-20.25));
+        assert_eq!(d.number("1.5e-3"), Some(1.5e-3));
+        assert_eq!(d.number("1,2,3"), None);
+        let c = Dialect::of_header("\"t\",\"X\"");
+        assert_eq!(c.fields("\"t\",\"X\""), vec![(2, "t"), (6, "X")]);
+        assert_eq!(c.number("0,5"), None);
+        let tab = Dialect::of_header("t\tX");
+        assert_eq!(tab.fields("1\t2,5"), vec![(1, "1"), (3, "2,5")]);
+        assert_eq!(tab.number("2,5"), Some(2.5));
+    }
+
+    #[test]
+    fn units_in_column_names() {
+        assert_eq!(column_name("meas_x [um]"), ("meas_x".into(), Some("um")));
+        assert_eq!(column_name("T"), ("t".into(), None));
+        let h = [
+            (1, "t [ms]"),
+            (2, "X[um]"),
+            (3, "B [rad]"),
+            (4, "temp_s [°C]"),
+            (5, "meas_z"),
+        ];
+        let f = factors(&h).unwrap();
+        assert_eq!(f[0], 1e-3);
+        assert_eq!(f[1], 1e-3);
+        assert!((f[2] - 180.0 / std::f64::consts::PI).abs() < 1e-12);
+        assert_eq!(&f[3..], [1.0, 1.0]);
+        let e = factors(&[(1, "t"), (3, "X [deg]")]).unwrap_err();
+        assert_eq!(e.0, 1);
+        assert!(e.1.contains("`deg` is not a unit of length"), "{}", e.1);
+        assert!(factors(&[(1, "meas_i [mm]")]).is_err());
+        assert!(factors(&[(1, "t [furlong]")]).is_err());
+    }
+}
