@@ -376,6 +376,13 @@ impl<'a> GcodeConverter<'a> {
                     item: i,
                 }),
                 ItemKind::Keyword(k) => keywords.push((i, k.as_str())),
+                ItemKind::Opaque => {
+                    if let Some(k) = crate::program::opaque::known_call(&String::from_utf8_lossy(
+                        line.item_bytes(item),
+                    )) {
+                        keywords.push((i, k));
+                    }
+                }
                 _ => {}
             }
         }
