@@ -137,6 +137,10 @@ pub struct BlockMeaning {
     /// was not given or exactly 1); normalised quietly up to
     /// [`QUIET_NORMALISATION`], with a warning beyond.
     pub vector_deviation: f64,
+    /// A non-modal block (`G4`, `G10`, `G28`, `G30`, `G52`, `G53`, `G92`, a
+    /// frame, a pole): its axis words are not a move in program
+    /// coordinates.
+    pub non_modal: bool,
 }
 
 /// A problem with a block: message and the item it concerns.
@@ -417,6 +421,7 @@ impl ModalState {
             feed_item,
             warnings: Vec::new(),
             vector_deviation: 0.0,
+            non_modal,
         };
         // The orientation given another way than by a tool vector: rotary
         // axis positions (Fanuc G43.4 type 1, Sinumerik ORIAXES), Euler or

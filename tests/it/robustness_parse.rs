@@ -444,3 +444,50 @@ fn more_orientation_words_are_refused_and_messages_pass() {
         String::from_utf8_lossy(&out)
     );
 }
+
+/// Before pose mode kinpost follows the machine's axis words so that a pose
+/// giving only some coordinates continues from where the machine is. It
+/// also followed the words of blocks that are not moves: `G10 L2 P1 X100`
+/// (offset data) put the next partial pose 100 mm off in X, and after
+/// Fusion's retract `G53 G0 Z0` (machine coordinates) a pose without Z was
+/// written at program Z0 (exit 0). Data blocks are not followed now; after
+/// `G28`, `G30`, `G53` the position is unknown and the next pose must give
+/// X, Y and Z; `G92 X100` (the tool is at X100 now) is still followed.
+#[test]
+fn non_modal_blocks_are_not_followed_as_moves() {
+    let run = |name: &str, setup: &str, pose: &str| {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join(name);
+        let text = format!("G21 G90\nG0 X0 Y0 Z50 B0 C0\n{setup}\nG43.4 H1\n{pose}\nG49\nM30\n");
+        std::fs::write(&p, text).unwrap();
+        let out = Command::new(BIN)
+            .args(["post", "--machine", "xyzbc-trt", "--decimals", "3"])
+            .arg(&p)
+            .output()
+            .unwrap();
+        (
+            out.status.code().unwrap(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (code, out, err) = run("g10.ngc", "G10 L2 P1 X100", "G1 Z40 I0 J0 K1 F100");
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("G1 X0.000 Y0.000 Z40.000"), "{out}");
+    let (code, out, err) = run("g52.ngc", "G52 X100", "G1 Z40 I0 J0 K1 F100");
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("G1 X0.000 Y0.000 Z40.000"), "{out}");
+    let (code, out, err) = run("g92.ngc", "G92 X100", "G1 Z40 I0 J0 K1 F100");
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("G1 X100.000 Y0.000 Z40.000"), "{out}");
+    for setup in ["G53 G0 Z0", "G28 G91 Z0\nG90", "G30"] {
+        let (code, _, err) = run("home.ngc", setup, "G1 X1 Y2 I0 J0 K1 F100");
+        assert_eq!(code, 1, "{setup}: {err}");
+        assert!(
+            err.contains("the tool tip Z is not known yet"),
+            "{setup}: {err}"
+        );
+        let (code, _, err) = run("full.ngc", setup, "G1 X1 Y2 Z3 I0 J0 K1 F100");
+        assert_eq!(code, 0, "{setup}: {err}");
+    }
+}
