@@ -376,6 +376,13 @@ impl<'a> GcodeConverter<'a> {
                     item: i,
                 }),
                 ItemKind::Keyword(k) => keywords.push((i, k.as_str())),
+                ItemKind::Opaque => {
+                    if let Some(k) = crate::program::opaque::known_call(&String::from_utf8_lossy(
+                        line.item_bytes(item),
+                    )) {
+                        keywords.push((i, k));
+                    }
+                }
                 _ => {}
             }
         }
@@ -617,6 +624,24 @@ impl GcodeConverter<'_> {
     /// block after `G43.4`/`TRAORI` that gives only some coordinates
     /// continues from the machine's position.
     fn follow_machine_words(&mut self, line: &Line, meaning: &crate::program::BlockMeaning) {
+        if meaning.non_modal {
+            let g = |v: f64| {
+                line.words()
+                    .any(|w| w.address == "G" && (w.value - v).abs() < 1e-9)
+            };
+            if [28.0, 30.0, 53.0, 92.1, 92.2, 92.3].into_iter().any(g) {
+                // Home, machine coordinates, offsets reset: where the tool
+                // is in program coordinates is no longer known, so the
+                // next pose must give X, Y and Z.
+                self.modal.tip = [None; 3];
+            }
+            if !g(92.0) {
+                // `G10 L2 P1 X100`, `G52 X5`, `G68 X10 Y10 R30`, `G111 X0
+                // Y0`: data, not a position. `G92 X100` says where the tool
+                // is now, and is followed.
+                return;
+            }
+        }
         if std::mem::take(&mut self.machine_ext_stale)
             && let Some(q) = &self.previous
         {

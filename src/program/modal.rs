@@ -48,7 +48,8 @@ pub enum Motion {
 /// Words that give the tool orientation, or something tied to it, in a
 /// pose block other than a tool vector; refused in pose mode.
 const ORIENTATION_WORDS: &[&str] = &[
-    "A", "B", "C", "A2", "B2", "C2", "A4", "B4", "C4", "A5", "B5", "C5", "LEAD", "TILT", "THETA",
+    "A", "B", "C", "A2", "B2", "C2", "A4", "B4", "C4", "A5", "B5", "C5", "A6", "B6", "C6", "A7",
+    "B7", "C7", "XH", "YH", "ZH", "LEAD", "TILT", "THETA",
 ];
 
 /// Units of lengths in the program.
@@ -136,6 +137,10 @@ pub struct BlockMeaning {
     /// was not given or exactly 1); normalised quietly up to
     /// [`QUIET_NORMALISATION`], with a warning beyond.
     pub vector_deviation: f64,
+    /// A non-modal block (`G4`, `G10`, `G28`, `G30`, `G52`, `G53`, `G92`, a
+    /// frame, a pole): its axis words are not a move in program
+    /// coordinates.
+    pub non_modal: bool,
 }
 
 /// A problem with a block: message and the item it concerns.
@@ -223,6 +228,9 @@ impl ModalState {
         let mut feed_item = None;
         let mut fanuc_tcp_here = false;
         let mut frame = None;
+        // A pole or a polar move (Sinumerik G110–G112, AP= RP=): refused in
+        // pose mode.
+        let mut polar = None;
         // A block that changes the coordinate system, or goes home, in pose
         // mode: its item and what it does.
         let mut setup: Option<(usize, &str)> = None;
@@ -247,8 +255,20 @@ impl ModalState {
                         // It changes how every later move lands, so it is
                         // refused in pose mode (below) and passes through
                         // outside it.
-                        680 | 682 | 683 | 684 | 511 => frame = Some(w.item),
-                        690 => self.frame_seen = false,
+                        // G51 scaling (its X Y Z are the centre, P or
+                        // I J K the factors) and G16 polar coordinates (X
+                        // the radius, Y the angle) change how later moves
+                        // land in the same way.
+                        680 | 682 | 683 | 684 | 511 | 510 | 160 => frame = Some(w.item),
+                        // G69, G50 (scaling off), G50.1 (mirror off), G15
+                        // (polar off).
+                        690 | 500 | 501 | 150 => self.frame_seen = false,
+                        // Sinumerik G110–G112 set the pole of polar
+                        // coordinates: their X Y are the pole, not a move.
+                        1100 | 1110 | 1120 => {
+                            non_modal = true;
+                            polar = polar.or(Some(w.item));
+                        }
                         900 => self.absolute = true,
                         910 => self.absolute = false,
                         // LinuxCNC's lathe cycles G70–G72 (with a Q word: the
@@ -295,6 +315,7 @@ impl ModalState {
                     self.feed = Some(w.value);
                     feed_item = Some(w.item);
                 }
+                "AP" | "RP" => polar = polar.or(Some(w.item)),
                 _ => {}
             }
         }
@@ -308,6 +329,12 @@ impl ModalState {
                     tcp_codes.push(TcpCode::SiemensOn(*item));
                 }
                 "TRAFOOF" => self.pose_mode = false,
+                // `CYCLE800(…)` swivels the work plane (a frame the
+                // controller keeps); `CYCLE800()` resets it. Both reach
+                // here as pseudo-keywords of the call
+                // (`opaque::known_call`).
+                "CYCLE800" => frame = frame.or(Some(*item)),
+                "CYCLE800()" => self.frame_seen = false,
                 // Sinumerik motion modes of group 1 besides G0–G3: circles
                 // through an intermediate point or tangential, and splines.
                 // Modal, like G2: later blocks move along them too.
@@ -347,12 +374,20 @@ impl ModalState {
                 ),
             });
         }
+        if let Some(item) = polar
+            && self.pose_mode
+        {
+            return Err(BlockError {
+                item: Some(item),
+                message: "polar coordinates (Sinumerik G110–G112 pole, AP= angle, RP= radius) in pose mode are not converted: tool poses must be given as X Y Z; write Cartesian coordinates in the CAM post".into(),
+            });
+        }
         if let Some(item) = frame {
             self.frame_seen = true;
             if self.pose_mode {
                 return Err(BlockError {
                     item: Some(item),
-                    message: "a frame (G68, G68.2–G68.4, G51.1; Sinumerik TRANS, ATRANS, ROT, AROT, SCALE, MIRROR) in pose mode is not converted: the poses must be in the machine's workpiece frame; apply the frame in the CAM system".into(),
+                    message: "a frame (G68, G68.2–G68.4, G51 scaling, G51.1 mirroring, G16 polar coordinates; Sinumerik TRANS, ATRANS, ROT, AROT, SCALE, MIRROR, CYCLE800) in pose mode is not converted: the poses must be in the machine's workpiece frame; apply the frame in the CAM system".into(),
                 });
             }
             non_modal = true;
@@ -369,7 +404,7 @@ impl ModalState {
                 .or_else(|| words.first().map(|w| w.item));
             return Err(BlockError {
                 item,
-                message: "pose mode starts while a frame set earlier in the program (G68…, TRANS, ROT, AROT, SCALE, MIRROR) is active: the controller would move kinpost's machine axis words by it; cancel the frame before, or apply it in the CAM system".into(),
+                message: "pose mode starts while a frame set earlier in the program (G68…, G51, G51.1, G16, TRANS, ROT, AROT, SCALE, MIRROR, CYCLE800) is active: the controller would move kinpost's machine axis words by it; cancel the frame before, or apply it in the CAM system".into(),
             });
         }
 
@@ -386,6 +421,7 @@ impl ModalState {
             feed_item,
             warnings: Vec::new(),
             vector_deviation: 0.0,
+            non_modal,
         };
         // The orientation given another way than by a tool vector: rotary
         // axis positions (Fanuc G43.4 type 1, Sinumerik ORIAXES), Euler or
@@ -436,6 +472,9 @@ impl ModalState {
                         "A" | "B" | "C" =>
                             "a rotary axis position, as in Fanuc G43.4 type 1 or Sinumerik ORIAXES",
                         "A2" | "B2" | "C2" => "Euler or RPY angles",
+                        "A6" | "B6" | "C6" | "A7" | "B7" | "C7" =>
+                            "a rotation or cone axis, or an intermediate orientation (Sinumerik ORICONxx, ORIPLANE)",
+                        "XH" | "YH" | "ZH" => "a second point of the tool (Sinumerik ORICURVE)",
                         "LEAD" | "TILT" => "lead and tilt angles",
                         "THETA" => "a rotation of the tool about itself",
                         _ => "a surface normal for 3-D tool compensation",

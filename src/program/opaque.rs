@@ -21,7 +21,19 @@ pub fn describe_opaque(bytes: &[u8]) -> String {
             quote(&crate::error::visible(text))
         );
     }
+    if token(text).starts_with(['@', '^']) {
+        return format!(
+            "polar coordinates (`{}`: LinuxCNC `@` radius, `^` angle) in pose mode are not converted: tool poses must be given as X Y Z; write Cartesian coordinates in the CAM post",
+            quote(token(text))
+        );
+    }
     if let Some(name) = call_name(text) {
+        if name.eq_ignore_ascii_case("TRAORI") {
+            return format!(
+                "`{}` is followed by more text on its line: kinpost converts TRAORI(…) on a line of its own (a comment may follow); put the rest on the next line",
+                quote(text.trim())
+            );
+        }
         return format!(
             "a cycle or subprogram call (`{}`) in pose mode is not converted: kinpost cannot see what it moves{}; call it outside TRAORI / G43.4, or have the CAM system write its moves",
             quote(&name),
@@ -131,13 +143,23 @@ fn quote(s: &str) -> String {
 }
 
 /// The item index of an opaque item in a block that must be converted (or may
-/// carry coordinates in pose mode).
+/// carry coordinates in pose mode), or of a `TRAORI(…)` call followed by
+/// other text on its line (in any mode: it switches TCP on, and kinpost
+/// cannot rewrite it).
 pub fn opaque_in_pose_block(
     line: &Line,
     pose_mode: bool,
     is_pose: bool,
     straight: bool,
 ) -> Option<usize> {
+    if let Some(i) = line.items.iter().position(|it| {
+        let text = String::from_utf8_lossy(line.item_bytes(it));
+        matches!(it.kind, ItemKind::Opaque)
+            && call_name(&text).is_some_and(|n| n.eq_ignore_ascii_case("TRAORI"))
+            && known_call(&text).is_none()
+    }) {
+        return Some(i);
+    }
     if !(pose_mode || is_pose) {
         if !straight {
             return None;
@@ -151,16 +173,70 @@ pub fn opaque_in_pose_block(
         });
     }
     line.items.iter().position(|it| {
+        let text = String::from_utf8_lossy(line.item_bytes(it));
         matches!(it.kind, ItemKind::Opaque)
+            && !matches!(known_call(&text), Some("TRAORI" | "MSG"))
             && (is_pose
-                || call_name(&String::from_utf8_lossy(line.item_bytes(it))).is_some()
+                || call_name(&text).is_some()
                 || line.item_bytes(it).iter().any(|b| {
                     matches!(
                         b.to_ascii_uppercase(),
-                        b'X' | b'Y' | b'Z' | b'I' | b'J' | b'K'
+                        b'X' | b'Y' | b'Z' | b'I' | b'J' | b'K' | b'@' | b'^'
                     )
                 }))
     })
+}
+
+/// A Sinumerik call that the parser leaves opaque but kinpost understands,
+/// as the pseudo-keyword the modal state reads: `TRAORI(…)` (TCP on, like
+/// `TRAORI`), `MSG(…)` (a message: no motion), `CYCLE800(…)` (the work
+/// plane swivelled: a frame) and `CYCLE800()` (the swivel reset). The call
+/// must stand alone: followed only by blanks or a comment. Any other text
+/// gives `None`.
+pub fn known_call(text: &str) -> Option<&'static str> {
+    let name = call_name(text)?;
+    let end = call_len(text)?;
+    let rest = text[end..].trim_start();
+    if !(rest.is_empty() || rest.starts_with([';', '(', '\r', '\n'])) {
+        return None;
+    }
+    let args = text[..end].trim();
+    let empty = args[name.len()..]
+        .trim_start()
+        .trim_start_matches('(')
+        .trim_end_matches(')')
+        .trim()
+        .is_empty();
+    match name.to_ascii_uppercase().as_str() {
+        "TRAORI" => Some("TRAORI"),
+        "MSG" => Some("MSG"),
+        "CYCLE800" if empty => Some("CYCLE800()"),
+        "CYCLE800" => Some("CYCLE800"),
+        _ => None,
+    }
+}
+
+/// The length in bytes of the call `NAME(…)` at the start of `text`
+/// (leading blanks included), up to its matching `)`; `None` when the
+/// parentheses do not close. Parentheses inside `"…"` strings do not count.
+pub fn call_len(text: &str) -> Option<usize> {
+    let open = text.find('(')?;
+    let mut depth = 0usize;
+    let mut quoted = false;
+    for (i, c) in text[open..].char_indices() {
+        match c {
+            '"' => quoted = !quoted,
+            '(' if !quoted => depth += 1,
+            ')' if !quoted => {
+                depth -= 1;
+                if depth == 0 {
+                    return Some(open + i + 1);
+                }
+            }
+            _ => {}
+        }
+    }
+    None
 }
 
 /// The name of a call: Sinumerik-style `NAME(…)` (`CYCLE800(1,…)`: a

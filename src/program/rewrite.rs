@@ -83,6 +83,14 @@ pub fn rewrite(
             Some(TcpCode::SiemensOn(_)) => {
                 run.flush(line, out);
                 out.extend_from_slice(b"TRAFOOF");
+                // `TRAORI(1) ; comment` (an opaque item): the call is
+                // replaced, what follows it kept.
+                if matches!(item.kind, ItemKind::Opaque) {
+                    let text = String::from_utf8_lossy(line.item_bytes(item));
+                    if let Some(end) = super::opaque::call_len(&text) {
+                        out.extend_from_slice(&line.item_bytes(item)[end..]);
+                    }
+                }
             }
             None => run.keep(line, span, out),
         }

@@ -53,6 +53,13 @@ pub fn gcode_poses<R: BufRead>(
                     })
                 }
                 ItemKind::Keyword(k) => keywords.push((i, k.as_str())),
+                ItemKind::Opaque => {
+                    if let Some(k) = crate::program::opaque::known_call(&String::from_utf8_lossy(
+                        line.item_bytes(item),
+                    )) {
+                        keywords.push((i, k));
+                    }
+                }
                 _ => {}
             }
         }
@@ -384,7 +391,13 @@ pub fn looks_like_poses(head: &[u8]) -> bool {
                 return true;
             }
         }
-        if line.keywords().any(|k| k == "TRAORI") {
+        if line.keywords().any(|k| k == "TRAORI")
+            || line.items.iter().any(|it| {
+                it.kind == ItemKind::Opaque
+                    && super::opaque::known_call(&String::from_utf8_lossy(line.item_bytes(it)))
+                        == Some("TRAORI")
+            })
+        {
             return true;
         }
     }

@@ -310,3 +310,184 @@ fn offsets_and_homing_in_pose_mode_are_refused() {
     let (code, _, err) = post("ok.ngc", ok);
     assert_eq!(code, 0, "{err}");
 }
+
+/// `TRAORI(1)` — the call form of TRAORI some Sinumerik posts write —
+/// was an unreadable call: pose mode was started by the first tool vector,
+/// the poses converted to machine axes, and `TRAORI(1)` left in the output,
+/// so the controller applied its own transformation to kinpost's machine
+/// axis words (exit 0). Now it is TCP on, written `TRAFOOF` like `TRAORI`;
+/// followed by other text on its line it is refused.
+#[test]
+fn traori_written_as_a_call_is_converted_like_traori() {
+    let (code, out, err) = post(
+        "t1.mpf",
+        b"N10 G90\nN20 TRAORI(1) ; on\nN30 G1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\nN40 TRAFOOF\nN50 M30\n",
+    );
+    assert_eq!(code, 0, "{err}");
+    let out = String::from_utf8(out).unwrap();
+    assert!(out.contains("N20 TRAFOOF ; on\n"), "{out}");
+    assert!(!out.contains("TRAORI"), "{out}");
+    assert!(!out.contains("A3="), "{out}");
+    let (code, _, err) = post(
+        "t2.mpf",
+        b"N10 TRAORI(1) G17\nN20 G1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\nN30 M30\n",
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("t2.mpf:1:5: `TRAORI(1) G17` is followed by more text"),
+        "{err}"
+    );
+}
+
+/// Ways of placing the tool that are not X Y Z, found on programs kinpost
+/// was not written for: in pose mode they passed with exit 0 — Fanuc `G16`
+/// polar coordinates (`G1 X20. Y45.` converted as Cartesian), `G51`
+/// scaling (its centre `X0 Y0 Z0` converted as a pose), Sinumerik's pole
+/// `G111 X0 Y0` (converted as a pose) and `AP= RP=` moves (passed
+/// unconverted), LinuxCNC's `@ ^` polar words (passed unconverted). Now
+/// refused at the word; set before pose mode, `G16`, `G51` and a swivelling
+/// `CYCLE800(…)` are frames that pose mode may not start under.
+#[test]
+fn polar_coordinates_scaling_and_swivels_are_refused() {
+    let fanuc = "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\n";
+    let sin = "TRAORI\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\n";
+    for (name, text, want) in [
+        (
+            "g16.ngc",
+            format!("{fanuc}G16\nG1 X20. Y45.\nG15\nG49\nM30\n"),
+            "g16.ngc:3:1: a frame (",
+        ),
+        (
+            "g51.ngc",
+            format!("{fanuc}G51 X0 Y0 Z0 P2000\nG1 X12\nG50\nG49\nM30\n"),
+            "g51.ngc:3:1: a frame (",
+        ),
+        (
+            "g111.mpf",
+            format!("{sin}G111 X0 Y0\nG1 AP=45 RP=10\nTRAFOOF\nM30\n"),
+            "g111.mpf:3:1: polar coordinates (Sinumerik",
+        ),
+        (
+            "ap.mpf",
+            format!("{sin}G1 AP=45 RP=10\nTRAFOOF\nM30\n"),
+            "ap.mpf:3:4: polar coordinates (Sinumerik",
+        ),
+        (
+            "at.ngc",
+            format!("{fanuc}G1 @10 ^45\nG49\nM2\n"),
+            "at.ngc:3:4: polar coordinates (`@10`",
+        ),
+        (
+            "g16before.ngc",
+            format!("G16\n{fanuc}G49\nM30\n"),
+            "g16before.ngc:2:1: pose mode starts while a frame",
+        ),
+        (
+            "g51before.ngc",
+            format!("G51 X0 Y0 Z0 P2000\n{fanuc}G49\nM30\n"),
+            "g51before.ngc:2:1: pose mode starts while a frame",
+        ),
+        (
+            "c800.mpf",
+            format!("CYCLE800(1,\"TABLE\",0,57,0,0,0,30,0,0,0,0,0,1)\n{sin}TRAFOOF\nM30\n"),
+            "c800.mpf:2:1: pose mode starts while a frame",
+        ),
+    ] {
+        let (code, _, err) = post(name, text.as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains(want), "{name}: {err}");
+    }
+    // Cancelled before pose mode, they do not stop it.
+    for (name, text) in [
+        ("g15.ngc", format!("G16\nG15\n{fanuc}G49\nM30\n")),
+        (
+            "g50.ngc",
+            format!("G51 X0 Y0 Z0 P2000\nG50\n{fanuc}G49\nM30\n"),
+        ),
+        (
+            "c800r.mpf",
+            format!(
+                "CYCLE800(1,\"TABLE\",0,57,0,0,0,30,0,0,0,0,0,1)\nCYCLE800()\n{sin}TRAFOOF\nM30\n"
+            ),
+        ),
+    ] {
+        let (code, _, err) = post(name, text.as_bytes());
+        assert_eq!(code, 0, "{name}: {err}");
+    }
+}
+
+/// Sinumerik orientation words besides the tool vector — `A6 B6 C6`,
+/// `A7 B7 C7` (cone and plane interpolation), `XH YH ZH` (ORICURVE) — were
+/// kept in a converted block next to the machine's rotary words (exit 0).
+/// `MSG("…")` in pose mode, a message that moves nothing, was refused as a
+/// subprogram call; it passes now.
+#[test]
+fn more_orientation_words_are_refused_and_messages_pass() {
+    let start = "TRAORI\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\n";
+    for (name, block, at) in [
+        ("a6.mpf", "G1 X12 A6=0 B6=0 C6=1", "a6.mpf:3:8: `A6`"),
+        ("a7.mpf", "G1 X12 A7=0 B7=1 C7=0", "a7.mpf:3:8: `A7`"),
+        ("xh.mpf", "G1 X12 XH=1 YH=2 ZH=3", "xh.mpf:3:8: `XH`"),
+    ] {
+        let (code, _, err) = post(name, format!("{start}{block}\nTRAFOOF\nM30\n").as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains(at), "{name}: {err}");
+    }
+    let (code, out, err) = post(
+        "msg.mpf",
+        format!("{start}MSG(\"FINISH X (Y)\")\nG1 X12\nTRAFOOF\nM30\n").as_bytes(),
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        String::from_utf8_lossy(&out).contains("\nMSG(\"FINISH X (Y)\")\n"),
+        "{}",
+        String::from_utf8_lossy(&out)
+    );
+}
+
+/// Before pose mode kinpost follows the machine's axis words so that a pose
+/// giving only some coordinates continues from where the machine is. It
+/// also followed the words of blocks that are not moves: `G10 L2 P1 X100`
+/// (offset data) put the next partial pose 100 mm off in X, and after
+/// Fusion's retract `G53 G0 Z0` (machine coordinates) a pose without Z was
+/// written at program Z0 (exit 0). Data blocks are not followed now; after
+/// `G28`, `G30`, `G53` the position is unknown and the next pose must give
+/// X, Y and Z; `G92 X100` (the tool is at X100 now) is still followed.
+#[test]
+fn non_modal_blocks_are_not_followed_as_moves() {
+    let run = |name: &str, setup: &str, pose: &str| {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join(name);
+        let text = format!("G21 G90\nG0 X0 Y0 Z50 B0 C0\n{setup}\nG43.4 H1\n{pose}\nG49\nM30\n");
+        std::fs::write(&p, text).unwrap();
+        let out = Command::new(BIN)
+            .args(["post", "--machine", "xyzbc-trt", "--decimals", "3"])
+            .arg(&p)
+            .output()
+            .unwrap();
+        (
+            out.status.code().unwrap(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (code, out, err) = run("g10.ngc", "G10 L2 P1 X100", "G1 Z40 I0 J0 K1 F100");
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("G1 X0.000 Y0.000 Z40.000"), "{out}");
+    let (code, out, err) = run("g52.ngc", "G52 X100", "G1 Z40 I0 J0 K1 F100");
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("G1 X0.000 Y0.000 Z40.000"), "{out}");
+    let (code, out, err) = run("g92.ngc", "G92 X100", "G1 Z40 I0 J0 K1 F100");
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("G1 X100.000 Y0.000 Z40.000"), "{out}");
+    for setup in ["G53 G0 Z0", "G28 G91 Z0\nG90", "G30"] {
+        let (code, _, err) = run("home.ngc", setup, "G1 X1 Y2 I0 J0 K1 F100");
+        assert_eq!(code, 1, "{setup}: {err}");
+        assert!(
+            err.contains("the tool tip Z is not known yet"),
+            "{setup}: {err}"
+        );
+        let (code, _, err) = run("full.ngc", setup, "G1 X1 Y2 Z3 I0 J0 K1 F100");
+        assert_eq!(code, 0, "{setup}: {err}");
+    }
+}
