@@ -17,7 +17,7 @@ use super::nonlinear::nonlinear_error;
 use super::plan::{Pattern, RotaryPair, insert_points, worst_segment};
 use crate::error::{Error, Location, Result};
 use crate::gcode::{ItemKind, Line, LineReader, parse_line};
-use crate::machine::{IkSolver, JointKind, Machine, NoErrors};
+use crate::machine::{IkSolver, JointKind, Machine, NoErrors, RotaryMode};
 use crate::post::{GcodeConverter, PostOptions, rewrite};
 use crate::program::format::push_fixed;
 use crate::program::source::MachineAxisTracker;
@@ -196,7 +196,15 @@ impl<'m> Axes<'m> {
                     *v
                 };
                 let s = 10f64.powi(*d as i32);
-                (v * s).round() / s
+                let r = (v * s).round() / s;
+                // A modulo axis is written in [0, 360): the controller turns
+                // it the short way.
+                if a.rotary == RotaryMode::Modulo {
+                    let w = (r.rem_euclid(360.0) * s).round() / s;
+                    if w >= 360.0 { 0.0 } else { w }
+                } else {
+                    r
+                }
             })
             .collect()
     }
@@ -225,10 +233,34 @@ impl<'m> Axes<'m> {
                 s.push(' ');
             }
             s.push_str(&a.name);
-            let v = if absolute { rt[k] } else { rt[k] - rf[k] };
+            let v = match (absolute, a.rotary) {
+                (true, _) => rt[k],
+                // The short way, as the controller turns a modulo axis.
+                (false, RotaryMode::Modulo) => short_way_deg(rt[k] - rf[k]),
+                (false, _) => rt[k] - rf[k],
+            };
             push_fixed(&mut s, v, self.decimals[k]);
         }
         s
+    }
+}
+
+/// `d` (deg) moved into (−180, 180], exactly when it is there already.
+fn short_way_deg(d: f64) -> f64 {
+    if d.abs() <= 180.0 {
+        d
+    } else {
+        d - 360.0 * (d / 360.0).round()
+    }
+}
+
+/// `d` (rad) moved into (−π, π], exactly when it is there already.
+fn short_way_rad(d: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    if d.abs() <= PI {
+        d
+    } else {
+        d - TAU * (d / TAU).round()
     }
 }
 
@@ -395,6 +427,18 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
         };
         report.blocks_in += 1;
         report.blocks_out += 1;
+        // A modulo axis turns the short way (the controller's rule, and the
+        // way its words are written): the segment is measured and divided
+        // on that path, not across the 0/360° seam.
+        let mut block = block;
+        if let Some(qa) = &prev {
+            for a in &machine.axes {
+                if a.rotary == RotaryMode::Modulo {
+                    let k = a.joint;
+                    block.q[k] = qa[k] + short_way_rad(block.q[k] - qa[k]);
+                }
+            }
+        }
         let Some(qa) = prev.replace(block.q.clone()) else {
             mline.write_to(&mut &mut *out).map_err(io)?;
             continue;

@@ -152,11 +152,14 @@ pub fn opaque_in_pose_block(
     is_pose: bool,
     straight: bool,
 ) -> Option<usize> {
+    // Only opaque items are looked at (their text copied only then: this
+    // runs for every line).
     if let Some(i) = line.items.iter().position(|it| {
-        let text = String::from_utf8_lossy(line.item_bytes(it));
-        matches!(it.kind, ItemKind::Opaque)
-            && call_name(&text).is_some_and(|n| n.eq_ignore_ascii_case("TRAORI"))
-            && known_call(&text).is_none()
+        matches!(it.kind, ItemKind::Opaque) && {
+            let text = String::from_utf8_lossy(line.item_bytes(it));
+            call_name(&text).is_some_and(|n| n.eq_ignore_ascii_case("TRAORI"))
+                && known_call(&text).is_none()
+        }
     }) {
         return Some(i);
     }
@@ -173,9 +176,11 @@ pub fn opaque_in_pose_block(
         });
     }
     line.items.iter().position(|it| {
+        if !matches!(it.kind, ItemKind::Opaque) {
+            return false;
+        }
         let text = String::from_utf8_lossy(line.item_bytes(it));
-        matches!(it.kind, ItemKind::Opaque)
-            && !matches!(known_call(&text), Some("TRAORI" | "MSG"))
+        !matches!(known_call(&text), Some("TRAORI" | "MSG"))
             && (is_pose
                 || call_name(&text).is_some()
                 || line.item_bytes(it).iter().any(|b| {

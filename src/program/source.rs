@@ -305,7 +305,17 @@ impl MachineAxisTracker {
                 1.0
             };
             let v = w.value * scale;
-            self.ext[k] = if meaning.absolute { v } else { self.ext[k] + v };
+            let modulo = machine.axes[k].rotary == crate::machine::RotaryMode::Modulo;
+            self.ext[k] = match (meaning.absolute, modulo) {
+                (false, _) => self.ext[k] + v,
+                // A modulo axis turns the short way to an absolute target
+                // (LinuxCNC's wrapped rotary, a roll-over axis): followed
+                // on that path, not across the 0/360° seam.
+                (true, true) if (v - self.ext[k]).abs() > 180.0 => {
+                    v - 360.0 * ((v - self.ext[k]) / 360.0).round()
+                }
+                (true, _) => v,
+            };
         }
         Ok(Some(MachineBlock {
             q: machine.to_internal(&self.ext).to_vec(),

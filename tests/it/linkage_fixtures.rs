@@ -88,8 +88,16 @@ fn default_linkage_on_every_fixture() {
         for pair in originals.windows(2) {
             let (a, b) = (tip(&got[pair[0]].0), tip(&got[pair[1]].0));
             for s in pair[0]..pair[1] {
+                // A modulo axis moves the short way (the controller's rule).
+                let mut to = got[s + 1].0.clone();
+                for (k, ax) in m.axes.iter().enumerate() {
+                    if ax.rotary == kinpost::machine::RotaryMode::Modulo {
+                        let from = got[s].0[k];
+                        to[k] = from + ((to[k] - from) + 180.0).rem_euclid(360.0) - 180.0;
+                    }
+                }
                 let qa = m.to_internal(&got[s].0);
-                let qb = m.to_internal(&got[s + 1].0);
+                let qb = m.to_internal(&to);
                 for i in 0..=64 {
                     let t = i as f64 / 64.0;
                     let q: Vec<f64> = qa.iter().zip(&qb).map(|(x, y)| x + t * (y - x)).collect();
@@ -105,4 +113,72 @@ fn default_linkage_on_every_fixture() {
         );
         assert!(worst <= tolerance, "{program}: {:.4} µm", worst * 1e3);
     }
+}
+
+/// A modulo rotary crossing 0/360° (xyzbc-trt's C from 0.06° to 357.24°)
+/// turns the short way, −2.8°, as the controller turns it. Before, `linkage`
+/// took the long way: it inserted 1,468 points that turned the table a
+/// whole revolution between two blocks, and `analyze --nonlinear` reported
+/// 188 mm of nonlinear error. Checked independently: every written C is in
+/// [0, 360), consecutive ones differ by less than a degree the short way,
+/// and the tool tip on the chain along every written segment (C
+/// interpolated the short way) stays within the tolerance of the straight
+/// line between the original tips.
+#[test]
+fn a_modulo_axis_crossing_zero_turns_the_short_way() {
+    let machine = load("xyzbc-trt");
+    let program = "G21 G90\n\
+        G1 X49.065688649 Y-82.585726649 Z-31.244657073 B-32.402497541 C0.056693049 F120\n\
+        G1 X48.498264977 Y-81.287461463 Z-29.688691618 B-32.579251409 C357.244303777\n\
+        G1 X47.909497278 Y-79.953421766 Z-28.119660206 B-32.725163484 C354.431914506\n\
+        M30\n";
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("wrap.ngc");
+    std::fs::write(&path, program).unwrap();
+    let run = |args: &[&str]| {
+        let out = Command::new(BIN)
+            .args(args)
+            .arg(&path)
+            .stdin(Stdio::null())
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (
+            String::from_utf8(out.stdout).unwrap(),
+            String::from_utf8(out.stderr).unwrap(),
+        )
+    };
+    let (linked, report) = run(&["linkage", "--machine", "xyzbc-trt"]);
+    let out = rows(&machine, &linked);
+    assert!(out.len() < 40, "{} blocks written:\n{report}", out.len());
+    let c = machine.axes.iter().position(|a| a.name == "C").unwrap();
+    let short = |d: f64| (d + 180.0).rem_euclid(360.0) - 180.0;
+    for pair in out.windows(2) {
+        let (a, b) = (&pair[0].0, &pair[1].0);
+        assert!((0.0..360.0).contains(&b[c]), "C {}", b[c]);
+        assert!(short(b[c] - a[c]).abs() < 1.0, "C {} → {}", a[c], b[c]);
+    }
+    // The tip along every written segment, C the short way.
+    let originals: Vec<&Vec<f64>> = out.iter().filter(|r| !r.1).map(|r| &r.0).collect();
+    let tip = |ext: &[f64]| machine.chain.pose(&machine.to_internal(ext), &NoErrors).tip;
+    let (t0, t1, t2) = (tip(originals[0]), tip(originals[1]), tip(originals[2]));
+    let mut worst = 0.0f64;
+    for pair in out.windows(2) {
+        let (a, b) = (&pair[0].0, &pair[1].0);
+        for s in 0..=20 {
+            let f = s as f64 / 20.0;
+            let mut ext: Vec<f64> = a.iter().zip(b).map(|(x, y)| x + f * (y - x)).collect();
+            ext[c] = a[c] + f * short(b[c] - a[c]);
+            let p = tip(&ext);
+            let d = point_segment_distance(&p, &t0, &t1).min(point_segment_distance(&p, &t1, &t2));
+            worst = worst.max(d);
+        }
+    }
+    assert!(worst <= 1.001e-3, "{worst} mm off the programmed line");
+    let (analysis, _) = run(&["analyze", "--nonlinear", "--machine", "xyzbc-trt"]);
+    assert!(analysis.contains("max 40.6"), "{analysis}");
 }
