@@ -296,6 +296,26 @@ impl Factored {
             }
             return true;
         }
+        // Two directions (five joints): the smaller gain in closed form,
+        // λ_min of det(A − λ G) = 0, and nothing to do when it is enough.
+        if free == 2 {
+            let pz =
+                |i: usize, k: usize| self.z[i][k] * super::refine::STEP_ROTARY_RAD / self.caps[k];
+            let dot_pz = |i: usize, j: usize| (0..n).map(|k| pz(i, k) * pz(j, k)).sum::<f64>();
+            let dot_b =
+                |i: usize, j: usize| (0..3).map(|r| self.b[i][r] * self.b[j][r]).sum::<f64>();
+            let (g11, g12, g22) = (dot_pz(0, 0), dot_pz(0, 1), dot_pz(1, 1));
+            let (a11, a12, a22) = (dot_b(0, 0), dot_b(0, 1), dot_b(1, 1));
+            let det_g = g11 * g22 - g12 * g12;
+            let det_a = a11 * a22 - a12 * a12;
+            let mid = a11 * g22 + a22 * g11 - 2.0 * a12 * g12;
+            let root = (mid * mid - 4.0 * det_g * det_a).max(0.0).sqrt();
+            // The smaller root without cancellation: 2 det A / (mid + root).
+            let lambda_min = 2.0 * det_a / (mid + root);
+            if det_g > 0.0 && lambda_min >= AXIS_GAIN_MIN * AXIS_GAIN_MIN {
+                return true;
+            }
+        }
         let z = DMatrix::from_fn(n, free, |r, c| self.z[c][r]);
         let b = DMatrix::from_fn(3, free, |r, c| self.b[c][r]);
         let Some((z2, b2)) = cheap_directions(&z, &b, &per_unit(&self.caps[..n])) else {
