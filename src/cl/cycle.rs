@@ -192,6 +192,12 @@ impl<R: BufRead> Lowered<R> {
                 self.block(r, "G80");
                 return Ok(());
             }
+            // CAMWorks writes CYCLE/CLEAR before a cycle: its parameters
+            // reset, no motion (as INIT).
+            "INIT" | "CLEAR" if args.len() == 1 => {
+                self.block(r, comment);
+                return Ok(());
+            }
             "INIT" => {
                 self.block(r, comment);
                 return Ok(());
@@ -273,7 +279,8 @@ impl<R: BufRead> Lowered<R> {
                     continue;
                 }
                 "DWELL" => c.dwell = val(k + 1)?,
-                "1STPECK" | "STEP" => c.first_peck = val(k + 1)?,
+                // CAMWorks: INCR, the peck increment of CYCLE/DEEP.
+                "1STPECK" | "STEP" | "INCR" => c.first_peck = val(k + 1)?,
                 "SUBPECK" => c.sub_peck = val(k + 1)?,
                 "MMPM" | "IPM" | "MMPR" | "IPR" => {
                     let u = super::feed_unit(&args[k]).unwrap_or(FeedUnit::Unspecified);

@@ -201,7 +201,7 @@ mod tests {
         let d = Dialect::of_header("t;X;meas_x");
         assert_eq!(
             d.fields("0,5; \"-20,25\" ;3"),
-            vec![(1, "0,5"), (6, "-20,25"), (14, "3")]
+            vec![(1, "0,5"), (7, "-20,25"), (16, "3")]
         );
         assert_eq!(d.number("-20,25"), Some(-20.25));
         assert_eq!(d.number("1.5e-3"), Some(1.5e-3));

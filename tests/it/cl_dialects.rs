@@ -211,6 +211,30 @@ fn arc_and_cycle_blocks() {
     );
 }
 
+/// CAMWorks (SolidWorks CAM) drilling: `CYCLE/CLEAR` before a cycle (a
+/// reset, no motion) and the peck increment `INCR` of `CYCLE/DEEP`. Both
+/// were refused ("CYCLE/CLEAR is not supported", "CYCLE: unknown word
+/// INCR"), so hardly any CAMWorks drilling converted; now the same G83 as
+/// with NX's `STEP`.
+#[test]
+fn camworks_cycle_clear_and_incr() {
+    let cl = "UNITS/MM\nGOTO/10,0,20\nCYCLE/CLEAR\nCYCLE/DEEP,FEDTO,5.,INCR,2.,MMPM,300.,RAPTO,2.,RTRCTO,20.\nGOTO/10,0,0\nCYCLE/OFF\nGOTO/0,10,20\n";
+    let (code, nc, err) = post_stdin(TRT, &[], cl);
+    assert_eq!(code, 0, "{err}");
+    let step = cl.replace("INCR", "STEP").replace("CYCLE/CLEAR\n", "");
+    let (code, reference, err) = post_stdin(TRT, &[], &step);
+    assert_eq!(code, 0, "{err}");
+    assert!(nc.contains("(CYCLE/CLEAR)"), "{nc}");
+    let holes = |t: &str| -> Vec<String> {
+        t.lines().filter(|l| l.contains("G83")).map(String::from).collect()
+    };
+    assert_eq!(holes(&nc), holes(&reference));
+    assert!(holes(&nc)[0].contains("Z-5.0000 R2.0000 Q2.0000"), "{nc}");
+    // CLEAR with words is not a reset: still refused.
+    let (code, _, err) = post_stdin(TRT, &[], "UNITS/MM\nCYCLE/CLEAR,5\nGOTO/0,0,0\n");
+    assert_eq!(code, 1, "{err}");
+}
+
 /// docs/programs.md names every major word that moves the tool in its
 /// table of CL major words, and the dialect files' comment words.
 #[test]

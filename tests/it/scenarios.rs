@@ -428,7 +428,15 @@ fn random_machines_and_programs_through_every_command() {
             for pair in originals.windows(2) {
                 let (a, b) = (tip(&out_rows[pair[0]]), tip(&out_rows[pair[1]]));
                 for s in pair[0]..pair[1] {
-                    let (qa, qb) = (m.to_internal(&out_rows[s]), m.to_internal(&out_rows[s + 1]));
+                    // A modulo axis moves the short way (the controller's rule).
+                    let mut to = out_rows[s + 1].clone();
+                    for (k, ax) in m.axes.iter().enumerate() {
+                        if ax.rotary == kinpost::machine::RotaryMode::Modulo {
+                            let from = out_rows[s][k];
+                            to[k] = from + ((to[k] - from) + 180.0).rem_euclid(360.0) - 180.0;
+                        }
+                    }
+                    let (qa, qb) = (m.to_internal(&out_rows[s]), m.to_internal(&to));
                     for i in 0..=32 {
                         let t = i as f64 / 32.0;
                         let q: Vec<f64> =
