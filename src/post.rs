@@ -376,6 +376,8 @@ impl<'a> GcodeConverter<'a> {
                     item: i,
                 }),
                 ItemKind::Keyword(k) => keywords.push((i, k.as_str())),
+                // Block delete reaches the modal state as a pseudo-keyword.
+                ItemKind::BlockDelete => keywords.push((i, "/")),
                 ItemKind::Opaque => {
                     if let Some(k) = crate::program::opaque::known_call(&String::from_utf8_lossy(
                         line.item_bytes(item),

@@ -18,6 +18,10 @@
 //! - In pose mode a `G0`/`G1` block with any of `X Y Z I J K A3 B3 C3` is a
 //!   pose; missing coordinates keep their modal values. An arc or a canned
 //!   cycle with coordinates in pose mode is an error.
+//! - In pose mode these are refused too: `U V W E` axis words, cutter radius
+//!   compensation (`G41`, `G42`, `G41.1`–`G42.2`; modal until `G40`, and
+//!   pose mode may not start under it), and under `G91` a block-delete
+//!   (`/`) pose block.
 
 use nalgebra::Vector3;
 
@@ -51,6 +55,12 @@ const ORIENTATION_WORDS: &[&str] = &[
     "A", "B", "C", "A2", "B2", "C2", "A4", "B4", "C4", "A5", "B5", "C5", "A6", "B6", "C6", "A7",
     "B7", "C7", "XH", "YH", "ZH", "LEAD", "TILT", "THETA",
 ];
+
+/// Axis words of motion axes that are not the tool tip: the secondary
+/// linear axes `U V W` (a quill along Z, a second slide) and `E` (the
+/// extruder or seventh axis of some dialects). In a block of pose mode
+/// they would move the tool off the converted pose: refused.
+const SECONDARY_AXIS_WORDS: &[&str] = &["U", "V", "W", "E"];
 
 /// Units of lengths in the program.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -180,6 +190,10 @@ pub struct ModalState {
     /// the controller, where it would move the machine axis words kinpost
     /// writes, so pose mode may not start after it.
     pub frame_seen: bool,
+    /// Cutter radius compensation (`G41`, `G42`, `G41.1`–`G42.2`) is on,
+    /// until `G40`: the controller would offset kinpost's machine axis
+    /// words by the tool radius, so pose mode may not start under it.
+    pub cutter_comp: bool,
     /// Modal tool tip, mm (None until the program sets the coordinate).
     pub tip: [Option<f64>; 3],
     /// Modal tool axis (programmed components, not normalised).
@@ -200,6 +214,7 @@ impl ModalState {
             feed: None,
             pose_mode: start == PoseStart::On,
             frame_seen: false,
+            cutter_comp: false,
             tip: [None; 3],
             axis: Vector3::z(),
             axis_set: false,
@@ -216,7 +231,9 @@ impl ModalState {
         self.axis_set = false;
     }
 
-    /// Applies one block and says what it means.
+    /// Applies one block and says what it means. `keywords` are the bare
+    /// keywords of the block with their items, the calls kinpost reads as
+    /// pseudo-keywords (`opaque::known_call`), and `"/"` for block delete.
     pub fn apply(
         &mut self,
         words: &[WordRef<'_>],
@@ -234,6 +251,10 @@ impl ModalState {
         // A block that changes the coordinate system, or goes home, in pose
         // mode: its item and what it does.
         let mut setup: Option<(usize, &str)> = None;
+        // A cutter radius compensation code (G41, G42, G41.1–G42.2): its item.
+        let mut cutter_comp = None;
+        // Block delete (`/`, a pseudo-keyword): the controller may skip the block.
+        let block_delete = keywords.iter().find(|(_, k)| *k == "/").map(|(i, _)| *i);
         let lathe_cycle = words.iter().any(|w| w.address == "Q");
         for w in words {
             match w.address {
@@ -269,6 +290,14 @@ impl ModalState {
                             non_modal = true;
                             polar = polar.or(Some(w.item));
                         }
+                        // Cutter radius compensation: G41/G42 (Fanuc,
+                        // LinuxCNC, Sinumerik), G41.1/G42.1 (LinuxCNC
+                        // dynamic), G41.2/G42.2 (Fanuc 3-D); G40 cancels.
+                        410..=413 | 420..=423 => {
+                            self.cutter_comp = true;
+                            cutter_comp = cutter_comp.or(Some(w.item));
+                        }
+                        400 => self.cutter_comp = false,
                         900 => self.absolute = true,
                         910 => self.absolute = false,
                         // LinuxCNC's lathe cycles G70–G72 (with a Q word: the
@@ -382,6 +411,14 @@ impl ModalState {
                 message: "polar coordinates (Sinumerik G110–G112 pole, AP= angle, RP= radius) in pose mode are not converted: tool poses must be given as X Y Z; write Cartesian coordinates in the CAM post".into(),
             });
         }
+        if let Some(item) = cutter_comp
+            && self.pose_mode
+        {
+            return Err(BlockError {
+                item: Some(item),
+                message: "cutter radius compensation (G41, G42, G41.1, G42.1, G41.2, G42.2) in pose mode is not converted: the controller would offset kinpost's machine axis words by the tool radius; give the poses of the tool tip with the radius applied in the CAM system (G40 cancels it)".into(),
+            });
+        }
         if let Some(item) = frame {
             self.frame_seen = true;
             if self.pose_mode {
@@ -405,6 +442,18 @@ impl ModalState {
             return Err(BlockError {
                 item,
                 message: "pose mode starts while a frame set earlier in the program (G68…, G51, G51.1, G16, TRANS, ROT, AROT, SCALE, MIRROR, CYCLE800) is active: the controller would move kinpost's machine axis words by it; cancel the frame before, or apply it in the CAM system".into(),
+            });
+        }
+        if self.pose_mode && self.cutter_comp {
+            let item = tcp_codes
+                .first()
+                .map(|c| match c {
+                    TcpCode::FanucOn(i) | TcpCode::SiemensOn(i) => *i,
+                })
+                .or_else(|| words.first().map(|w| w.item));
+            return Err(BlockError {
+                item,
+                message: "pose mode starts while cutter radius compensation (G41, G42, G41.1, G42.1, G41.2, G42.2) set earlier is active: the controller would offset kinpost's machine axis words by the tool radius; cancel it with G40 before TCP is switched on".into(),
             });
         }
 
@@ -483,6 +532,33 @@ impl ModalState {
             });
         }
 
+        // A secondary linear axis (U V W) or an E axis moves the tool too,
+        // besides the machine axes kinpost writes. `X1E5` (an E glued to a
+        // pose word) is refused below, as a number with an exponent.
+        if self.pose_mode
+            && !non_modal
+            && let Some(w) = words.iter().find(|w| {
+                SECONDARY_AXIS_WORDS.contains(&w.address)
+                    && !(w.address == "E"
+                        && words.iter().any(|p| {
+                            p.item + 1 == w.item && (is_tip(p.address) || is_axis(p.address))
+                        }))
+            })
+        {
+            return Err(BlockError {
+                item: Some(w.item),
+                message: format!(
+                    "`{}` in pose mode: {} would move the tool off the converted pose; not converted; leave it out of the blocks between G43.4 / TRAORI and G49 / TRAFOOF",
+                    w.address,
+                    if w.address == "E" {
+                        "E: an extruder or seventh axis in some dialects"
+                    } else {
+                        "U/V/W: a secondary linear axis (a quill, a second slide)"
+                    }
+                ),
+            });
+        }
+
         if !self.pose_mode || non_modal || !(has_tip || has_axis) {
             return Ok(meaning);
         }
@@ -540,6 +616,20 @@ impl ModalState {
                 }
                 seen[k] = Some(w);
             }
+        }
+
+        // Under G91 the controller adds each block's increments to where the
+        // last block left the machine; kinpost's machine-axis increments
+        // come from its own chain of poses. A block the controller may skip
+        // (block delete switch on) breaks that chain for every block after
+        // it. In absolute mode each converted block stands alone.
+        if let Some(item) = block_delete
+            && !self.absolute
+        {
+            return Err(BlockError {
+                item: Some(item),
+                message: "a block-delete (`/`) pose block under G91 (incremental) is not converted: with the block delete switch on the controller skips it, and the machine-axis increments kinpost writes for the blocks after it (computed from this pose, its rotary axes turned) would no longer add up to the programmed poses; program the poses in G90 (absolute), or without `/`".into(),
+            });
         }
 
         // Update the modal tip and axis.

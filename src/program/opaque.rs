@@ -44,6 +44,12 @@ pub fn describe_opaque(bytes: &[u8]) -> String {
             }
         );
     }
+    if let Some(statement) = o_word_statement(text) {
+        return format!(
+            "an o-word control statement (`{}`: LinuxCNC flow control) in pose mode: kinpost does not evaluate it, so it cannot know which pose blocks run, or how often; have the CAM system write the moves without flow control, or keep it outside G43.4 / TCP",
+            quote(&statement)
+        );
+    }
     if text.trim_start().starts_with('(') && !text.contains(')') {
         return format!(
             "unclosed comment `{}`: a `(` without its `)`; in a block that must be converted it would hide the words after it",
@@ -78,6 +84,9 @@ pub fn describe_opaque(bytes: &[u8]) -> String {
     // Address digits (`A3`) and `=` belong to the address.
     let rest = rest.trim_start_matches(|c: char| c.is_ascii_digit() && address.len() > 1);
     let value = rest.trim_start_matches([' ', '\t', '=']);
+    if let Some(m) = sinumerik_value(token, text) {
+        return m;
+    }
     if value.is_empty() {
         return format!(
             "`{quoted}`: the word {address} has no number; expected a number such as {address}12.5"
@@ -110,6 +119,87 @@ pub fn describe_opaque(bytes: &[u8]) -> String {
         );
     }
     format!("malformed number `{quoted}`; expected a number such as {address}12.5")
+}
+
+/// The message for a Sinumerik value that is not a number: `X=IC(2)`
+/// (an incremental or absolute dimension function), `X=R1` (an R
+/// parameter). `token` is the first token of `text`.
+fn sinumerik_value(token: &str, text: &str) -> Option<String> {
+    let eq = token.find('=')?;
+    let address = &token[..eq];
+    let value = text.trim_start()[eq + 1..].trim_start();
+    let name: String = value
+        .chars()
+        .take_while(char::is_ascii_alphabetic)
+        .collect::<String>()
+        .to_ascii_uppercase();
+    let after = value[name.len()..].trim_start();
+    if after.starts_with('(')
+        && matches!(
+            name.as_str(),
+            "IC" | "AC" | "DC" | "ACP" | "ACN" | "CIC" | "CAC" | "CACP" | "CACN"
+        )
+    {
+        let call = call_len(value).map_or(value, |n| &value[..n]);
+        return Some(format!(
+            "`{}={}`: a Sinumerik dimension function ({name}(…): {}) that kinpost does not evaluate; in pose mode expected a plain absolute number such as {address}=12.5 (have the CAM post write absolute values)",
+            quote(address),
+            quote(call),
+            match name.as_str() {
+                "IC" | "CIC" => "incremental for this word",
+                "AC" | "CAC" => "absolute for this word",
+                _ => "a rotary axis position by the shortest way or in one direction",
+            }
+        ));
+    }
+    if name == "R" && after.starts_with(|c: char| c.is_ascii_digit()) {
+        let digits: String = after.chars().take_while(char::is_ascii_digit).collect();
+        return Some(format!(
+            "`{}=R{digits}`: an R parameter (a Sinumerik variable) that kinpost does not evaluate; in pose mode expected a plain number such as {address}=12.5 (have the CAM post write the values)",
+            quote(address)
+        ));
+    }
+    None
+}
+
+/// A LinuxCNC o-word control statement at the start of `text` (`o100 if`,
+/// `o<loop> while`, `o100 endsub`), as `o100 if`: kinpost does not
+/// evaluate flow control. `o100 call` is a call ([`call_name`]).
+fn o_word_statement(text: &str) -> Option<String> {
+    let t = text.trim_start();
+    let rest = t.strip_prefix(['o', 'O'])?;
+    let name_len = if rest.starts_with('<') {
+        rest.find('>')? + 1
+    } else {
+        rest.chars().take_while(char::is_ascii_digit).count()
+    };
+    if name_len == 0 {
+        return None;
+    }
+    let keyword = rest[name_len..]
+        .trim_start()
+        .split(|c: char| !c.is_ascii_alphabetic())
+        .next()
+        .unwrap_or_default();
+    const FLOW: &[&str] = &[
+        "if",
+        "elseif",
+        "else",
+        "endif",
+        "while",
+        "endwhile",
+        "do",
+        "repeat",
+        "endrepeat",
+        "break",
+        "continue",
+        "sub",
+        "endsub",
+        "return",
+    ];
+    FLOW.iter()
+        .any(|k| k.eq_ignore_ascii_case(keyword))
+        .then(|| format!("o{} {}", &rest[..name_len], keyword))
 }
 
 /// The first blank-separated token of `text` (comments cut off).
@@ -183,6 +273,7 @@ pub fn opaque_in_pose_block(
         !matches!(known_call(&text), Some("TRAORI" | "MSG"))
             && (is_pose
                 || call_name(&text).is_some()
+                || o_word_statement(&text).is_some()
                 || line.item_bytes(it).iter().any(|b| {
                     matches!(
                         b.to_ascii_uppercase(),
@@ -309,5 +400,9 @@ mod tests {
         assert!(d(b"X").contains("has no number"));
         assert!(d(b"A3=abc").starts_with("malformed number `A3=abc`"));
         assert!(d(b"X- 1.2.3").starts_with("malformed number `X- 1.2.3`"));
+        assert!(d(b"X=IC(2) Y1").starts_with("`X=IC(2)`: a Sinumerik dimension function"));
+        assert!(d(b"A3=R12").starts_with("`A3=R12`: an R parameter"));
+        assert!(d(b"O<a> WHILE [1]").starts_with("an o-word control statement (`o<a> WHILE`"));
+        assert!(d(b"o100").starts_with("malformed number"));
     }
 }

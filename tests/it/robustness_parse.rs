@@ -491,3 +491,216 @@ fn non_modal_blocks_are_not_followed_as_moves() {
         assert_eq!(code, 0, "{setup}: {err}");
     }
 }
+
+/// A secondary linear axis (`U V W`: a quill along Z, a second slide) or
+/// an `E` axis in a pose block: before, `G1 X12. W1.` under G43.4 came out
+/// as `… B0.0000 C0.0000 W1.` (exit 0), the quill moving the tool 1 mm off
+/// the converted pose. Now refused at the word in pose mode; outside it
+/// they pass through unchanged, and `X1.5E-3` keeps its exponent message.
+#[test]
+fn secondary_linear_axes_in_pose_mode_are_refused() {
+    let fanuc = "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\n";
+    let sin = "TRAORI\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\n";
+    for (name, text, want) in [
+        (
+            "w.ngc",
+            format!("{fanuc}G1 X12. W1.\nG49\nM30\n"),
+            "w.ngc:3:9: `W` in pose mode: U/V/W: a secondary linear axis",
+        ),
+        (
+            "u.ngc",
+            format!("{fanuc}G1 U1.\nG49\nM30\n"),
+            "u.ngc:3:4: `U` in pose mode: U/V/W: a secondary linear axis",
+        ),
+        (
+            "v.mpf",
+            format!("{sin}G1 X12 V2\nTRAFOOF\nM30\n"),
+            "v.mpf:3:8: `V` in pose mode: U/V/W: a secondary linear axis",
+        ),
+        (
+            "e.ngc",
+            format!("{fanuc}G1 X13 E0.5\nG49\nM30\n"),
+            "e.ngc:3:8: `E` in pose mode: E: an extruder or seventh axis",
+        ),
+        (
+            "exp.ngc",
+            format!("{fanuc}G1 X1.5E-3\nG49\nM30\n"),
+            "exp.ngc:3:4: `X1.5` is followed directly by `E-3`",
+        ),
+    ] {
+        let (code, out, err) = post(name, text.as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains(want), "{name}: {err}");
+        assert!(out.is_empty() || !String::from_utf8_lossy(&out).contains("W1."));
+    }
+    // Outside pose mode, and D H S T M words in it, pass.
+    let plain = b"G1 X12. W1. E3 U2 V1\nM30\n";
+    let (code, out, err) = post("plain.ngc", plain);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(out, plain);
+    let (code, _, err) = post(
+        "ok.ngc",
+        format!("{fanuc}T1 M6 S1000 M3 D1\nG1 X12 F200\nG4 P1\nG49\nG1 W5\nM30\n").as_bytes(),
+    );
+    assert_eq!(code, 0, "{err}");
+}
+
+/// Cutter radius compensation under TCP: before, `G41 D1`, `G42.2` under
+/// G43.4 and `G41` under TRAORI were written through (exit 0) and the
+/// controller offset kinpost's machine axis words by the tool radius. Now
+/// refused at the word in pose mode; pose mode may not start while it is
+/// on; `G40` cancels it.
+#[test]
+fn cutter_radius_compensation_in_pose_mode_is_refused() {
+    let fanuc = "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\n";
+    for (name, text, want) in [
+        (
+            "g41.ngc",
+            format!("{fanuc}G41 D1\nG1 X12\nG40\nG49\nM30\n"),
+            "g41.ngc:3:1: cutter radius compensation",
+        ),
+        (
+            "g42.ngc",
+            format!("{fanuc}G1 G42 X12\nG40\nG49\nM30\n"),
+            "g42.ngc:3:4: cutter radius compensation",
+        ),
+        (
+            "g412.ngc",
+            format!("{fanuc}G41.2 D1\nG49\nM30\n"),
+            "g412.ngc:3:1: cutter radius compensation",
+        ),
+        (
+            "g422.ngc",
+            format!("{fanuc}G42.2\nG49\nM30\n"),
+            "g422.ngc:3:1: cutter radius compensation",
+        ),
+        (
+            "g41.mpf",
+            "TRAORI\nG41\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\nTRAFOOF\nM30\n".to_string(),
+            "g41.mpf:2:1: cutter radius compensation",
+        ),
+        (
+            "before.ngc",
+            format!("G41 D1\nG1 X0 Y0\n{fanuc}G49\nM30\n"),
+            "before.ngc:3:1: pose mode starts while cutter radius compensation",
+        ),
+        (
+            "ijk.ngc",
+            "G42 D1\nG1 X10 Y0 Z5 I0 J0 K1 F500\nM30\n".to_string(),
+            "ijk.ngc:2:1: pose mode starts while cutter radius compensation",
+        ),
+    ] {
+        let (code, _, err) = post(name, text.as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains(want), "{name}: {err}");
+    }
+    // G40 passes in pose mode, and cancels compensation set before it.
+    let (code, _, err) = post(
+        "g40.ngc",
+        format!("G41 D1\nG1 X0 Y0\nG40\n{fanuc}G40\nG1 X12\nG49\nM30\n").as_bytes(),
+    );
+    assert_eq!(code, 0, "{err}");
+    let plain = b"G41 D1\nG1 X0 Y0 F100\nG42.2\nG40\nM30\n";
+    let (code, out, err) = post("plain.ngc", plain);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(out, plain);
+}
+
+/// Text kinpost does not evaluate in pose mode was named a malformed
+/// number: `X=IC(2)` "malformed number `X=IC`", `X=R1` "malformed number
+/// `X=R1`", `o100 if [...]` "malformed number `o100`" (and `o100 else`
+/// passed: no letter of a pose word in it). Now each message says what it
+/// is; every o-word control statement is refused in pose mode.
+#[test]
+fn unevaluated_values_and_o_words_are_named() {
+    let sin = "TRAORI\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\n";
+    let fanuc = "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\n";
+    for (name, text, want) in [
+        (
+            "ic.mpf",
+            format!("{sin}G1 X=IC(2)\nTRAFOOF\nM30\n"),
+            "ic.mpf:3:4: `X=IC(2)`: a Sinumerik dimension function (IC(…): incremental",
+        ),
+        (
+            "ac.mpf",
+            format!("{sin}G1 Y0 Z=AC(5.5)\nTRAFOOF\nM30\n"),
+            "ac.mpf:3:7: `Z=AC(5.5)`: a Sinumerik dimension function (AC(…): absolute",
+        ),
+        (
+            "r.mpf",
+            format!("{sin}G1 X=R1\nTRAFOOF\nM30\n"),
+            "r.mpf:3:4: `X=R1`: an R parameter",
+        ),
+        (
+            "if.ngc",
+            format!("{fanuc}o100 if [#1 GT 0]\nG1 X12\no100 endif\nG49\nM30\n"),
+            "if.ngc:3:1: an o-word control statement (`o100 if`",
+        ),
+        (
+            "else.ngc",
+            format!("{fanuc}o100 else\nG49\nM30\n"),
+            "else.ngc:3:1: an o-word control statement (`o100 else`",
+        ),
+        (
+            "rep.ngc",
+            format!("{fanuc}o<lp> repeat [3]\nG1 X12\no<lp> endrepeat\nG49\nM30\n"),
+            "rep.ngc:3:1: an o-word control statement (`o<lp> repeat`",
+        ),
+    ] {
+        let (code, _, err) = post(name, text.as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains(want), "{name}: {err}");
+        assert!(!err.contains("malformed number"), "{name}: {err}");
+    }
+    // Outside pose mode they pass through.
+    let plain = b"o100 sub\nG1 X1\no100 endsub\no100 call\nG1 X=IC(2)\nM30\n";
+    let (code, out, err) = post("plain.ngc", plain);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(out, plain);
+}
+
+/// Block delete (`/`): in absolute mode a `/` pose block is converted and
+/// keeps its `/` (the controller may skip it: the next absolute block
+/// stands alone). Under G91 the machine-axis increments kinpost writes
+/// for later blocks start from that pose: a controller skipping it would
+/// put every later block off. Before, it was converted with exit 0; now
+/// refused at the `/`.
+#[test]
+fn block_delete_pose_blocks_are_kept_in_absolute_and_refused_in_incremental() {
+    let fanuc = "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\n";
+    let (code, out, err) = post(
+        "abs.ngc",
+        format!("{fanuc}/G1 X12 I0 J0 K1\n/1 G1 X14\nG1 X15\nG49\nM30\n").as_bytes(),
+    );
+    assert_eq!(code, 0, "{err}");
+    let out = String::from_utf8(out).unwrap();
+    let lines: Vec<&str> = out.lines().collect();
+    assert!(
+        lines[2].starts_with("/G1 X") && lines[2] != "/G1 X12 I0 J0 K1",
+        "{out}"
+    );
+    assert!(lines[3].starts_with("/1 G1 X"), "{out}");
+    assert!(lines[4].starts_with("G1 X"), "{out}");
+    for (name, text, want) in [
+        (
+            "inc.ngc",
+            format!("{fanuc}G91\n/G1 X1\nG1 X1\nG90\nG49\nM30\n"),
+            "inc.ngc:4:1: a block-delete (`/`) pose block under G91",
+        ),
+        (
+            "inc2.ngc",
+            format!("{fanuc}/ G91 G1 X1 I0 J0 K1\nG90\nG49\nM30\n"),
+            "inc2.ngc:3:1: a block-delete (`/`) pose block under G91",
+        ),
+    ] {
+        let (code, _, err) = post(name, text.as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains(want), "{name}: {err}");
+    }
+    // Under G91 without `/`, and `/` blocks that are not poses, pass.
+    let (code, _, err) = post(
+        "ok.ngc",
+        format!("{fanuc}G91\nG1 X1\n/M1\nG90\nG49\nM30\n").as_bytes(),
+    );
+    assert_eq!(code, 0, "{err}");
+}
