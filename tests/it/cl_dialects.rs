@@ -226,7 +226,10 @@ fn camworks_cycle_clear_and_incr() {
     assert_eq!(code, 0, "{err}");
     assert!(nc.contains("(CYCLE/CLEAR)"), "{nc}");
     let holes = |t: &str| -> Vec<String> {
-        t.lines().filter(|l| l.contains("G83")).map(String::from).collect()
+        t.lines()
+            .filter(|l| l.contains("G83"))
+            .map(String::from)
+            .collect()
     };
     assert_eq!(holes(&nc), holes(&reference));
     assert!(holes(&nc)[0].contains("Z-5.0000 R2.0000 Q2.0000"), "{nc}");
