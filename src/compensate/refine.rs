@@ -2,7 +2,7 @@
 //! simplified Newton with a kept Jacobian, offsets from the theoretical
 //! solution, and the best compensation within bounds at a singularity.
 
-use super::step::{Factored, Method, Options, residual, step_svd};
+use super::step::{Factored, Method, Options, STEP_LINEAR_MM, STEP_ROTARY_RAD, residual, step_svd};
 use crate::linalg::{MinNorm, RankCut};
 use crate::machine::chain::{
     Chain, JacobianColumns, JointErrors, JointValues, MAX_JOINTS, NearTrig, NoErrors, Pose,
@@ -45,10 +45,6 @@ pub(super) const POLISH_STEPS: usize = 8;
 /// be the last: see [`refine`].
 pub(super) const FINAL_STEP: f64 = 1e-6;
 
-/// Largest change of a linear axis per Newton step, mm.
-pub(super) const STEP_LINEAR_MM: f64 = 0.05;
-/// Largest change of a rotary axis per Newton step, rad.
-pub(super) const STEP_ROTARY_RAD: f64 = 5e-4;
 /// Largest total compensation of a linear axis, mm: far above any geometric
 /// error compensation (micrometres), low enough to stop a wandering iteration.
 pub const MAX_COMPENSATION_MM: f64 = 0.5;

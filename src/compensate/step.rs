@@ -84,6 +84,11 @@ pub(super) fn damped(
     DVector::from_fn(n, |k, _| sol[k] * scale[k])
 }
 
+/// Largest change of a linear axis per Newton step, mm.
+pub(super) const STEP_LINEAR_MM: f64 = 0.05;
+/// Largest change of a rotary axis per Newton step, rad.
+pub(super) const STEP_ROTARY_RAD: f64 = 5e-4;
+
 /// A direction of the axis part of the step (in the null space of the tip
 /// rows) is used only where it turns the tool axis by at least this much
 /// per radian of joint motion, linear axes counted at 100 mm a radian
@@ -93,9 +98,7 @@ pub const AXIS_GAIN_MIN: f64 = 1e-2;
 /// Per joint, radians of motion per unit of the joint, from the trust-region
 /// caps (1 for a rotary, 0.01 per mm for a linear axis).
 fn per_unit(caps: &[f64]) -> Vec<f64> {
-    caps.iter()
-        .map(|c| super::refine::STEP_ROTARY_RAD / c)
-        .collect()
+    caps.iter().map(|c| STEP_ROTARY_RAD / c).collect()
 }
 
 /// The null-space directions `z` (columns, n rows) of the axis part and
@@ -287,7 +290,7 @@ impl Factored {
         // One direction, the common case: the gain |b| / |P z| directly.
         if free == 1 {
             let motion: f64 = (0..n)
-                .map(|k| (self.z[0][k] * super::refine::STEP_ROTARY_RAD / self.caps[k]).powi(2))
+                .map(|k| (self.z[0][k] * STEP_ROTARY_RAD / self.caps[k]).powi(2))
                 .sum::<f64>()
                 .sqrt();
             let gain = self.b[0][..3].iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -299,8 +302,7 @@ impl Factored {
         // Two directions (five joints): the smaller gain in closed form,
         // λ_min of det(A − λ G) = 0, and nothing to do when it is enough.
         if free == 2 {
-            let pz =
-                |i: usize, k: usize| self.z[i][k] * super::refine::STEP_ROTARY_RAD / self.caps[k];
+            let pz = |i: usize, k: usize| self.z[i][k] * STEP_ROTARY_RAD / self.caps[k];
             let dot_pz = |i: usize, j: usize| (0..n).map(|k| pz(i, k) * pz(j, k)).sum::<f64>();
             let dot_b =
                 |i: usize, j: usize| (0..3).map(|r| self.b[i][r] * self.b[j][r]).sum::<f64>();
@@ -764,7 +766,7 @@ mod tests {
             let nm = DMatrix::from_fn(n, null.len(), |r, c| v_t[(null[c], r)]);
             let per = DMatrix::from_fn(n, n, |r, c| {
                 if r == c {
-                    crate::compensate::refine::STEP_ROTARY_RAD / caps[r]
+                    STEP_ROTARY_RAD / caps[r]
                 } else {
                     0.0
                 }

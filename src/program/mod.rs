@@ -1,5 +1,6 @@
 //! NC programs as sequences of blocks: modal state, poses, output formatting.
 
+mod block_delete;
 pub mod format;
 pub mod heidenhain;
 pub mod integrity;

@@ -201,6 +201,9 @@ pub struct ModalState {
     /// Whether the program has set the tool axis (else it is (0, 0, 1) or
     /// seeded from the machine position).
     pub axis_set: bool,
+    /// What block-delete (`/`) pose blocks gave that later blocks may not
+    /// take over.
+    pub skippable: super::block_delete::SkippableCarry,
 }
 
 impl ModalState {
@@ -218,6 +221,7 @@ impl ModalState {
             tip: [None; 3],
             axis: Vector3::z(),
             axis_set: false,
+            skippable: Default::default(),
         }
     }
 
@@ -229,6 +233,7 @@ impl ModalState {
         self.tip = [Some(tip.x), Some(tip.y), Some(tip.z)];
         self.axis = axis;
         self.axis_set = false;
+        self.skippable.reset();
     }
 
     /// Applies one block and says what it means. `keywords` are the bare
@@ -633,6 +638,7 @@ impl ModalState {
         }
 
         // Update the modal tip and axis.
+        let before = (self.tip, self.axis);
         let scale = self.units.mm_per_unit();
         for w in words {
             let slot = match w.address {
@@ -679,6 +685,19 @@ impl ModalState {
             }
         }
         meaning.pose_items.sort_unstable();
+        let given = |names: &[&str]| words.iter().any(|w| names.contains(&w.address));
+        let gave = super::block_delete::Given {
+            tip: [given(&["X"]), given(&["Y"]), given(&["Z"])],
+            axis_any: given(&["I", "J", "K", "A3", "B3", "C3"]),
+            axis_all: given(&["I", "A3"]) && given(&["J", "B3"]) && given(&["K", "C3"]),
+        };
+        let now = (self.tip, self.axis);
+        self.skippable
+            .check(block_delete.is_some(), gave, before, now)
+            .map_err(|message| BlockError {
+                item: meaning.pose_items.first().copied(),
+                message,
+            })?;
 
         let names = ["X", "Y", "Z"];
         let mut tip = Vector3::zeros();

@@ -704,3 +704,44 @@ fn block_delete_pose_blocks_are_kept_in_absolute_and_refused_in_incremental() {
     );
     assert_eq!(code, 0, "{err}");
 }
+
+/// A pose block that takes over a coordinate or the tool vector from a
+/// block-delete (`/`) block is refused where the value differs from the one
+/// before it: with the switch on the controller skipped the `/` block.
+/// Before, `G1 Y5` after `/G1 X12 I0.6 J0 K0.8` was written at X12 with the
+/// tool turned (`G1 X18.4000 Y-5.0000 Z6.2000 B36.8699 C180.0000`), where a
+/// controller skipping the block is at X10 with the tool along Z.
+#[test]
+fn a_pose_taking_over_values_of_a_block_delete_block_is_refused() {
+    let fanuc = "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F100\n";
+    for (name, rest, want) in [
+        (
+            "carry.ngc",
+            "/G1 X12 I0.6 J0 K0.8\nG1 Y5\n",
+            "carry.ngc:4:4: X is taken over from a block-delete (`/`) block",
+        ),
+        (
+            "axis.ngc",
+            "/G1 X12 I0.6 J0 K0.8\nG1 X11 Y5\n",
+            "axis.ngc:4:4: the tool vector (I J K) is taken over from a block-delete (`/`) block",
+        ),
+        (
+            "partial.ngc",
+            "/G1 X12 I0.6 J0 K0.8\nG1 X11 Y5 I0\n",
+            "partial.ngc:4:4: the tool vector (I J K) is taken over",
+        ),
+    ] {
+        let (code, _, err) = post(name, format!("{fanuc}{rest}G49\nM30\n").as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains(want), "{name}: {err}");
+    }
+    // Given again, or unchanged by the `/` block: converted.
+    for rest in [
+        "/G1 X12 I0.6 J0 K0.8\nG1 X11 Y5 I0 J0 K1\nG1 Y6\n",
+        "/G1 X10 I0 J0 K1\nG1 Y5\n",
+        "/G1 X12 I0.6 J0 K0.8\n/G1 Z6\nG1 X10 Z4 I0 J0 K1\n",
+    ] {
+        let (code, _, err) = post("ok.ngc", format!("{fanuc}{rest}G49\nM30\n").as_bytes());
+        assert_eq!(code, 0, "{rest}: {err}");
+    }
+}
