@@ -56,12 +56,6 @@ const ORIENTATION_WORDS: &[&str] = &[
     "B7", "C7", "XH", "YH", "ZH", "LEAD", "TILT", "THETA",
 ];
 
-/// Axis words of motion axes that are not the tool tip: the secondary
-/// linear axes `U V W` (a quill along Z, a second slide) and `E` (the
-/// extruder or seventh axis of some dialects). In a block of pose mode
-/// they would move the tool off the converted pose: refused.
-const SECONDARY_AXIS_WORDS: &[&str] = &["U", "V", "W", "E"];
-
 /// Units of lengths in the program.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Units {
@@ -537,13 +531,15 @@ impl ModalState {
             });
         }
 
-        // A secondary linear axis (U V W) or an E axis moves the tool too,
-        // besides the machine axes kinpost writes. `X1E5` (an E glued to a
-        // pose word) is refused below, as a number with an exponent.
+        // A secondary linear axis (U V W: a quill along Z, a second slide)
+        // or an E axis (the extruder or seventh axis of some dialects) moves
+        // the tool too, besides the machine axes kinpost writes: it would
+        // move the tool off the converted pose. `X1E5` (an E glued to a pose
+        // word) is refused below, as a number with an exponent.
         if self.pose_mode
             && !non_modal
             && let Some(w) = words.iter().find(|w| {
-                SECONDARY_AXIS_WORDS.contains(&w.address)
+                matches!(w.address, "U" | "V" | "W" | "E")
                     && !(w.address == "E"
                         && words.iter().any(|p| {
                             p.item + 1 == w.item && (is_tip(p.address) || is_axis(p.address))
@@ -639,6 +635,8 @@ impl ModalState {
 
         // Update the modal tip and axis.
         let before = (self.tip, self.axis);
+        let mut tip_given = [false; 3];
+        let mut axis_given = [false; 3];
         let scale = self.units.mm_per_unit();
         for w in words {
             let slot = match w.address {
@@ -648,6 +646,7 @@ impl ModalState {
                 _ => None,
             };
             if let Some(i) = slot {
+                tip_given[i] = true;
                 let v = w.value * scale;
                 self.tip[i] = if self.absolute {
                     Some(v)
@@ -674,6 +673,7 @@ impl ModalState {
                 _ => None,
             };
             if let Some(i) = comp {
+                axis_given[i] = true;
                 if !self.axis_set {
                     // The first programmed component starts a fresh vector:
                     // the others default to 0 unless also given.
@@ -685,11 +685,10 @@ impl ModalState {
             }
         }
         meaning.pose_items.sort_unstable();
-        let given = |names: &[&str]| words.iter().any(|w| names.contains(&w.address));
         let gave = super::block_delete::Given {
-            tip: [given(&["X"]), given(&["Y"]), given(&["Z"])],
-            axis_any: given(&["I", "J", "K", "A3", "B3", "C3"]),
-            axis_all: given(&["I", "A3"]) && given(&["J", "B3"]) && given(&["K", "C3"]),
+            tip: tip_given,
+            axis_any: axis_given.iter().any(|g| *g),
+            axis_all: axis_given.iter().all(|g| *g),
         };
         let now = (self.tip, self.axis);
         self.skippable

@@ -243,7 +243,14 @@ pub fn opaque_in_pose_block(
     straight: bool,
 ) -> Option<usize> {
     // Only opaque items are looked at (their text copied only then: this
-    // runs for every line).
+    // runs for every line, and most lines have none).
+    if !line
+        .items
+        .iter()
+        .any(|it| matches!(it.kind, ItemKind::Opaque))
+    {
+        return None;
+    }
     if let Some(i) = line.items.iter().position(|it| {
         matches!(it.kind, ItemKind::Opaque) && {
             let text = String::from_utf8_lossy(line.item_bytes(it));
