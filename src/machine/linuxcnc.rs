@@ -445,15 +445,7 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
             skipped.join(", ")
         ));
     }
-    Ok(json!({
-        "name": name,
-        "description": description,
-        "source": format!("kinpost machine --from-linuxcnc {file}"),
-        "chain": chain,
-        "axes": axes,
-        "output_order": order,
-        "tool_length": t,
-    }))
+    Ok(machine_file(&name, &description, &file, chain, axes, &order, t))
 }
 
 /// The machine of a `trivkins` configuration (see the module docs):
@@ -549,15 +541,30 @@ fn trivial_machine(
             " The axes {others} are not part of the chain: kinpost writes no words for them."
         ));
     }
-    Ok(json!({
-        "name": machine_name(ini_path, ini),
+    let name = machine_name(ini_path, ini);
+    Ok(machine_file(&name, &description, &file, chain, axes, &order, t))
+}
+
+/// The machine file's JSON: its chain (workpiece → tool tip), axes and
+/// output order, with the tool length `t` (mm) at the end of the chain.
+fn machine_file(
+    name: &str,
+    description: &str,
+    file: &str,
+    chain: Vec<Value>,
+    axes: Map<String, Value>,
+    order: &[&str],
+    t: f64,
+) -> Value {
+    json!({
+        "name": name,
         "description": description,
         "source": format!("kinpost machine --from-linuxcnc {file}"),
         "chain": chain,
         "axes": axes,
         "output_order": order,
         "tool_length": t,
-    }))
+    })
 }
 
 /// `[TRAJ] LINEAR_UNITS`: mm per unit of the configuration (1 for mm,

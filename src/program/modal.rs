@@ -431,27 +431,24 @@ impl ModalState {
         if straight && has_axis && !non_modal {
             self.pose_mode = true;
         }
-        if self.pose_mode && self.frame_seen {
-            let item = tcp_codes
+        // Where pose mode starts: the TCP code, else the block's first word.
+        let start_item = || {
+            tcp_codes
                 .first()
                 .map(|c| match c {
                     TcpCode::FanucOn(i) | TcpCode::SiemensOn(i) => *i,
                 })
-                .or_else(|| words.first().map(|w| w.item));
+                .or_else(|| words.first().map(|w| w.item))
+        };
+        if self.pose_mode && self.frame_seen {
             return Err(BlockError {
-                item,
+                item: start_item(),
                 message: "pose mode starts while a frame set earlier in the program (G68…, G51, G51.1, G16, TRANS, ROT, AROT, SCALE, MIRROR, CYCLE800) is active: the controller would move kinpost's machine axis words by it; cancel the frame before, or apply it in the CAM system".into(),
             });
         }
         if self.pose_mode && self.cutter_comp {
-            let item = tcp_codes
-                .first()
-                .map(|c| match c {
-                    TcpCode::FanucOn(i) | TcpCode::SiemensOn(i) => *i,
-                })
-                .or_else(|| words.first().map(|w| w.item));
             return Err(BlockError {
-                item,
+                item: start_item(),
                 message: "pose mode starts while cutter radius compensation (G41, G42, G41.1, G42.1, G41.2, G42.2) set earlier is active: the controller would offset kinpost's machine axis words by the tool radius; cancel it with G40 before TCP is switched on".into(),
             });
         }
