@@ -445,7 +445,15 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
             skipped.join(", ")
         ));
     }
-    Ok(machine_file(&name, &description, &file, chain, axes, &order, t))
+    Ok(machine_file(
+        &name,
+        &description,
+        &file,
+        chain,
+        axes,
+        &order,
+        t,
+    ))
 }
 
 /// The machine of a `trivkins` configuration (see the module docs):
@@ -542,7 +550,15 @@ fn trivial_machine(
         ));
     }
     let name = machine_name(ini_path, ini);
-    Ok(machine_file(&name, &description, &file, chain, axes, &order, t))
+    Ok(machine_file(
+        &name,
+        &description,
+        &file,
+        chain,
+        axes,
+        &order,
+        t,
+    ))
 }
 
 /// The machine file's JSON: its chain (workpiece → tool tip), axes and
