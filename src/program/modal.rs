@@ -188,6 +188,9 @@ pub struct ModalState {
     /// until `G40`: the controller would offset kinpost's machine axis
     /// words by the tool radius, so pose mode may not start under it.
     pub cutter_comp: bool,
+    /// Sinumerik `ORIMKS` is on, until `ORIWKS`: tool vectors are then in
+    /// machine coordinates, not the workpiece frame kinpost converts from.
+    pub machine_orientation: bool,
     /// Modal tool tip, mm (None until the program sets the coordinate).
     pub tip: [Option<f64>; 3],
     /// Modal tool axis (programmed components, not normalised).
@@ -212,6 +215,7 @@ impl ModalState {
             pose_mode: start == PoseStart::On,
             frame_seen: false,
             cutter_comp: false,
+            machine_orientation: false,
             tip: [None; 3],
             axis: Vector3::z(),
             axis_set: false,
@@ -252,6 +256,8 @@ impl ModalState {
         let mut setup: Option<(usize, &str)> = None;
         // A cutter radius compensation code (G41, G42, G41.1–G42.2): its item.
         let mut cutter_comp = None;
+        // Sinumerik `ORIMKS` (tool vectors in machine coordinates): its item.
+        let mut orimks = None;
         // Block delete (`/`, a pseudo-keyword): the controller may skip the block.
         let block_delete = keywords.iter().find(|(_, k)| *k == "/").map(|(i, _)| *i);
         let lathe_cycle = words.iter().any(|w| w.address == "Q");
@@ -357,6 +363,11 @@ impl ModalState {
                     tcp_codes.push(TcpCode::SiemensOn(*item));
                 }
                 "TRAFOOF" => self.pose_mode = false,
+                "ORIMKS" => {
+                    self.machine_orientation = true;
+                    orimks = Some(*item);
+                }
+                "ORIWKS" => self.machine_orientation = false,
                 // `CYCLE800(…)` swivels the work plane (a frame the
                 // controller keeps); `CYCLE800()` resets it. Both reach
                 // here as pseudo-keywords of the call
@@ -410,6 +421,23 @@ impl ModalState {
                 message: "polar coordinates (Sinumerik G110–G112 pole, AP= angle, RP= radius) in pose mode are not converted: tool poses must be given as X Y Z; write Cartesian coordinates in the CAM post".into(),
             });
         }
+        // Where pose mode starts: the TCP code, else the block's first word.
+        let start_item = || {
+            tcp_codes
+                .first()
+                .map(|c| match c {
+                    TcpCode::FanucOn(i) | TcpCode::SiemensOn(i) => *i,
+                })
+                .or_else(|| words.first().map(|w| w.item))
+        };
+        if let Some(item) = orimks.or(start_item().filter(|_| self.machine_orientation))
+            && self.pose_mode
+        {
+            return Err(BlockError {
+                item: Some(item),
+                message: "Sinumerik ORIMKS in pose mode: the tool vectors (A3 B3 C3) are then in machine coordinates, not in the workpiece frame kinpost converts from; program ORIWKS (the default) with TRAORI".into(),
+            });
+        }
         if let Some(item) = cutter_comp
             && self.pose_mode
         {
@@ -431,15 +459,6 @@ impl ModalState {
         if straight && has_axis && !non_modal {
             self.pose_mode = true;
         }
-        // Where pose mode starts: the TCP code, else the block's first word.
-        let start_item = || {
-            tcp_codes
-                .first()
-                .map(|c| match c {
-                    TcpCode::FanucOn(i) | TcpCode::SiemensOn(i) => *i,
-                })
-                .or_else(|| words.first().map(|w| w.item))
-        };
         if self.pose_mode && self.frame_seen {
             return Err(BlockError {
                 item: start_item(),

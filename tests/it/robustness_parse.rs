@@ -745,3 +745,33 @@ fn a_pose_taking_over_values_of_a_block_delete_block_is_refused() {
         assert_eq!(code, 0, "{rest}: {err}");
     }
 }
+
+/// Sinumerik `ORIMKS` puts the tool vectors in machine coordinates: under
+/// `TRAORI` the A3 B3 C3 of a block were read as workpiece-frame vectors
+/// and converted, exit 0. Now refused at `ORIMKS` in pose mode, or where
+/// pose mode starts under it; `ORIWKS` (the default) cancels it.
+#[test]
+fn orientation_in_machine_coordinates_is_refused() {
+    let pose = "G1 X40 Y0 Z5 A3=0 B3=0 C3=1\nTRAFOOF\nM30\n";
+    for (name, head, want) in [
+        (
+            "a.mpf",
+            "TRAORI\nORIMKS\n",
+            "a.mpf:2:1: Sinumerik ORIMKS in pose mode",
+        ),
+        (
+            "b.mpf",
+            "ORIMKS\nTRAORI\n",
+            "b.mpf:2:1: Sinumerik ORIMKS in pose mode",
+        ),
+    ] {
+        let (code, _, err) = post(name, format!("{head}{pose}").as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(err.contains(want), "{name}: {err}");
+    }
+    let (code, _, err) = post(
+        "c.mpf",
+        format!("ORIMKS\nORIWKS\nTRAORI\n{pose}ORIMKS\n").as_bytes(),
+    );
+    assert_eq!(code, 0, "{err}");
+}
