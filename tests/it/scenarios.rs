@@ -288,10 +288,18 @@ fn random_machines_and_programs_through_every_command() {
             );
             let mut worst_tip = 0.0f64;
             let mut worst_axis = 0.0f64;
+            // A four-axis lens machine meets the tip exactly and the axis as
+            // closely as it can: with the tip r mm from its C axis, the
+            // tip's 9 printed decimals (±5e-10 mm) turn C, and so the axis,
+            // by up to about 1e-9 / r rad (found at 80 seeds: r = 1.25 µm,
+            // 1.8e-7 rad). The closure bound allows that much on top.
+            let four_axis = m.chain.dof() < 5;
             for (k, (row, pose)) in rows.iter().zip(&poses).enumerate() {
                 let p = m.chain.pose(&m.to_internal(row), &NoErrors);
                 worst_tip = worst_tip.max((p.tip - pose.tip).norm());
-                worst_axis = worst_axis.max(p.axis_angle(pose));
+                let r = pose.tip.x.hypot(pose.tip.y);
+                let rounding = if four_axis { 1e-9 / r.max(1e-12) } else { 0.0 };
+                worst_axis = worst_axis.max(p.axis_angle(pose) - rounding);
                 for (a, v) in m.axes.iter().zip(row) {
                     assert!(
                         a.min.is_none_or(|lo| *v >= lo - 1e-9)
