@@ -314,7 +314,8 @@ impl ModalState {
                         930 => self.feed_mode = FeedMode::InverseTime,
                         940 => self.feed_mode = FeedMode::PerMinute,
                         950 => self.feed_mode = FeedMode::PerRevolution,
-                        434 | 435 => {
+                        // Fanuc G43.4/G43.5, Haas G234 (TCPC).
+                        434 | 435 | 2340 => {
                             self.pose_mode = true;
                             fanuc_tcp_here = true;
                             tcp_codes.push(TcpCode::FanucOn(w.item));

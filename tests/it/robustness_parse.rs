@@ -775,3 +775,28 @@ fn orientation_in_machine_coordinates_is_refused() {
     );
     assert_eq!(code, 0, "{err}");
 }
+
+/// Haas `G234` (TCPC) is tool centre point control, as Fanuc `G43.4`:
+/// before, a Haas TCPC program passed through as machine axes, exit 0 and
+/// "0 poses converted", whatever it held. Its rotary positions (`B30 C10`,
+/// the usual Haas form) are now refused as orientation given another way
+/// than by a tool vector; a program with I J K is converted and `G234`
+/// written as `G49`.
+#[test]
+fn haas_tcpc_is_tool_centre_point_control() {
+    let (code, _, err) = post(
+        "haas.nc",
+        b"G0 X0 Y0 Z100 B0 C0\nG234 H1\nG1 X10 Y0 Z5 B30 C10 F500\nG49\nM30\n",
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("haas.nc:3:"), "{err}");
+    assert!(err.contains("a rotary axis position"), "{err}");
+    let (code, out, err) = post("vec.nc", b"G234 H1\nG1 X40 Y0 Z5 I0 J0 K1 F500\nG49\nM30\n");
+    assert_eq!(code, 0, "{err}");
+    let out = String::from_utf8(out).unwrap();
+    assert!(
+        out.starts_with("G49 H1\n") || out.starts_with("G49\n"),
+        "{out}"
+    );
+    assert!(!out.contains("G234"), "{out}");
+}
