@@ -896,9 +896,9 @@ mod tests {
             .iter()
             .map(|j| {
                 if j.kind == crate::machine::chain::JointKind::Revolute {
-                    5e-4
+                    STEP_ROTARY_RAD
                 } else {
-                    5e-2
+                    STEP_LINEAR_MM
                 }
             })
             .collect();

@@ -17,6 +17,7 @@ use super::nonlinear::nonlinear_error;
 use super::plan::{Pattern, RotaryPair, insert_points, worst_segment};
 use crate::error::{Error, Location, Result};
 use crate::gcode::{ItemKind, Line, LineReader, parse_line};
+use crate::machine::rotary::{unwind_near, unwind_near_degrees, wrap_degrees};
 use crate::machine::{IkSolver, JointKind, Machine, NoErrors, RotaryMode};
 use crate::post::{GcodeConverter, PostOptions, rewrite};
 use crate::program::format::push_fixed;
@@ -200,7 +201,7 @@ impl<'m> Axes<'m> {
                 // A modulo axis is written in [0, 360): the controller turns
                 // it the short way.
                 if a.rotary == RotaryMode::Modulo {
-                    let w = (r.rem_euclid(360.0) * s).round() / s;
+                    let w = (wrap_degrees(r) * s).round() / s;
                     if w >= 360.0 { 0.0 } else { w }
                 } else {
                     r
@@ -236,31 +237,12 @@ impl<'m> Axes<'m> {
             let v = match (absolute, a.rotary) {
                 (true, _) => rt[k],
                 // The short way, as the controller turns a modulo axis.
-                (false, RotaryMode::Modulo) => short_way_deg(rt[k] - rf[k]),
+                (false, RotaryMode::Modulo) => unwind_near_degrees(rt[k], rf[k]) - rf[k],
                 (false, _) => rt[k] - rf[k],
             };
             push_fixed(&mut s, v, self.decimals[k]);
         }
         s
-    }
-}
-
-/// `d` (deg) moved into (−180, 180], exactly when it is there already.
-fn short_way_deg(d: f64) -> f64 {
-    if d.abs() <= 180.0 {
-        d
-    } else {
-        d - 360.0 * (d / 360.0).round()
-    }
-}
-
-/// `d` (rad) moved into (−π, π], exactly when it is there already.
-fn short_way_rad(d: f64) -> f64 {
-    use std::f64::consts::{PI, TAU};
-    if d.abs() <= PI {
-        d
-    } else {
-        d - TAU * (d / TAU).round()
     }
 }
 
@@ -435,7 +417,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             for a in &machine.axes {
                 if a.rotary == RotaryMode::Modulo {
                     let k = a.joint;
-                    block.q[k] = qa[k] + short_way_rad(block.q[k] - qa[k]);
+                    block.q[k] = unwind_near(block.q[k], qa[k]);
                 }
             }
         }

@@ -43,6 +43,19 @@ pub fn wrap_positive(angle: f64) -> f64 {
     if v >= TAU { 0.0 } else { v }
 }
 
+/// `value` (deg) moved by a multiple of 360° to lie within 180° of
+/// `reference`; exactly `value` when it does already. The position a
+/// modulo axis reaches from `reference` when commanded to `value`: the
+/// short way.
+pub fn unwind_near_degrees(value: f64, reference: f64) -> f64 {
+    let d = value - reference;
+    if d.abs() <= 180.0 {
+        value
+    } else {
+        value - 360.0 * (d / 360.0).round()
+    }
+}
+
 /// `degrees` wrapped into `[0, 360)`.
 pub fn wrap_degrees(degrees: f64) -> f64 {
     if (0.0..360.0).contains(&degrees) {

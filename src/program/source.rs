@@ -313,10 +313,8 @@ impl MachineAxisTracker {
                 // A modulo axis turns the short way to an absolute target
                 // (LinuxCNC's wrapped rotary, a roll-over axis): followed
                 // on that path, not across the 0/360° seam.
-                (true, true) if (v - self.ext[k]).abs() > 180.0 => {
-                    v - 360.0 * ((v - self.ext[k]) / 360.0).round()
-                }
-                (true, _) => v,
+                (true, true) => crate::machine::rotary::unwind_near_degrees(v, self.ext[k]),
+                (true, false) => v,
             };
         }
         Ok(Some(MachineBlock {
