@@ -115,6 +115,8 @@ fn bench(c: &mut Criterion) {
                 decimals: Vec::new(),
                 backlash: Vec::new(),
                 directions: Vec::new(),
+                written_per_block: true,
+                written_largest: (0.0, 0.0),
             };
             let mut out = Vec::with_capacity(program.len());
             compensate_gcode(

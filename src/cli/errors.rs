@@ -509,6 +509,8 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             .collect(),
         backlash,
         directions: Vec::new(),
+        written_per_block: a.report.is_some(),
+        written_largest: (0.0, 0.0),
     };
     let report_name = a
         .report

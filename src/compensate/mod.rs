@@ -27,6 +27,7 @@ mod refine;
 mod report;
 mod solver;
 mod step;
+mod written;
 
 pub use pipeline::{Input, compensate, compensate_gcode};
 pub use refine::{MAX_COMPENSATION_MM, MAX_COMPENSATION_RAD, Refined, refine};

@@ -2,8 +2,9 @@
 //! the analytic IK in order, the Newton refinements in parallel, the failure
 //! policy, backlash and records in order.
 
-use super::refine::{Refined, refine_near};
-use super::solver::{BlockRecord, CompensatingSolver, written_residual};
+use super::refine::{Refined, refine_near_linearized};
+use super::solver::{BlockRecord, CompensatingSolver};
+use super::written::{Written, WrittenBounds, written_residual};
 use crate::machine::chain::{JointValues, Pose};
 use crate::post::pipeline::{Stage, Step};
 use crate::post::{PostOptions, PostStats, SolvedPose};
@@ -14,10 +15,10 @@ use std::io::{BufRead, Write};
 struct Job {
     th: JointValues,
     refined: Option<Refined>,
-    /// The tool-tip and axis errors as written, when worked out beside the
-    /// refinement (no backlash pre-compensation; the failure policy keeps
-    /// the refined axes).
-    written: Option<(f64, f64)>,
+    /// The tool-tip and axis errors as written, when worked out (or bounded)
+    /// beside the refinement (no backlash pre-compensation; used where the
+    /// failure policy keeps the refined axes).
+    written: Option<Written>,
 }
 
 /// The stage of `compensate`: [`CompensatingSolver`] split around the
@@ -131,22 +132,39 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
     // are then worked out in order, else here, beside the refinement.
     let decimals = solver.decimals.clone();
     let written_here = solver.backlash.is_empty() && !decimals.is_empty();
+    // Without a report only the largest errors as written are wanted: a
+    // block's upper bounds, which cost no evaluation of the chain, then
+    // stand in where they lie below the largest so far (the in-order
+    // commit evaluates the others).
+    let bounds = (!solver.written_per_block && written_here)
+        .then(|| WrittenBounds::new(machine, &chain, errors, &decimals))
+        .flatten();
     let work = |pose: &Pose, job: &mut Job| {
         // The sines and cosines at the theoretical solution serve the
         // refinement and the axes as written, both near it.
         let near = chain.trig_at(&job.th);
-        let r = refine_near(&chain, errors, pose, &job.th, &options, &near);
+        let plan = bounds.as_ref().filter(|_| written_here);
+        let (r, bound) =
+            refine_near_linearized(&chain, errors, pose, &job.th, &options, &near, |lin| {
+                plan.and_then(|b| b.bound(&chain, pose, &job.th, lin))
+            });
         if written_here {
-            job.written = Some(written_residual(
-                machine,
-                &chain,
-                errors,
-                &decimals,
-                pose,
-                &r.q,
-                &[],
-                Some(&near),
-            ));
+            job.written = Some(match bound.flatten() {
+                Some((tip, axis)) => Written::Bound(tip, axis),
+                None => {
+                    let (tip, axis) = written_residual(
+                        machine,
+                        &chain,
+                        errors,
+                        &decimals,
+                        pose,
+                        &r.q,
+                        &[],
+                        Some(&near),
+                    );
+                    Written::Exact(tip, axis)
+                }
+            });
         }
         job.refined = Some(r);
     };

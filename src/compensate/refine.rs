@@ -33,6 +33,22 @@ pub struct Refined {
     pub start_axis_rad: f64,
 }
 
+/// What a converged exact refinement leaves for a first-order estimate of
+/// the pose near its result ([`super::written`]): the pose at the result,
+/// and the Jacobian kept by the last steps with where it was evaluated.
+#[derive(Debug, Clone, Copy)]
+pub struct Linearization<'a> {
+    /// The pose of the actual machine at `q0 + d`.
+    pub pose: &'a Pose,
+    /// The result's offsets from `q0` (mm / rad, chain order).
+    pub d: &'a [f64],
+    /// The Jacobian (tip rows mm, axis rows unit vector, per mm or per rad)
+    /// the steps used.
+    pub jacobian: &'a JacobianColumns,
+    /// The offsets from `q0` where `jacobian` was evaluated.
+    pub d_jacobian: &'a [f64],
+}
+
 /// The exact method keeps its Jacobian while every step shrinks the tool-tip
 /// residual at least this many times: see [`refine`].
 pub(super) const CHORD_GAIN: f64 = 1e3;
@@ -80,24 +96,39 @@ pub fn refine(
 ) -> Refined {
     let near = (opts.method == Method::Exact).then(|| chain.trig_at(q0));
     FACTORS.with_borrow_mut(|factors| {
-        refine_with(chain, errors, target, q0, opts, near.as_ref(), factors)
+        refine_with(
+            chain,
+            errors,
+            target,
+            q0,
+            opts,
+            near.as_ref(),
+            factors,
+            None::<fn(&Linearization<'_>)>,
+        )
+        .0
     })
 }
 
 /// [`refine`] with the sines and cosines of the revolute joints at `q0`
 /// given (`chain.trig_at(q0)`), for a caller that evaluates the chain near
-/// `q0` again afterwards ([`super::solver::written_residual`]); only the
-/// exact method uses them.
-pub fn refine_near(
+/// `q0` again afterwards ([`super::written::written_residual`]; only the
+/// exact method uses them); with the exact method, where it converged in
+/// its Newton steps, `visit` is given what a first-order estimate near the
+/// result needs ([`Linearization`]) and its answer returned.
+pub fn refine_near_linearized<T>(
     chain: &Chain,
     errors: &dyn JointErrors,
     target: &Pose,
     q0: &[f64],
     opts: &Options,
     near: &NearTrig,
-) -> Refined {
+    visit: impl FnOnce(&Linearization<'_>) -> T,
+) -> (Refined, Option<T>) {
     let near = (opts.method == Method::Exact).then_some(near);
-    FACTORS.with_borrow_mut(|factors| refine_with(chain, errors, target, q0, opts, near, factors))
+    FACTORS.with_borrow_mut(|factors| {
+        refine_with(chain, errors, target, q0, opts, near, factors, Some(visit))
+    })
 }
 
 thread_local! {
@@ -107,8 +138,10 @@ thread_local! {
         const { std::cell::RefCell::new(Factored::EMPTY) };
 }
 
-/// [`refine`] with the caller's factorisation space.
-fn refine_with(
+/// [`refine`] with the caller's factorisation space, and `visit` given the
+/// [`Linearization`] where the refinement converged in its steps.
+#[allow(clippy::too_many_arguments)]
+fn refine_with<T>(
     chain: &Chain,
     errors: &dyn JointErrors,
     target: &Pose,
@@ -116,7 +149,8 @@ fn refine_with(
     opts: &Options,
     near: Option<&NearTrig>,
     factors: &mut Factored,
-) -> Refined {
+    visit: Option<impl FnOnce(&Linearization<'_>) -> T>,
+) -> (Refined, Option<T>) {
     let n = q0.len();
     assert!(
         n <= MAX_JOINTS && n == chain.dof(),
@@ -179,6 +213,8 @@ fn refine_with(
     let mut converged = false;
     let mut jac = [[0.0; 6]; MAX_JOINTS];
     let mut pose = eval(&d[..n], &mut jac);
+    // Where `jac` was evaluated.
+    let mut d_jac = d;
     // The residuals of `pose`, carried from step to step.
     let mut tip = pose.tip_distance(target);
     let mut ax = pose.axis_angle(target);
@@ -254,6 +290,7 @@ fn refine_with(
                 // The kept Jacobian may be what fails: evaluate it here
                 // and try again before giving up.
                 pose = eval(&d[..n], &mut jac);
+                d_jac = d;
                 (tip, ax) = (pose.tip_distance(target), pose.axis_angle(target));
                 factors.factor(&jac, n, opts, &step_cap);
                 fresh = true;
@@ -268,6 +305,7 @@ fn refine_with(
         pose = p2;
         if with_jacobian {
             std::mem::swap(&mut jac, &mut jac2);
+            d_jac = d;
             factors.factor(&jac, n, opts, &step_cap);
         }
         let (last_tip, last_ax) = (tip, ax);
@@ -298,12 +336,14 @@ fn refine_with(
             fresh = false;
             if tip2 > floor && tip2 * CHORD_GAIN > last_tip {
                 pose = eval(&d[..n], &mut jac);
+                d_jac = d;
                 (tip, ax) = (pose.tip_distance(target), pose.axis_angle(target));
                 factors.factor(&jac, n, opts, &step_cap);
                 fresh = true;
             }
         } else if !with_jacobian {
             pose = eval(&d[..n], &mut jac);
+            d_jac = d;
             (tip, ax) = (pose.tip_distance(target), pose.axis_angle(target));
             factors.factor(&jac, n, opts, &step_cap);
         }
@@ -316,6 +356,18 @@ fn refine_with(
     // first order), or removing it would take moves beyond the
     // compensation bounds (millimetres and radians for micrometres), this
     // is the best the machine can do here (`best_within_bounds`).
+    // The pose and Jacobian describe the result only where the steps
+    // converged on the actual machine (the polish below moves on without
+    // them; the other methods' Jacobians are the theoretical machine's).
+    let visited = match visit {
+        Some(visit) if converged && opts.method == Method::Exact => Some(visit(&Linearization {
+            pose: &pose,
+            d: &d[..n],
+            jacobian: &jac,
+            d_jacobian: &d_jac[..n],
+        })),
+        _ => None,
+    };
     let mut best_within_bounds = false;
     if !converged {
         let mut j = [[0.0; 6]; MAX_JOINTS];
@@ -376,7 +428,7 @@ fn refine_with(
         }
     }
     let q = at(&d[..n]);
-    Refined {
+    let refined = Refined {
         tip_residual_mm: tip,
         axis_residual_rad: ax,
         start_tip_mm: start_tip,
@@ -385,7 +437,8 @@ fn refine_with(
         iterations,
         converged,
         best_within_bounds,
-    }
+    };
+    (refined, visited)
 }
 
 /// The polish step: the minimum-norm least-squares solution of `jf δ = r`

@@ -372,6 +372,7 @@ mod tests {
                 orientation_residual_urad: values[3],
                 tip_residual_written_mm: values[3] * 3.0,
                 orientation_residual_written_urad: f64::INFINITY,
+                written_is_bound: false,
                 compensation: values.iter().copied().collect(),
             };
             let mut v = serde_json::to_value(&r).unwrap();

@@ -4,7 +4,8 @@
 
 use super::refine::{Refined, refine};
 use super::step::{Method, Options};
-use crate::machine::chain::{Chain, JointErrors, JointValues, NearTrig, Pose};
+use super::written::{Written, written_residual};
+use crate::machine::chain::{Chain, JointErrors, JointValues, Pose};
 
 /// Per-block record of a compensation run.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -26,6 +27,12 @@ pub struct BlockRecord {
     pub tip_residual_written_mm: f64,
     /// Orientation error of the axis words as written, µrad.
     pub orientation_residual_written_urad: f64,
+    /// The two errors as written are upper bounds, not values: without
+    /// [`CompensatingSolver::written_per_block`] a block whose bounds lie
+    /// below the largest errors as written so far is not evaluated (it
+    /// cannot change them).
+    #[serde(skip)]
+    pub written_is_bound: bool,
     /// Compensation per axis (compensated − theoretical), output order, mm / deg.
     pub compensation: JointValues,
 }
@@ -74,6 +81,14 @@ pub struct CompensatingSolver<'a> {
     pub singular_blocks: usize,
     /// Backlash to pre-compensate: (joint, reversal value in mm / rad).
     pub backlash: Vec<(usize, f64)>,
+    /// Work out every block's errors as written (a report lists them).
+    /// Otherwise only the largest are exact: a block whose upper bounds
+    /// from the refinement's first-order estimate lie below the largest
+    /// so far keeps the bounds (`BlockRecord::written_is_bound`).
+    pub written_per_block: bool,
+    /// The largest tool-tip (mm) and tool-axis (rad) errors as written so
+    /// far, evaluated (start at 0).
+    pub written_largest: (f64, f64),
     /// Direction of the last motion of each joint in `backlash`, by the
     /// rule `diagnose` and `simulate` use (a reversal counts once the axis
     /// is back by more than the dead band); filled on the first block.
@@ -160,7 +175,7 @@ impl CompensatingSolver<'_> {
         pose: &Pose,
         th: &JointValues,
         r: &Refined,
-        written: Option<(f64, f64)>,
+        written: Option<Written>,
         line: usize,
     ) -> std::result::Result<crate::post::SolvedPose, String> {
         // A tip within the accepted residual is met, whether or not the
@@ -241,13 +256,33 @@ impl CompensatingSolver<'_> {
         }
         // Where the machine goes with the words as written: rounded to their
         // decimals, less the backlash it lags by.
+        let mut written_is_bound = false;
         let (written_tip, written_axis) = if self.decimals.is_empty() {
             (after_tip, after_axis)
         } else {
-            match written {
-                // Worked out beside the refinement, for these very axes.
-                Some(w) if q == r.q && lag.iter().all(|&l| l == 0.0) => w,
-                _ => written_residual(
+            // Worked out (or bounded) beside the refinement, for these very axes.
+            let beside = written.filter(|_| q == r.q && lag.iter().all(|&l| l == 0.0));
+            let largest = self.written_largest;
+            let w = match beside {
+                Some(Written::Exact(tip, axis)) => (tip, axis),
+                Some(Written::Bound(tip, axis))
+                    if !self.written_per_block && tip < largest.0 && axis < largest.1 =>
+                {
+                    written_is_bound = true;
+                    (tip, axis)
+                }
+                // As beside the refinement, near the theoretical solution.
+                Some(Written::Bound(..)) => written_residual(
+                    self.machine,
+                    &self.actual_chain,
+                    self.errors,
+                    &self.decimals,
+                    pose,
+                    &r.q,
+                    &[],
+                    Some(&self.actual_chain.trig_at(th)),
+                ),
+                None => written_residual(
                     self.machine,
                     &self.actual_chain,
                     self.errors,
@@ -257,7 +292,11 @@ impl CompensatingSolver<'_> {
                     &lag,
                     None,
                 ),
+            };
+            if !written_is_bound {
+                self.written_largest = (largest.0.max(w.0), largest.1.max(w.1));
             }
+            w
         };
         let ext_c = self.machine.to_external(&q);
         let ext_t = self.machine.to_external(th);
@@ -270,6 +309,7 @@ impl CompensatingSolver<'_> {
             orientation_residual_urad: after_axis * 1e6,
             tip_residual_written_mm: written_tip,
             orientation_residual_written_urad: written_axis * 1e6,
+            written_is_bound,
             compensation: ext_c
                 .iter()
                 .zip(&ext_t)
@@ -289,42 +329,4 @@ impl CompensatingSolver<'_> {
             q,
         })
     }
-}
-
-/// The tool-tip (mm) and tool-axis (rad) errors of the actual machine
-/// (`chain` with `errors`) at the axes as written: `q` (chain order, with
-/// the backlash pre-compensation `lag` added) rounded to `decimals` (per
-/// axis of `machine`), the lag taken off again (the machine's play takes
-/// it back). A joint beyond the end of `lag` has none (`&[]`: no lag).
-/// `near`: the revolute joints' sines and cosines at joint values near `q`
-/// ([`Chain::trig_at`] of the theoretical solution), when the caller has
-/// them: the rotations of the written values then follow from them by the
-/// addition theorem ([`NearTrig`]) instead of a `sin_cos` each.
-#[allow(clippy::too_many_arguments)]
-pub fn written_residual(
-    machine: &crate::machine::Machine,
-    chain: &Chain,
-    errors: &dyn JointErrors,
-    decimals: &[u32],
-    pose: &Pose,
-    q: &[f64],
-    lag: &[f64],
-    near: Option<&NearTrig>,
-) -> (f64, f64) {
-    let mut ext = machine.to_external(q);
-    for (v, &d) in ext.iter_mut().zip(decimals) {
-        let scale = crate::numeric::pow10(d);
-        if let Some(i) = crate::numeric::round_half_away(*v * scale) {
-            *v = i as f64 / scale;
-        }
-    }
-    let mut written = machine.to_internal(&ext);
-    for (w, l) in written.iter_mut().zip(lag) {
-        *w -= l;
-    }
-    let p = match near {
-        Some(near) => chain.pose_near(&written, errors, near),
-        None => chain.pose(&written, errors),
-    };
-    (p.tip_distance(pose), p.axis_angle(pose))
 }

@@ -101,6 +101,42 @@ impl MergedAxis {
         self.evaluate(pos, true)
     }
 
+    /// Upper bounds of the error motions' slopes anywhere, beyond the
+    /// travel too: `(Σ|δ'|, Σ|ε'|)`, the sums of the absolute slopes of the
+    /// three translations (mm per mm or per degree) and of the three
+    /// rotations (rad per mm or per degree). On a piece the slope of a
+    /// cubic in `u = (x − start)/w` is `(a₁ + 2a₂u + 3a₃u²)/w`, at most
+    /// `(|a₁| + 2|a₂| + 3|a₃|)/w` for `u` in `[0, 1]`; beyond the travel
+    /// it is the end slope (linear extrapolation) or zero (hold). The
+    /// pieces join with equal values (and slopes), so the motions are
+    /// Lipschitz with these constants over the whole line (of positions as
+    /// evaluated: a rotary's position is wrapped first).
+    pub fn slope_bounds(&self) -> (f64, f64) {
+        let mut bound = [0.0f64; 2];
+        for (inv_w, cubics) in &self.pieces {
+            let mut piece = [0.0f64; 2];
+            for (k, [_, a1, a2, a3]) in cubics.iter().enumerate() {
+                piece[k / 3] += (a1.abs() + 2.0 * a2.abs() + 3.0 * a3.abs()) * inv_w;
+            }
+            bound = [bound[0].max(piece[0]), bound[1].max(piece[1])];
+        }
+        if self.extrapolation == Extrapolation::Linear {
+            for (_, slope) in [&self.end_lo, &self.end_hi] {
+                let ends = [
+                    slope[0].abs() + slope[1].abs() + slope[2].abs(),
+                    slope[3].abs() + slope[4].abs() + slope[5].abs(),
+                ];
+                bound = [bound[0].max(ends[0]), bound[1].max(ends[1])];
+            }
+        }
+        (bound[0], bound[1])
+    }
+
+    /// The measured travel `(lo, hi)` (mm or degrees).
+    pub fn range(&self) -> (f64, f64) {
+        (self.lo, self.hi)
+    }
+
     /// Whether positions are in degrees (a rotary axis).
     pub fn is_rotary(&self) -> bool {
         self.rotary

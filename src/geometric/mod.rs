@@ -16,6 +16,7 @@
 //! See `docs/error-tables.md`.
 
 pub mod axis_errors;
+pub mod bound;
 pub mod bspline;
 pub mod cache;
 pub mod effect_spec;

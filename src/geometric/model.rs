@@ -1,5 +1,6 @@
 //! The error model: fitted error splines per axis plus fixed error elements,
-//! bound to a kinematic chain as a [`JointErrors`] source.
+//! bound to a kinematic chain as a
+//! [`JointErrors`](crate::machine::chain::JointErrors) source ([`BoundErrors`]).
 
 use std::path::Path;
 
@@ -7,6 +8,7 @@ use nalgebra::Matrix4;
 use serde::{Deserialize, Serialize};
 
 pub use super::axis_errors::{AxisErrors, ColumnSpline, Origin};
+pub use super::bound::BoundErrors;
 use super::bspline::{self, BSpline, Extrapolation, KnotChoice, SplineOptions};
 use super::cache::{FitCache, Hit};
 use super::iso230_2::{self, Iso230_2};
@@ -15,7 +17,7 @@ use super::table::{
 };
 use crate::error::{Error, Location, Result};
 use crate::geometric::effects::{BoundEffect, Effect, EffectSpec, StaticTerm};
-use crate::machine::chain::{Chain, ErrorMotion, JointErrors, JointKind, error_matrix};
+use crate::machine::chain::{Chain, ErrorMotion, JointKind, error_matrix};
 
 /// Value of the `format` field of a model JSON file.
 pub const MODEL_FORMAT: &str = "kinpost-error-model";
@@ -694,17 +696,7 @@ impl ErrorModel {
                 terms.push(t);
             }
         }
-        let merged = per_joint
-            .iter()
-            .map(|a| a.and_then(super::merged::MergedAxis::new))
-            .collect();
-        let empty = per_joint.iter().all(Option::is_none) && terms.is_empty();
-        Ok(BoundErrors {
-            per_joint,
-            merged,
-            terms,
-            empty,
-        })
+        Ok(BoundErrors::new(per_joint, terms))
     }
 
     /// Returns `chain` with every fixed error element inserted (in order).
@@ -844,89 +836,6 @@ fn locate(text: &str, file: &str, needle: &str) -> Location {
             Location::new(file, line, col)
         }
         None => Location::new(file, 0, 0),
-    }
-}
-
-/// An [`ErrorModel`] bound to a chain's joint indices: the chain evaluator's
-/// error source, with analytic derivatives.
-#[derive(Debug, Clone)]
-pub struct BoundErrors<'a> {
-    per_joint: Vec<Option<&'a AxisErrors>>,
-    /// Per joint, its axis's errors merged into one piecewise cubic (when
-    /// they can be).
-    merged: Vec<Option<super::merged::MergedAxis>>,
-    /// Static diagnosed effects in error-motion form.
-    terms: Vec<StaticTerm>,
-    /// No joint has errors ([`JointErrors::is_empty`], asked at every
-    /// evaluation of the chain: kept, not recounted).
-    empty: bool,
-}
-
-impl BoundErrors<'_> {
-    /// The modelled axis at joint index `joint`, if any.
-    pub fn axis_of(&self, joint: usize) -> Option<&AxisErrors> {
-        self.per_joint.get(joint).copied().flatten()
-    }
-}
-
-impl BoundErrors<'_> {
-    /// Error motions of `joint` at `q` and their derivatives (per mm or rad).
-    fn evaluate(&self, joint: usize, q: f64) -> Option<(ErrorMotion, ErrorMotion)> {
-        let base = self.per_joint.get(joint).copied().flatten().map(|a| {
-            let merged = self.merged[joint].as_ref();
-            let at = |pos: f64| match merged {
-                Some(m) => m.error_at(pos),
-                None => a.error_at(pos),
-            };
-            if a.rotary {
-                // The chain works in rad, the splines in degrees.
-                let (e, d) = at(q.to_degrees());
-                (e, d * (180.0 / std::f64::consts::PI))
-            } else {
-                at(q)
-            }
-        });
-        if self.terms.is_empty() {
-            return base;
-        }
-        let mut extra: Option<(ErrorMotion, ErrorMotion)> = None;
-        for t in self.terms.iter().filter(|t| t.joint == joint) {
-            let h = 1e-6 * (1.0 + q.abs());
-            let e = t.error_motion(q);
-            let d = (t.error_motion(q + h) - t.error_motion(q - h)) / (2.0 * h);
-            let acc = extra.get_or_insert((ErrorMotion::zeros(), ErrorMotion::zeros()));
-            acc.0 += e;
-            acc.1 += d;
-        }
-        match (base, extra) {
-            (None, None) => None,
-            (Some(b), None) => Some(b),
-            (None, Some(x)) => Some(x),
-            (Some(b), Some(x)) => Some((b.0 + x.0, b.1 + x.1)),
-        }
-    }
-}
-
-impl JointErrors for BoundErrors<'_> {
-    fn error(&self, joint: usize, q: f64) -> Option<ErrorMotion> {
-        // The merged splines without their derivatives, where nothing else
-        // adds to this joint (the common case).
-        if self.terms.is_empty()
-            && let Some(m) = self.merged.get(joint).and_then(Option::as_ref)
-        {
-            // (A merged axis is one of `per_joint`'s.)
-            let pos = if m.is_rotary() { q.to_degrees() } else { q };
-            return Some(m.value_at(pos));
-        }
-        self.evaluate(joint, q).map(|(e, _)| e)
-    }
-
-    fn error_and_derivative(&self, joint: usize, q: f64) -> Option<(ErrorMotion, ErrorMotion)> {
-        self.evaluate(joint, q)
-    }
-
-    fn is_empty(&self) -> bool {
-        self.empty
     }
 }
 

@@ -78,6 +78,23 @@ pub struct Joint {
 /// `[δx, δy, δz, εx, εy, εz]`, mm and rad, in the joint's moving frame.
 pub type ErrorMotion = Vector6<f64>;
 
+/// Upper bounds of the slopes of a joint's error motions
+/// ([`JointErrors::slope_bounds`]): the motions are Lipschitz with these
+/// constants between any two joint values, except across a seam of a
+/// rotary's `wrap` range.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SlopeBounds {
+    /// `Σ|δ'|`: the three translations' slopes summed, mm per mm or per rad.
+    pub translation: f64,
+    /// `Σ|ε'|`: the three rotations' slopes summed, rad per mm or per rad.
+    pub rotation: f64,
+    /// For a rotary joint whose errors are looked up at its angle wrapped
+    /// into `[lo, hi]` degrees (the equivalent angle in, or nearest to, the
+    /// range): the motions may jump where the wrap changes turn, so the
+    /// bounds hold only between two angles wrapped by the same turn.
+    pub wrap: Option<(f64, f64)>,
+}
+
 /// Source of position-dependent joint errors for the chain evaluator.
 ///
 /// The theoretical machine uses [`NoErrors`]. An error model (fitted tables,
@@ -102,6 +119,14 @@ pub trait JointErrors {
     fn is_empty(&self) -> bool {
         false
     }
+
+    /// Upper bounds of the slopes of joint `joint`'s error motions
+    /// ([`SlopeBounds`]), or `None` when the source cannot give them (the
+    /// default). Lets a caller bound a first-order estimate of the pose
+    /// instead of evaluating it.
+    fn slope_bounds(&self, _joint: usize) -> Option<SlopeBounds> {
+        None
+    }
 }
 
 /// The theoretical machine: no joint errors.
@@ -117,6 +142,9 @@ impl JointErrors for NoErrors {
     }
     fn is_empty(&self) -> bool {
         true
+    }
+    fn slope_bounds(&self, _joint: usize) -> Option<SlopeBounds> {
+        Some(SlopeBounds::default())
     }
 }
 
@@ -399,6 +427,15 @@ impl Chain {
         jac: &mut JacobianColumns,
     ) -> Pose {
         compiled::pose_jacobian(&self.compiled, q, errors, jac, Rotations::Compute)
+    }
+
+    /// An upper bound of the distance between any two frames of the chain
+    /// at joint values `q` (mm), the origin and the tool tip among them:
+    /// the lengths of the fixed translations and of the prismatic joints'
+    /// displacements summed (rotations change no length). Error motions
+    /// move the frames by their translations on top of this.
+    pub fn frame_reach(&self, q: &[f64]) -> f64 {
+        compiled::frame_reach(&self.compiled, q)
     }
 
     /// The sines and cosines of the revolute joints at `q0`, for poses and

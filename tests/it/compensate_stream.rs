@@ -31,6 +31,8 @@ fn solver<'a>(
         decimals: Vec::new(),
         backlash: Vec::new(),
         directions: Vec::new(),
+        written_per_block: true,
+        written_largest: (0.0, 0.0),
     }
 }
 
@@ -159,4 +161,101 @@ fn report_streams_and_threads_do_not_change_the_result() {
     // The layout of serde_json's pretty printer.
     let text = String::from_utf8(r1).unwrap();
     assert_eq!(serde_json::to_string_pretty(&v).unwrap(), text);
+}
+
+/// Without a report only the largest errors as written are exact: a block
+/// whose first-order upper bounds lie below the largest so far is not
+/// evaluated at its written values. The summary is the same as that of a
+/// run with a report, where every block is evaluated, on both seed
+/// machines, for coarse and fine decimals and either number of threads;
+/// the report's largest values are those of its blocks.
+#[test]
+fn the_largest_errors_as_written_do_not_depend_on_the_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let spiral = dir.path().join("spiral.nc");
+    std::fs::write(&spiral, program(3000)).unwrap();
+    let spiral = spiral.display().to_string();
+    let cases = [
+        (
+            "zhao2022-xzbc",
+            "fixtures/errors/zhao2022-xzbc.csv",
+            spiral.clone(),
+        ),
+        (
+            "zhao2022-xzbc",
+            "fixtures/errors/zhao2022-xzbc.csv",
+            repo_file("fixtures/programs/zhao2022-lens.nc"),
+        ),
+        (
+            "wang2023-xyzab",
+            "fixtures/errors/wang2023-xyzab.csv",
+            repo_file("fixtures/programs/wang2023-xyzab.ngc"),
+        ),
+        (
+            "wang2023-xyzab",
+            "fixtures/errors/wang2023-xyzab.csv",
+            repo_file("fixtures/programs/wang2023-impeller.nc"),
+        ),
+    ];
+    for (machine, table, prog) in &cases {
+        for decimals in ["2", "4", "7"] {
+            let run = |threads: &str, report: bool| {
+                let rep = dir.path().join("r.json");
+                let mut cmd = Command::new(crate::util::BIN);
+                cmd.env("RAYON_NUM_THREADS", threads)
+                    .args([
+                        "compensate",
+                        "--machine",
+                        machine,
+                        "--decimals",
+                        decimals,
+                        "--errors",
+                    ])
+                    .arg(repo_file(table))
+                    .arg(prog)
+                    .arg("-o")
+                    .arg(dir.path().join("o.nc"));
+                if report {
+                    cmd.arg("--report").arg(&rep);
+                }
+                let out = cmd.output().unwrap();
+                assert!(
+                    out.status.success(),
+                    "{}",
+                    String::from_utf8_lossy(&out.stderr)
+                );
+                let report = report.then(|| {
+                    serde_json::from_slice::<serde_json::Value>(&std::fs::read(&rep).unwrap())
+                        .unwrap()
+                });
+                (String::from_utf8(out.stderr).unwrap(), report)
+            };
+            let (with, report) = run("2", true);
+            let (without, _) = run("2", false);
+            let (one, _) = run("1", false);
+            let case = format!("{machine} {prog} --decimals {decimals}");
+            assert_eq!(with, without, "{case}");
+            assert_eq!(with, one, "{case}");
+            let report = report.unwrap();
+            for (block_key, summary_key) in [
+                ("tip_residual_written_mm", "tip_residual_written_max_mm"),
+                (
+                    "orientation_residual_written_urad",
+                    "orientation_residual_written_max_urad",
+                ),
+            ] {
+                let largest = report["blocks"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|b| b[block_key].as_f64().unwrap())
+                    .fold(0.0, f64::max);
+                assert_eq!(
+                    report["summary"][summary_key].as_f64(),
+                    Some(largest),
+                    "{case}"
+                );
+            }
+        }
+    }
 }

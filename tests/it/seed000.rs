@@ -49,6 +49,8 @@ fn run_method(
         decimals: Vec::new(),
         backlash: Vec::new(),
         directions: Vec::new(),
+        written_per_block: true,
+        written_largest: (0.0, 0.0),
     };
     let mut prev: Option<Vec<f64>> = None;
     let mut qs = Vec::new();

@@ -420,6 +420,20 @@ pub(super) fn forward(c: &Compiled, q: &[f64], errors: &dyn JointErrors) -> Affi
     t.unwrap_or(Affine::IDENTITY)
 }
 
+/// See [`super::Chain::frame_reach`].
+pub(super) fn frame_reach(c: &Compiled, q: &[f64]) -> f64 {
+    c.steps
+        .iter()
+        .map(|step| match step {
+            Step::Fixed(m) => (m.m[0][3].powi(2) + m.m[1][3].powi(2) + m.m[2][3].powi(2)).sqrt(),
+            Step::Joint(j) => match c.joints[*j].kind {
+                JointKind::Prismatic => q.get(*j).map_or(0.0, |v| v.abs()),
+                JointKind::Revolute => 0.0,
+            },
+        })
+        .sum()
+}
+
 /// The tool tip and axis of the precomputed chain by one backward pass
 /// of the two vectors (`T·[0,0,0,1]`, `T·[0,0,1,0]`): each element maps
 /// a point and a direction instead of multiplying 3×4 matrices.
