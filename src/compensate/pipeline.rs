@@ -146,7 +146,7 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
         let plan = bounds.as_ref().filter(|_| written_here);
         let (r, bound) =
             refine_near_linearized(&chain, errors, pose, &job.th, &options, &near, |lin| {
-                plan.and_then(|b| b.bound(&chain, pose, &job.th, lin))
+                plan.and_then(|b| b.bound(pose, &job.th, lin))
             });
         if written_here {
             job.written = Some(match bound.flatten() {

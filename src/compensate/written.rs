@@ -99,6 +99,9 @@ pub struct WrittenBounds {
     revolute: [bool; MAX_JOINTS],
     modulo: [bool; MAX_JOINTS],
     slopes: [SlopeBounds; MAX_JOINTS],
+    /// The fixed part of the chain's reach ([`Chain::frame_reach`] with
+    /// the prismatic joints at 0).
+    fixed_reach: f64,
 }
 
 impl WrittenBounds {
@@ -122,6 +125,7 @@ impl WrittenBounds {
             revolute: [false; MAX_JOINTS],
             modulo: [false; MAX_JOINTS],
             slopes: [SlopeBounds::default(); MAX_JOINTS],
+            fixed_reach: chain.frame_reach(&[0.0; MAX_JOINTS][..n]),
         };
         for (axis, &dec) in machine.axes.iter().zip(decimals) {
             let j = axis.joint;
@@ -148,31 +152,29 @@ impl WrittenBounds {
     /// evaluating the chain there (see the module); `None` where they
     /// cannot be had (a rotary's error table wrapped differently along the
     /// way, or numbers that are not finite).
-    pub fn bound(
-        &self,
-        chain: &Chain,
-        target: &Pose,
-        q0: &[f64],
-        lin: &Linearization,
-    ) -> Option<(f64, f64)> {
+    pub fn bound(&self, target: &Pose, q0: &[f64], lin: &Linearization) -> Option<(f64, f64)> {
         let n = self.n;
-        let mut q = [0.0; MAX_JOINTS];
         let mut tip = lin.pose.tip;
         let mut axis = lin.pose.axis;
+        // The offsets along the way `a` and the roundings `b` summed over the
+        // revolute (rad) and prismatic (mm) joints, the revolute columns'
+        // largest length, the chain's reach, and the slope-weighted sums of
+        // the error terms (the module's bound, term by term).
         let (mut a_r, mut a_p, mut b_r, mut b_p, mut column) = (0.0, 0.0, 0.0, 0.0, 0.0f64);
-        let (mut a, mut b) = ([0.0; MAX_JOINTS], [0.0; MAX_JOINTS]);
+        let mut reach = self.fixed_reach + 1.0;
+        let (mut b_sr, mut b_st, mut a_sr, mut a_st) = (0.0, 0.0, 0.0, 0.0);
         for j in 0..n {
-            q[j] = q0[j] + lin.d[j];
+            let q = q0[j] + lin.d[j];
             // The word's rounding, as `written_residual` rounds it.
             let v = if self.revolute[j] {
-                let deg = q[j].to_degrees();
+                let deg = q.to_degrees();
                 if self.modulo[j] {
                     wrap_degrees(deg)
                 } else {
                     deg
                 }
             } else {
-                q[j]
+                q
             };
             let delta = match crate::numeric::round_half_away(v * self.scale[j]) {
                 Some(i) if self.revolute[j] => (i as f64 / self.scale[j] - v).to_radians(),
@@ -183,38 +185,39 @@ impl WrittenBounds {
             tip += Vector3::new(c[0], c[1], c[2]) * delta;
             axis += Vector3::new(c[3], c[4], c[5]) * delta;
             // The conversion to degrees and back costs a few ulps of the angle.
-            b[j] = delta.abs() + 4e-16 * (q[j].abs() + 10.0);
-            a[j] = (lin.d[j] - lin.d_jacobian[j]).abs() + b[j];
+            let b = delta.abs() + 4e-16 * (q.abs() + 10.0);
+            let a = (lin.d[j] - lin.d_jacobian[j]).abs() + b;
+            let SlopeBounds {
+                translation: s_t,
+                rotation: s_r,
+                wrap,
+            } = self.slopes[j];
+            (b_sr, b_st, a_sr, a_st) = (
+                b_sr + b * s_r,
+                b_st + b * s_t,
+                a_sr + a * s_r,
+                a_st + a * s_t,
+            );
             if self.revolute[j] {
-                a_r += a[j];
-                b_r += b[j];
+                a_r += a;
+                b_r += b;
                 column = column.max((c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt());
-                if let Some(range) = self.slopes[j].wrap {
-                    let ends = [q0[j] + lin.d_jacobian[j], q[j] + delta];
-                    if !same_turn(q[j], ends, range) {
-                        return None;
-                    }
+                if let Some(range) = wrap
+                    && !same_turn(q, [q0[j] + lin.d_jacobian[j], q + delta], range)
+                {
+                    return None;
                 }
             } else {
-                a_p += a[j];
-                b_p += b[j];
+                a_p += a;
+                b_p += b;
+                reach += q.abs();
             }
         }
         let estimate = Pose { tip, axis };
         let r = (column + a_p) * (1.01 + a_r) + 1e-6;
-        let reach = chain.frame_reach(&q[..n]) + 1.0;
         let b_all = b_r + b_p;
-        let (mut error_tip, mut error_axis) = (0.0, 0.0);
-        for j in 0..n {
-            let SlopeBounds {
-                translation: s_t,
-                rotation: s_r,
-                ..
-            } = self.slopes[j];
-            error_tip +=
-                2.0 * b[j] * (s_r * reach + s_t) + b_all * a[j] * (s_r * (r + reach) + s_t);
-            error_axis += 2.0 * (b[j] + b_all * a[j]) * s_r;
-        }
+        let error_tip = 2.0 * (b_sr * reach + b_st) + b_all * (a_sr * (r + reach) + a_st);
+        let error_axis = 2.0 * (b_sr + b_all * a_sr);
         let tip_remainder = 1.1 * (r * a_r * b_r + a_r * b_p + a_p * b_r)
             + error_tip
             + 1e-11
@@ -343,7 +346,7 @@ mod tests {
                 let opts = Options::default();
                 let (r, bound) =
                     refine_near_linearized(chain, errors, &target, &th, &opts, &near, |lin| {
-                        plan.bound(chain, &target, &th, lin)
+                        plan.bound(&target, &th, lin)
                     });
                 let exact = written_residual(
                     machine,
