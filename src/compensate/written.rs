@@ -163,8 +163,8 @@ impl WrittenBounds {
         let (mut a_r, mut a_p, mut b_r, mut b_p, mut column) = (0.0, 0.0, 0.0, 0.0, 0.0f64);
         let mut reach = self.fixed_reach + 1.0;
         let (mut b_sr, mut b_st, mut a_sr, mut a_st) = (0.0, 0.0, 0.0, 0.0);
-        for j in 0..n {
-            let q = q0[j] + lin.d[j];
+        for (j, &q0_j) in q0.iter().enumerate().take(n) {
+            let q = q0_j + lin.d[j];
             // The word's rounding, as `written_residual` rounds it.
             let v = if self.revolute[j] {
                 let deg = q.to_degrees();
@@ -203,7 +203,7 @@ impl WrittenBounds {
                 b_r += b;
                 column = column.max((c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt());
                 if let Some(range) = wrap
-                    && !same_turn(q, [q0[j] + lin.d_jacobian[j], q + delta], range)
+                    && !same_turn(q, [q0_j + lin.d_jacobian[j], q + delta], range)
                 {
                     return None;
                 }
