@@ -154,6 +154,9 @@ impl WrittenBounds {
     /// way, or numbers that are not finite).
     pub fn bound(&self, target: &Pose, q0: &[f64], lin: &Linearization) -> Option<(f64, f64)> {
         let n = self.n;
+        if q0.len() != n || lin.d.len() != n || lin.d_jacobian.len() != n {
+            return None;
+        }
         let mut tip = lin.pose.tip;
         let mut axis = lin.pose.axis;
         // The offsets along the way `a` and the roundings `b` summed over the
