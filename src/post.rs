@@ -65,6 +65,18 @@ pub struct SolvedPose {
     /// Angle by which the reachable tool axis misses the programmed one, rad
     /// (non-zero on four-axis machines for poses off the machine's cone).
     pub axis_miss_rad: f64,
+    /// The theoretical joint values of the pose (the inverse kinematics of
+    /// the nominal machine) when `q` is compensated (`kinpost compensate`),
+    /// `None` when `q` is theoretical: the checks of what the program asks
+    /// of the machine (cutter compensation) compare these.
+    pub theoretical: Option<crate::machine::chain::JointValues>,
+}
+
+impl SolvedPose {
+    /// The theoretical joint values ([`SolvedPose::theoretical`], else `q`).
+    pub fn theoretical_q(&self) -> &[f64] {
+        self.theoretical.as_deref().unwrap_or(&self.q)
+    }
 }
 
 impl PoseSolver for IkSolver {
@@ -78,6 +90,7 @@ impl PoseSolver for IkSolver {
             .map(|s| SolvedPose {
                 q: s.q,
                 axis_miss_rad: s.axis_miss_rad,
+                theoretical: None,
             })
             .map_err(|e| e.to_string())
     }
