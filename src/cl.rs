@@ -128,6 +128,17 @@ pub enum ClStatement {
     /// A literal G-code block to write as it is (made by [`lower`], never
     /// by the reader): `G41 D1`, `T3 M6`, `G4 P0.5`, ...
     Block(String),
+    /// Cutter compensation (made by [`lower`], never by the reader):
+    /// `CUTCOM/LEFT|RIGHT` (`on`) or `CUTCOM/OFF`, with the block that
+    /// writes it (`G41 D3`, `G42`, `G40`). The moves while it is on must
+    /// keep the tool along the machine's Z axis and the rotary axes still
+    /// (docs/programs.md, "APT CL data").
+    CutterCompensation {
+        /// The block to write.
+        block: String,
+        /// Compensation is on after it.
+        on: bool,
+    },
     /// A warning for stderr (made by [`lower`], never by the reader).
     Warning(String),
     /// An arc (made by [`lower`], never by the reader): `G2`/`G3` when it

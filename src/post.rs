@@ -65,6 +65,18 @@ pub struct SolvedPose {
     /// Angle by which the reachable tool axis misses the programmed one, rad
     /// (non-zero on four-axis machines for poses off the machine's cone).
     pub axis_miss_rad: f64,
+    /// The theoretical joint values of the pose (the inverse kinematics of
+    /// the nominal machine) when `q` is compensated (`kinpost compensate`),
+    /// `None` when `q` is theoretical: the checks of what the program asks
+    /// of the machine (cutter compensation) compare these.
+    pub theoretical: Option<crate::machine::chain::JointValues>,
+}
+
+impl SolvedPose {
+    /// The theoretical joint values ([`SolvedPose::theoretical`], else `q`).
+    pub fn theoretical_q(&self) -> &[f64] {
+        self.theoretical.as_deref().unwrap_or(&self.q)
+    }
 }
 
 impl PoseSolver for IkSolver {
@@ -78,6 +90,7 @@ impl PoseSolver for IkSolver {
             .map(|s| SolvedPose {
                 q: s.q,
                 axis_miss_rad: s.axis_miss_rad,
+                theoretical: None,
             })
             .map_err(|e| e.to_string())
     }
@@ -297,6 +310,8 @@ pub struct GcodeConverter<'a> {
     machine: &'a Machine,
     opts: &'a PostOptions,
     modal: ModalState,
+    /// The modal state with the block-delete switch on, where it differs.
+    switch: crate::program::block_delete_switch::BlockDeleteSwitch,
     writer: AxisWriter<'a>,
     previous: Option<crate::machine::chain::JointValues>,
     /// Machine axis positions (output order, mm / deg) followed through
@@ -324,6 +339,7 @@ impl<'a> GcodeConverter<'a> {
             machine,
             opts,
             modal: ModalState::new(opts.pose_start),
+            switch: crate::program::block_delete_switch::BlockDeleteSwitch::new(opts.inverse_time),
             writer: AxisWriter::new(machine, opts.decimals),
             previous: None,
             machine_ext: vec![0.0; machine.axes.len()],
@@ -406,14 +422,25 @@ impl<'a> GcodeConverter<'a> {
         });
         let has_words = !words.is_empty() || !keywords.is_empty();
         let start_tip = self.modal.tip;
-        let applied = self.modal.apply(&words, &keywords);
+        let applied = self.switch.apply(&mut self.modal, &words, &keywords, line);
         self.words = recycle(words);
-        let meaning = applied.map_err(|e| {
+        let meaning = applied.map_err(|e| match e {
+            crate::program::block_delete_switch::Refused::Slash { at, message } => {
+                Error::input_with(
+                    Location::new(&opts.file_name, at.line, at.col),
+                    message,
+                    at.text,
+                )
+            }
             // Text not understood in the block explains the failure best.
-            match opaque_in_pose_block(line, true, true, true) {
-                Some(i) => opaque_error(i),
-                None => {
-                    Error::input_with(loc(e.item), e.message, String::from_utf8_lossy(&line.bytes))
+            crate::program::block_delete_switch::Refused::Block(e) => {
+                match opaque_in_pose_block(line, true, true, true) {
+                    Some(i) => opaque_error(i),
+                    None => Error::input_with(
+                        loc(e.item),
+                        e.message,
+                        String::from_utf8_lossy(&line.bytes),
+                    ),
                 }
             }
         })?;
@@ -652,8 +679,10 @@ impl GcodeConverter<'_> {
             }
         }
         let mut moved = false;
+        let mut given = 0usize;
         for w in line.words() {
             if let Some(k) = self.machine.axes.iter().position(|a| a.name == w.address) {
+                given |= 1 << k;
                 let scale = if self.machine.axes[k].kind == crate::machine::JointKind::Prismatic {
                     meaning.units.mm_per_unit()
                 } else {
@@ -669,6 +698,12 @@ impl GcodeConverter<'_> {
             }
         }
         if moved {
+            let slash = line
+                .items
+                .iter()
+                .position(|i| matches!(i.kind, ItemKind::BlockDelete));
+            let whole = meaning.absolute && given.count_ones() as usize == self.machine.axes.len();
+            self.switch.followed_move(&self.modal, line, slash, whole);
             let q = self.machine.to_internal(&self.machine_ext);
             let pose = self
                 .machine_at(line.number)

@@ -212,16 +212,27 @@ impl<R: BufRead> Lowered<R> {
             }
             "CUTCOM" => match a(0).as_str() {
                 "LEFT" | "RIGHT" => {
+                    // G41/G42 compensate in the plane in force, G17 (X Y):
+                    // the plane XYPLAN names. Another plane is not written.
+                    if let Some(p) = args
+                        .iter()
+                        .skip(1)
+                        .find(|x| x.is("YZPLAN") || x.is("ZXPLAN"))
+                    {
+                        return Err(self.err(r, format!("CUTCOM/{},{} asks for cutter compensation in another plane than X Y, and kinpost writes G41/G42 in G17 (X Y) only: have the CAM system output the tool-centre path for this operation", a(0), p.upper())));
+                    }
                     let g = if a(0) == "LEFT" { "G41" } else { "G42" };
                     self.cutcom = true;
-                    match self.tool {
-                        Some(t) => self.block(r, format!("{g} D{t}")),
-                        None => self.block(r, g),
-                    }
+                    let block = match self.tool {
+                        Some(t) => format!("{g} D{t}"),
+                        None => g.to_string(),
+                    };
+                    self.emit(r, ClStatement::CutterCompensation { block, on: true });
                 }
                 "OFF" => {
                     self.cutcom = false;
-                    self.block(r, "G40");
+                    let block = "G40".to_string();
+                    self.emit(r, ClStatement::CutterCompensation { block, on: false });
                 }
                 w => {
                     return Err(
@@ -498,7 +509,9 @@ pub(super) mod tests {
         flat(s)
             .iter()
             .filter_map(|s| match s {
-                ClStatement::Block(b) => Some(b.clone()),
+                ClStatement::Block(b) | ClStatement::CutterCompensation { block: b, .. } => {
+                    Some(b.clone())
+                }
                 _ => None,
             })
             .collect()

@@ -327,6 +327,7 @@ impl CompensatingSolver<'_> {
         Ok(crate::post::SolvedPose {
             axis_miss_rad: 0.0,
             q,
+            theoretical: Some(th.clone()),
         })
     }
 }

@@ -2,7 +2,7 @@
 //! in order ([`crate::cl::lower`]) on the driver's thread, converted
 //! through the driver ([`super::pipeline::drive`]) like G-code.
 
-use super::cl_motion;
+use super::cl_motion::{self, CutcomOn};
 use super::pipeline::{Format, Stage, Whole};
 use super::{AxisWriter, PoseSolver, PostOptions, PostStats, SolvedPose, unreachable_axis};
 use crate::cl::{ClReader, ClRecord, ClStatement, FeedUnit, SpindleDir};
@@ -93,8 +93,12 @@ pub fn convert_cl<S: Stage, R: BufRead, W: Write + ?Sized>(
         feed: None,
         per_rev: false,
         g80: 0,
+        cutcom: None,
         writer: AxisWriter::new(machine, opts.decimals),
         previous: None,
+        previous_th: None,
+        cutcom_reference: None,
+        probe: None,
         last_tip: None,
         g93: false,
         feed_written: None,
@@ -144,6 +148,8 @@ pub struct ClPending {
     g80: u64,
     /// Its place among the statements (for the order of warnings).
     seq: u64,
+    /// Cutter compensation in force.
+    cutcom: Option<CutcomOn>,
 }
 
 /// APT CL as a [`Format`]: the lowered statements (read in order on the
@@ -181,10 +187,23 @@ struct ClFormat<'a> {
     /// `G80` blocks begun: each one resets the motion code written, in
     /// order, when the first pose after it is written.
     g80: u64,
+    /// Cutter compensation in force (`CUTCOM/LEFT|RIGHT` until
+    /// `CUTCOM/OFF`).
+    cutcom: Option<CutcomOn>,
     // What is written (finish; begin with a planner).
     writer: AxisWriter<'a>,
     /// Joint values of the last pose written.
     previous: Option<JointValues>,
+    /// Its theoretical joint values (`compensate` writes compensated ones).
+    previous_th: Option<JointValues>,
+    /// The theoretical joint values in force when the cutter compensation
+    /// in force went on (its [`CutcomOn::seq`]): the rotary axes must stay
+    /// at them.
+    cutcom_reference: Option<(u64, JointValues)>,
+    /// The inverse kinematics of the nominal machine, for the test that the
+    /// tool is along Z under cutter compensation (made at the first
+    /// compensated move).
+    probe: Option<crate::machine::IkSolver>,
     /// The last programmed tool tip, mm.
     last_tip: Option<Vector3<f64>>,
     /// The output is in `G93`.
@@ -286,6 +305,7 @@ impl ClFormat<'_> {
             per_rev: self.per_rev,
             g80: self.g80,
             seq: self.seq,
+            cutcom: self.cutcom,
         }))
     }
 
@@ -377,11 +397,65 @@ impl ClFormat<'_> {
                 }
                 line(out, format_args!("{b}"));
             }
+            ClStatement::CutterCompensation { block, on } => {
+                self.cutcom = on.then(|| CutcomOn {
+                    seq: self.seq,
+                    line: record.line,
+                    left: block.starts_with("G41"),
+                });
+                line(out, format_args!("{block}"));
+            }
             ClStatement::Warning(w) => self.warn(self.seq, 0, w.clone()),
             ClStatement::Arc(arc) => self.arc(record, arc, planner, out)?,
             ClStatement::Hole(hole) => self.hole(record, hole, planner, out)?,
         }
         Ok(None)
+    }
+}
+
+impl ClFormat<'_> {
+    /// Refuses the move `pending` under cutter compensation `on` where the
+    /// controller's `G41`/`G42` would not be the compensation the CL asks
+    /// for ([`cl_motion::cutcom_refusal`]), comparing theoretical joint
+    /// values ([`SolvedPose::theoretical_q`]).
+    fn check_cutcom(
+        &mut self,
+        record: &ClRecord,
+        pending: &ClPending,
+        solved: &SolvedPose,
+        on: CutcomOn,
+    ) -> Result<()> {
+        let (opts, machine) = (self.opts, self.machine);
+        let q = solved.theoretical_q();
+        // The joint values in force when it went on: those of the pose
+        // before its first move (or of that move, the program's first).
+        let reference = match &self.cutcom_reference {
+            Some((seq, r)) if *seq == on.seq => r.clone(),
+            _ => {
+                let r = self
+                    .previous_th
+                    .clone()
+                    .unwrap_or_else(|| q.iter().copied().collect());
+                self.cutcom_reference = Some((on.seq, r.clone()));
+                r
+            }
+        };
+        let probe = self
+            .probe
+            .get_or_insert_with(|| crate::machine::IkSolver::new(machine));
+        match cl_motion::cutcom_refusal(
+            machine,
+            probe,
+            opts,
+            q,
+            &pending.pose,
+            &reference,
+            on,
+            record.line,
+        ) {
+            Some(m) => Err(error_at(opts, record, m)),
+            None => Ok(()),
+        }
     }
 }
 
@@ -439,6 +513,9 @@ impl Format for ClFormat<'_> {
                 record,
                 unreachable_axis(&machine.name, solved.axis_miss_rad, opts.axis_tolerance_rad),
             ));
+        }
+        if let Some(on) = pending.cutcom {
+            self.check_cutcom(record, pending, solved, on)?;
         }
         self.apply_g80(pending.g80);
         self.stats.max_axis_miss_rad = self.stats.max_axis_miss_rad.max(solved.axis_miss_rad);
@@ -515,6 +592,7 @@ impl Format for ClFormat<'_> {
         }
         out.push(b'\n');
         self.previous = Some(solved.q.clone());
+        self.previous_th = Some(solved.theoretical_q().iter().copied().collect());
         self.last_tip = Some(pending.tip);
         Ok(())
     }

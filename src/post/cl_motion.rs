@@ -9,6 +9,11 @@
 //! kinematics. A hole ([`HoleMove`]) is a canned cycle when its retract
 //! level, `R` level and bottom differ in the machine's Z axis alone, the
 //! bottom lowest. Otherwise the caller writes the moves.
+//!
+//! Under cutter compensation (`CUTCOM/LEFT|RIGHT`, written `G41`/`G42`)
+//! every move must keep the tool along the machine's Z axis, tested as for
+//! holes, and the rotary axes where they were when it went on
+//! ([`cutcom_refusal`]); the caller refuses the program otherwise.
 
 use super::{AxisWriter, PoseSolver, PostOptions};
 use crate::cl::{ArcMove, ClStatement, HoleMove};
@@ -37,11 +42,27 @@ fn xyz_joints(machine: &Machine) -> Option<[usize; 3]> {
 
 /// Whether `a` and `b` agree on every joint not in `free`.
 fn others_still(a: &[f64], b: &[f64], free: &[usize]) -> bool {
+    others_within(a, b, free, STILL)
+}
+
+/// Whether `a` and `b` agree within `still` (mm or rad) on every joint not
+/// in `free`.
+fn others_within(a: &[f64], b: &[f64], free: &[usize], still: f64) -> bool {
     a.len() == b.len()
         && a.iter()
             .zip(b)
             .enumerate()
-            .all(|(k, (x, y))| free.contains(&k) || (x - y).abs() <= STILL)
+            .all(|(k, (x, y))| free.contains(&k) || (x - y).abs() <= still)
+}
+
+/// The change of the machine's Z axis (joint `z`) from `upper` to `lower`,
+/// the joint values of two tool tips on one tool axis (`lower` the one
+/// further down the tool), when no other joint changes by more than
+/// `still` (mm or rad): moving along the tool then moves Z alone, so the
+/// tool is along the machine's Z axis. The one test of that, for canned
+/// cycles ([`plan_hole`]) and for cutter compensation ([`tool_along_z`]).
+fn z_change_alone(upper: &[f64], lower: &[f64], z: usize, still: f64) -> Option<f64> {
+    others_within(upper, lower, &[z], still).then(|| lower[z] - upper[z])
 }
 
 /// Joint values for the tool tip `tip` (CL units, times `scale` for mm)
@@ -81,7 +102,11 @@ pub(super) struct ArcPlan {
 
 /// The `G2`/`G3` form of `arc`, which starts at the joint values
 /// `previous`, if it has one within `opts.arc_tolerance_mm` (module
-/// documentation).
+/// documentation). Under cutter compensation (`cutcom`) only a `G17` arc
+/// with the tool along the machine's Z axis ([`tool_along_z`]): the
+/// controller compensates in the plane in force, and changing it under
+/// `G41`/`G42` is an error on Fanuc and LinuxCNC.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn plan_arc(
     machine: &Machine,
     solver: &mut dyn PoseSolver,
@@ -90,6 +115,7 @@ pub(super) fn plan_arc(
     previous: &[f64],
     scale: f64,
     line: usize,
+    cutcom: bool,
 ) -> Option<ArcPlan> {
     if !arc.constant_axis || !solver.plans_freely() {
         return None;
@@ -174,10 +200,18 @@ pub(super) fn plan_arc(
     let word = |j: usize| ['I', 'J', 'K'][j];
     let mut offsets = [(word(a), -ds[a]), (word(b), -ds[b])];
     offsets.sort_by_key(|o| o.0);
+    let q_end = qs.pop()?;
+    if cutcom {
+        let end = Pose::new(Vector3::from(arc.end) * scale, Vector3::from(arc.tool_axis));
+        let along = tool_along_z(machine, solver, opts, &q_end, &end, line);
+        if k != 2 || along != Some(true) {
+            return None;
+        }
+    }
     Some(ArcPlan {
         plane: [19, 18, 17][k],
         motion: if sense > 0.0 { 3 } else { 2 },
-        q_end: qs.pop()?,
+        q_end,
         offsets,
     })
 }
@@ -272,10 +306,11 @@ pub(super) fn plan_hole(
         Some(&q_r),
         line,
     )?;
-    if !others_still(&q_clear, &q_r, &[z]) || !others_still(&q_clear, &q_bottom, &[z]) {
-        return None;
-    }
-    if !(q_bottom[z] < q_r[z] - STILL && q_r[z] <= q_clear[z] + STILL) {
+    // The tool along Z: R and the bottom differ from the retract level in
+    // Z alone, the bottom lowest and R not above the retract level.
+    let dr = z_change_alone(&q_clear, &q_r, z, STILL)?;
+    let db = z_change_alone(&q_clear, &q_bottom, z, STILL)?;
+    if !(db < dr - STILL && dr <= STILL) {
         return None;
     }
     let preposition = previous.is_none_or(|p| {
@@ -400,4 +435,136 @@ pub(super) fn not_canned(machine: &str) -> String {
     format!(
         "this cycle (tapping, or boring with a spindle stop) has no form as moves and needs a canned cycle, which kinpost writes only when the tool is along the machine's Z axis (on machine {machine}), the retract level is not below R and cutter compensation is off, and not under `compensate` (which converts every pose): the program is refused"
     )
+}
+
+/// Under cutter compensation, the largest angle between the tool and the
+/// machine's Z axis, and the largest turn of a rotary axis since the
+/// compensation went on, rad. The controller's offset of radius r then
+/// points at most r × 1e-5 away from where the CL asks (0.25 µm at r =
+/// 25 mm), and tool axes printed to six decimals, or set-ups (`CSYS`)
+/// orthonormal to 1e-6, stay well within it.
+pub const CUTCOM_TOLERANCE_RAD: f64 = 1e-5;
+
+/// How far along the tool [`tool_along_z`] moves the tip, mm.
+const PROBE_MM: f64 = 1.0;
+
+/// Whether the tool is along the machine's Z axis (pointing up it) at the
+/// joint values `q` of `pose` (mm), within [`CUTCOM_TOLERANCE_RAD`]: the tip
+/// [`PROBE_MM`] further down the tool (up, where down is beyond a limit),
+/// solved from `q`, is reached by moving Z alone ([`z_change_alone`]), Z
+/// lower at the lower tip. `None` when the machine has no linear X, Y and
+/// Z axes or neither tip is reached.
+pub(super) fn tool_along_z(
+    machine: &Machine,
+    solver: &mut dyn PoseSolver,
+    opts: &PostOptions,
+    q: &[f64],
+    pose: &Pose,
+    line: usize,
+) -> Option<bool> {
+    let [_, _, z] = xyz_joints(machine)?;
+    let still = PROBE_MM * CUTCOM_TOLERANCE_RAD;
+    for d in [-PROBE_MM, PROBE_MM] {
+        let tip = pose.tip + pose.axis * d;
+        let axis = pose.axis.into();
+        let Some(qp) = solve(solver, opts, tip.into(), axis, 1.0, Some(q), line) else {
+            continue;
+        };
+        let (upper, lower) = if d < 0.0 { (q, &qp[..]) } else { (&qp[..], q) };
+        return Some(z_change_alone(upper, lower, z, still).is_some_and(|dz| dz < -0.5 * PROBE_MM));
+    }
+    None
+}
+
+/// Cutter compensation that is on (`CUTCOM/LEFT|RIGHT`): where it was
+/// switched on, for the messages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct CutcomOn {
+    /// The statement's place among the statements: one per section.
+    pub(super) seq: u64,
+    /// Its line.
+    pub(super) line: usize,
+    /// `CUTCOM/LEFT` (`G41`) or `CUTCOM/RIGHT` (`G42`).
+    pub(super) left: bool,
+}
+
+impl CutcomOn {
+    /// `CUTCOM/LEFT at line 5, written as G41`.
+    fn describe(&self) -> String {
+        let (side, g) = if self.left {
+            ("LEFT", "G41")
+        } else {
+            ("RIGHT", "G42")
+        };
+        format!("CUTCOM/{side} at line {}, written as {g}", self.line)
+    }
+}
+
+/// Why a move under cutter compensation `on` cannot be written, or `None`
+/// when it can: the tool must be along the machine's Z axis
+/// ([`tool_along_z`]) and no rotary axis may turn by more than
+/// [`CUTCOM_TOLERANCE_RAD`] from `reference`, the joint values in force
+/// when the compensation went on. `q`: the theoretical joint values of the
+/// move's pose `pose` (mm), also for `compensate`, whose compensated
+/// rotaries differ by microradians from pose to pose, which turns the
+/// controller's offset by as little.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn cutcom_refusal(
+    machine: &Machine,
+    solver: &mut dyn PoseSolver,
+    opts: &PostOptions,
+    q: &[f64],
+    pose: &Pose,
+    reference: &[f64],
+    on: CutcomOn,
+    line: usize,
+) -> Option<String> {
+    const DO: &str = "have the CAM system output the tool-centre path for this operation (cutter compensation off, the radius applied in CAM)";
+    let name = &machine.name;
+    let why = format!(
+        "cutter compensation is on here ({}): the controller offsets the path by the tool radius in the machine's X Y plane (G17), at right angles to its Z axis",
+        on.describe()
+    );
+    match tool_along_z(machine, solver, opts, q, pose, line) {
+        None if xyz_joints(machine).is_none() => {
+            return Some(format!(
+                "{why}, and machine {name} has no linear X, Y and Z axes to offset in; {DO}"
+            ));
+        }
+        Some(true) => {}
+        _ => {
+            let axes: Vec<String> = machine
+                .axes
+                .iter()
+                .filter(|a| a.kind == JointKind::Revolute)
+                .map(|a| {
+                    let v = crate::machine::output_value(a, q.get(a.joint).copied().unwrap_or(0.0));
+                    format!("{}{v:.4}", a.name)
+                })
+                .collect();
+            return Some(format!(
+                "{why}, but on machine {name} the tool is not along the machine's Z axis at this pose ({}): the offset would lie in another plane than the contour's; {DO}, or use a machine whose tool stays along Z (a table-table machine)",
+                if axes.is_empty() {
+                    "no rotary axis".to_string()
+                } else {
+                    axes.join(" ")
+                }
+            ));
+        }
+    }
+    for a in &machine.axes {
+        let j = a.joint;
+        let (Some(&now), Some(&then)) = (q.get(j), reference.get(j)) else {
+            continue;
+        };
+        if a.kind == JointKind::Revolute && (now - then).abs() > CUTCOM_TOLERANCE_RAD {
+            return Some(format!(
+                "{why}, and rotary axis {} turns from {:.4}° to {:.4}° since it went on: the part turns under the offset the controller computed in X and Y, so the offset no longer points where the CL asks; keep the rotary axes still from CUTCOM/LEFT|RIGHT to CUTCOM/OFF, or {DO}",
+                a.name,
+                crate::machine::output_value(a, then),
+                crate::machine::output_value(a, now),
+            ));
+        }
+    }
+    None
 }

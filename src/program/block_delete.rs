@@ -1,5 +1,6 @@
 //! Block delete (`/`) in pose mode: what a block the controller may skip
-//! leaves behind for the blocks after it.
+//! leaves behind for the blocks after it. The modes a `/` block changes
+//! and the position a `/` move leaves: `block_delete_switch.rs`.
 
 use nalgebra::Vector3;
 

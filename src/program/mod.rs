@@ -1,6 +1,7 @@
 //! NC programs as sequences of blocks: modal state, poses, output formatting.
 
 mod block_delete;
+pub mod block_delete_switch;
 pub mod format;
 pub mod heidenhain;
 pub mod integrity;

@@ -21,7 +21,8 @@
 //! - In pose mode these are refused too: `U V W E` axis words, cutter radius
 //!   compensation (`G41`, `G42`, `G41.1`–`G42.2`; modal until `G40`, and
 //!   pose mode may not start under it), and under `G91` a block-delete
-//!   (`/`) pose block.
+//!   (`/`) pose block. The modes a `/` block changes are checked beside
+//!   this state (`block_delete_switch::BlockDeleteSwitch`).
 
 use nalgebra::Vector3;
 

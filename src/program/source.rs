@@ -34,6 +34,7 @@ pub fn gcode_poses<R: BufRead>(
     mut f: impl FnMut(PoseEvent) -> Result<()>,
 ) -> Result<()> {
     let mut modal = ModalState::new(start);
+    let mut switch = super::block_delete_switch::BlockDeleteSwitch::default();
     let mut lines = LineReader::new(input);
     while let Some(line) = lines.next_line() {
         let line = line.map_err(|e| Error::io(file, e))?;
@@ -65,14 +66,21 @@ pub fn gcode_poses<R: BufRead>(
                 _ => {}
             }
         }
-        let meaning = modal.apply(&words, &keywords).map_err(|e| {
-            let col = e.item.map(|i| line.items[i].start + 1).unwrap_or(0);
-            Error::input_with(
-                Location::new(file, line.number, col),
-                e.message,
-                line.text_lossy(),
-            )
-        })?;
+        let meaning = switch
+            .apply(&mut modal, &words, &keywords, line)
+            .map_err(|e| match e {
+                super::block_delete_switch::Refused::Slash { at, message } => {
+                    Error::input_with(Location::new(file, at.line, at.col), message, at.text)
+                }
+                super::block_delete_switch::Refused::Block(e) => {
+                    let col = e.item.map(|i| line.items[i].start + 1).unwrap_or(0);
+                    Error::input_with(
+                        Location::new(file, line.number, col),
+                        e.message,
+                        line.text_lossy(),
+                    )
+                }
+            })?;
         // A pose block with text kinpost does not read (`X1.2.3`) is an
         // error, as in `post`: skipping it would drop a pose silently.
         let straight = matches!(meaning.motion, Motion::Rapid | Motion::Linear);

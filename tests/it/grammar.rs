@@ -202,6 +202,7 @@ fn cl_kind(s: &ClStatement) -> &'static str {
         ClStatement::End => "End",
         ClStatement::Other { .. } => "Other",
         ClStatement::Block(_) => "Block",
+        ClStatement::CutterCompensation { .. } => "CutterCompensation",
         ClStatement::Warning(_) => "Warning",
         ClStatement::Arc(_) => "Arc",
         ClStatement::Hole(_) => "Hole",

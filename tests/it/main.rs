@@ -14,6 +14,7 @@ mod seed003_tables;
 mod architecture;
 mod bad_input;
 mod cl;
+mod cl_cutcom;
 mod cl_dialects;
 mod cl_driver;
 mod cl_real;

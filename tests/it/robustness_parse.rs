@@ -800,3 +800,165 @@ fn haas_tcpc_is_tool_centre_point_control() {
     );
     assert!(!out.contains("G234"), "{out}");
 }
+
+/// A block-delete (`/`) block that only changes modal state: with the
+/// switch on the controller skips it, and the blocks after it run in the
+/// mode before it. Before, `/G91`, `/G20`, `/G43.4`, `/G49`, `/G69`,
+/// `/G40`, `/ORIWKS`, `/G1` (after arcs) were not checked: the poses after
+/// them were converted in the mode after the block, exit 0. Now a block
+/// without `/` whose conversion depends on such a change is refused at the
+/// `/`; a change that nothing converted depends on (a plane, G0/G1, a
+/// feed without `--feed inverse-time`; a mode set again without `/`; a
+/// program that never enters pose mode) passes byte for byte.
+#[test]
+fn block_delete_of_a_modal_change_is_refused_where_poses_depend_on_it() {
+    let pose = "G1 X10 Y0 Z5 I0 J0 K1 F500\n";
+    let refused = [
+        (
+            "g91.ngc",
+            format!("G43.4 H1\n{pose}/G91\nG1 X1\nG90\nG49\nM30\n"),
+            "g91.ngc:3:1: this block-delete (`/`) block changes the distance mode (G90/G91)",
+        ),
+        (
+            "g91-first.ngc",
+            format!("/G91\nG43.4 H1\n{pose}G49\nM30\n"),
+            "g91-first.ngc:1:1: this block-delete (`/`) block changes the distance mode",
+        ),
+        (
+            "g20.ngc",
+            format!("  /G20\nG43.4 H1\n{pose}G49\nM30\n"),
+            "g20.ngc:1:3: this block-delete (`/`) block changes the units",
+        ),
+        (
+            "tcp-on.ngc",
+            "/G43.4 H1\nG1 X10 Y0 Z5 F500\nG49\nM30\n".into(),
+            "tcp-on.ngc:1:1: this block-delete (`/`) block changes tool centre point control",
+        ),
+        (
+            "tcp-off.ngc",
+            format!("G43.4 H1\n{pose}/G49\nG0 Z100\nM30\n"),
+            "tcp-off.ngc:3:1: this block-delete (`/`) block changes tool centre point control",
+        ),
+        (
+            "g69.ngc",
+            format!("G68 X0 Y0 R30\n/G69\nG43.4 H1\n{pose}G49\nM30\n"),
+            "g69.ngc:2:1: this block-delete (`/`) block changes a frame",
+        ),
+        (
+            "g40.ngc",
+            format!("G41 D1\nG1 X5 Y5\n/G40\nG43.4 H1\n{pose}G49\nM30\n"),
+            "g40.ngc:3:1: this block-delete (`/`) block changes cutter radius compensation",
+        ),
+        (
+            "oriwks.mpf",
+            "ORIMKS\n/ORIWKS\nTRAORI\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1\nTRAFOOF\nM30\n".into(),
+            "oriwks.mpf:2:1: this block-delete (`/`) block changes Sinumerik ORIMKS/ORIWKS",
+        ),
+        (
+            "motion.ngc",
+            "G2 X10 Y0 I5 J0\n/G1\nG43.4 H1\nX10 Y0 Z5 I0 J0 K1\nG49\nM30\n".into(),
+            "motion.ngc:2:1: this block-delete (`/`) block changes the motion mode",
+        ),
+    ];
+    for (name, text, want) in &refused {
+        let (code, out, err) = post(name, text.as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(out.is_empty(), "{name}");
+        assert!(err.contains(want), "{name}: {err}");
+    }
+    let passed = [
+        // Never in pose mode: nothing converted depends on it.
+        "G0 X0 Y0\n/G91\nG1 X1\nG90\nM30\n".to_string(),
+        // Set again without `/` before the poses.
+        format!("G43.4 H1\n{pose}/G91\nG90\nG1 X11\nG49\nM30\n"),
+        // A plane, G0/G1 and a feed do not change the conversion.
+        format!("G43.4 H1\n{pose}/G18\n/G0\n/F200\nG1 X11\nG49\nM30\n"),
+        // A group of `/` blocks that restores the mode: all run or none.
+        format!("G43.4 H1\n{pose}/G20\n/G1 X0.5 Y0 Z0.2\n/G21\nG1 X11 Y0 Z5\nG49\nM30\n"),
+    ];
+    for text in &passed {
+        let (code, out, err) = post("ok.ngc", text.as_bytes());
+        assert_eq!(code, 0, "{text}: {err}");
+        let out = String::from_utf8(out).unwrap();
+        for l in text.lines().filter(|l| l.starts_with('/')) {
+            assert!(
+                out.lines().any(|o| o == l) || l.contains(" X"),
+                "{l}: {out}"
+            );
+        }
+    }
+    let (code, out, _) = post("plain.ngc", passed[0].as_bytes());
+    assert_eq!((code, out), (0, passed[0].as_bytes().to_vec()));
+}
+
+/// `post --feed inverse-time` converts feeds, so there a `/` block that
+/// changes the feed mode, the feed or G0/G1 is refused where a converted
+/// block depends on it; the same program without the option passes.
+#[test]
+fn block_delete_of_a_feed_change_is_refused_under_inverse_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, text: &str, extra: &[&str]| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        let out = Command::new(BIN)
+            .args(["post", "-q", "--machine", "xyzbc-trt"])
+            .args(extra)
+            .arg(&p)
+            .output()
+            .unwrap();
+        (
+            out.status.code().unwrap(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let head = "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\n";
+    let turn = "X20 I0.5 J0 K0.8660254\nG49\nM30\n";
+    for (name, change, want) in [
+        ("g93.ngc", "/G93\n", "the feed mode (G93/G94/G95)"),
+        ("f.ngc", "/F200\n", "the feed (F)"),
+        ("g0.ngc", "G0 X12\n/G1\n", "the motion mode"),
+    ] {
+        let text = format!("{head}{change}{turn}");
+        let (code, err) = run(name, &text, &["--feed", "inverse-time"]);
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(
+            err.contains(want) && err.contains("block-delete"),
+            "{name}: {err}"
+        );
+        let (code, err) = run(name, &text, &[]);
+        assert_eq!(code, 0, "{name}: {err}");
+    }
+}
+
+/// Before pose mode kinpost follows machine-axis moves, and a pose that
+/// does not give X, Y, Z and its tool vector continues from where they
+/// left the machine. A `/` move, or a move in a mode a `/` block changed,
+/// leaves the machine elsewhere with the switch on: such a pose is refused
+/// at the `/`. Before, `/G0 X20` then `G43.4 H1`, `G1 Z5` was converted at
+/// X20, exit 0.
+#[test]
+fn a_pose_continuing_from_a_block_delete_position_is_refused() {
+    for (name, text, want) in [
+        (
+            "move.ngc",
+            "G0 X10 Z50 B0 C0\n/G0 X20\nG43.4 H1\nG1 Z5\nG49\nM30\n",
+            "move.ngc:2:1:",
+        ),
+        (
+            "mode.ngc",
+            "G0 X10 Z50 B0 C0\n/G91\nG0 X10\nG90\nG43.4 H1\nG1 Z5\nG49\nM30\n",
+            "mode.ngc:2:1:",
+        ),
+    ] {
+        let (code, _, err) = post(name, text.as_bytes());
+        assert_eq!(code, 1, "{name}: {err}");
+        assert!(
+            err.contains(want) && err.contains("block-delete"),
+            "{name}: {err}"
+        );
+        // A pose that gives X, Y, Z and the tool vector stands alone.
+        let full = text.replace("G1 Z5", "G1 X5 Y0 Z5 I0 J0 K1");
+        let (code, _, err) = post(name, full.as_bytes());
+        assert_eq!(code, 0, "{name}: {err}");
+    }
+}

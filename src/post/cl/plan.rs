@@ -22,7 +22,17 @@ impl ClFormat<'_> {
         let scale = self.units.mm_per_unit();
         let plan = match (planner, &self.previous, self.rapid_next) {
             (Some(solver), Some(p), false) => {
-                cl_motion::plan_arc(self.machine, solver, self.opts, arc, p, scale, record.line)
+                let cutcom = self.cutcom.is_some();
+                cl_motion::plan_arc(
+                    self.machine,
+                    solver,
+                    self.opts,
+                    arc,
+                    p,
+                    scale,
+                    record.line,
+                    cutcom,
+                )
             }
             _ => None,
         };
@@ -42,6 +52,7 @@ impl ClFormat<'_> {
         self.motion_written = Some(plan.motion);
         self.axis = Vector3::from(arc.tool_axis);
         self.stats.poses += 1;
+        self.previous_th = Some(plan.q_end.clone());
         self.previous = Some(plan.q_end);
         self.last_tip = Some(Vector3::from(arc.end) * scale);
         Ok(())
@@ -89,6 +100,7 @@ impl ClFormat<'_> {
                 self.axis = Vector3::from(hole.axis);
                 self.stats.poses += 1;
                 self.previous = Some(plan.q_after(hole));
+                self.previous_th = self.previous.clone();
                 let after = if hole.retract_to_r {
                     hole.r_plane
                 } else {
