@@ -200,6 +200,12 @@ impl<R: BufRead> Lowered<R> {
                 } else {
                     Some((m, [v[3], v[7], v[11]]))
                 };
+                // An operation's frame: its tool axis is the frame's Z axis
+                // (the third column) until a GOTO or TLAXIS gives another.
+                // SolidWorks CAM writes three-value GOTOs for an operation
+                // along its frame's Z after six-value ones along another
+                // frame's; the axis left from those would tilt the tool.
+                self.axis = [m[0][2], m[1][2], m[2][2]];
                 self.block(r, format!("({})", String::from_utf8_lossy(&r.text).trim()));
             }
             "TRNTYP" => {
@@ -572,6 +578,38 @@ pub(super) mod tests {
         }
         let e = run("CSYS/2,0,0,0,0,1,0,0,0,0,1,0\n").unwrap_err();
         assert!(e.to_string().contains("t.apt:1:1"));
+    }
+
+    /// A `CSYS` turns the tool axis to the new frame's Z: the three-value
+    /// `GOTO`s of an operation after one with six values along another
+    /// frame's Z are along their own frame's (SolidWorks CAM; before, the
+    /// earlier operation's axis, 0.29° off, was kept).
+    #[test]
+    fn csys_turns_the_tool_axis_to_its_z() {
+        let tilted = "CSYS/0,.999987,.005061,0,-1,0,0,0,0,-0.005061,.999987,0";
+        let s = run(&format!(
+            "UNITS/MM\n{tilted}\nGOTO/1,2,3,.005061,0,.999987\nCSYS/1,0,0,0,0,1,0,0,0,0,1,0\nGOTO/4,5,6\n"
+        ))
+        .unwrap();
+        let axes: Vec<[f64; 3]> = s
+            .iter()
+            .filter_map(|s| match s {
+                ClStatement::Goto { axis, .. } => *axis,
+                _ => None,
+            })
+            .collect();
+        assert_eq!(axes.len(), 2);
+        // (The six-value axis is printed to six decimals.)
+        assert!(norm(sub(axes[0], [0.0, 0.0, 1.0])) < 1e-6, "{:?}", axes[0]);
+        assert_eq!(axes[1], [0.0, 0.0, 1.0]);
+        // Into a tilted frame with three values: along that frame's Z.
+        let s = run(&format!("UNITS/MM\n{tilted}\nGOTO/1,2,3\n")).unwrap();
+        match s.last() {
+            Some(ClStatement::Goto { axis, .. }) => {
+                assert!(norm(sub(axis.unwrap(), [0.0, 0.0, 1.0])) < 1e-6, "{axis:?}")
+            }
+            other => panic!("{other:?}"),
+        }
     }
 
     #[test]

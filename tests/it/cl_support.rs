@@ -200,7 +200,8 @@ pub fn statements(text: &str) -> Vec<(String, String)> {
 }
 
 /// The CL path: `CSYS` columns are the set-up axes in the CL frame, so a
-/// point `p` is `Rᵀ (p − t)` in the set-up frame. Arcs run counter-clockwise
+/// point `p` is `Rᵀ (p − t)` in the set-up frame, and the tool axis is the
+/// set-up's Z until a `GOTO` or `TLAXIS` gives another. Arcs run counter-clockwise
 /// about the `CIRCLE` axis, a difference along the axis a helix; a hole
 /// under `CYCLE` runs from `RTRCTO` above the point down to `FEDTO` below
 /// it and back. `UNITS/INCHES` scales by 25.4.
@@ -233,6 +234,8 @@ pub fn cl_path(text: &str) -> ClPath {
                 let v = nums(&args);
                 r = [[v[0], v[1], v[2]], [v[4], v[5], v[6]], [v[8], v[9], v[10]]];
                 t = mul([v[3], v[7], v[11]], unit);
+                // The set-up's tool axis: its Z (the third column).
+                axis = [v[2], v[6], v[10]];
             }
             "LOAD" | "LOADTL" => out.tools.push(*nums(&args).first().unwrap_or(&0.0) as u32),
             "SPINDL" => {
