@@ -232,6 +232,10 @@ pub struct AxisEvent {
     pub inverse_time: Option<f64>,
     /// Rapid move (G0).
     pub rapid: bool,
+    /// The block does not start where the previous event ended: it follows
+    /// a move whose end the program's coordinates do not give (G28, G30,
+    /// G53), so the segment between the two is not known.
+    pub restart: bool,
 }
 
 /// A motion block of a program in machine axes.
@@ -243,7 +247,20 @@ pub struct MachineBlock {
     pub meaning: super::BlockMeaning,
     /// Items of the machine-axis words in the line.
     pub axis_items: Vec<usize>,
+    /// Whether every axis was at a known position (in program coordinates)
+    /// where the block starts: not after `G28`, `G30`, `G53` or
+    /// `G92.1`–`G92.3` until each axis they moved is programmed again.
+    pub start_known: bool,
+    /// Whether every axis is at a known position where the block ends.
+    pub end_known: bool,
 }
+
+/// Sinumerik frame instructions: their X Y Z are offsets, angles or
+/// factors, not a position.
+const FRAME_KEYWORDS: [&str; 11] = [
+    "TRANS", "ATRANS", "ROT", "AROT", "SCALE", "ASCALE", "MIRROR", "AMIRROR", "ROTS", "AROTS",
+    "CROTS",
+];
 
 /// Follows the axis positions and modal state of a program in machine axes
 /// (absolute or incremental, mm or inch). Axes not yet programmed are 0
@@ -252,6 +269,9 @@ pub struct MachineBlock {
 pub struct MachineAxisTracker {
     modal: ModalState,
     ext: Vec<f64>,
+    /// Axes whose position in program coordinates is not known (after a
+    /// move to the reference point or in machine coordinates).
+    unknown: Vec<bool>,
 }
 
 impl MachineAxisTracker {
@@ -260,6 +280,7 @@ impl MachineAxisTracker {
         MachineAxisTracker {
             modal: ModalState::new(PoseStart::Off),
             ext: vec![0.0; machine.axes.len()],
+            unknown: vec![false; machine.axes.len()],
         }
     }
 
@@ -291,10 +312,64 @@ impl MachineAxisTracker {
             let col = e.item.map(|i| line.items[i].start + 1).unwrap_or(0);
             Error::input(Location::new(file, line.number, col), e.message)
         })?;
+        // A block that is not a move in program coordinates: data (G10,
+        // G52, a frame, a pole, a dwell such as Fanuc's `G4 X1.5`) leaves
+        // the position as it is; G92 says where the axes it names are now;
+        // after G28, G30 or G53 the axes they move (G28/G30 alone: all),
+        // after G92.1–G92.3 all axes, are somewhere the program's
+        // coordinates do not say, until programmed again.
+        let frame = line.items.iter().any(
+            |it| matches!(&it.kind, ItemKind::Keyword(k) if FRAME_KEYWORDS.contains(&k.as_str())),
+        );
+        if meaning.non_modal || frame {
+            let g = |c: f64| {
+                modal_words
+                    .iter()
+                    .any(|w| w.address == "G" && (w.value - c).abs() < 1e-6)
+            };
+            let named = |k: usize| {
+                axis_items.iter().any(|&i| {
+                    matches!(&line.items[i].kind, ItemKind::Word(w) if w.address == machine.axes[k].name)
+                })
+            };
+            for k in 0..machine.axes.len() {
+                if g(92.1) || g(92.2) || g(92.3) {
+                    self.unknown[k] = true;
+                } else if g(28.0) || g(30.0) || g(53.0) {
+                    let all = axis_items.is_empty() && !g(53.0);
+                    self.unknown[k] |= all || named(k);
+                }
+            }
+            if g(92.0) {
+                self.set_axes(machine, line, &axis_items, &meaning, true);
+            }
+            return Ok(None);
+        }
         if axis_items.is_empty() {
             return Ok(None);
         }
-        for &i in &axis_items {
+        let start_known = !self.unknown.contains(&true);
+        self.set_axes(machine, line, &axis_items, &meaning, meaning.absolute);
+        Ok(Some(MachineBlock {
+            q: machine.to_internal(&self.ext).to_vec(),
+            meaning,
+            axis_items,
+            start_known,
+            end_known: !self.unknown.contains(&true),
+        }))
+    }
+
+    /// Puts the axes of `axis_items` where the line's words say (`absolute`:
+    /// at their values, else moved by them).
+    fn set_axes(
+        &mut self,
+        machine: &crate::machine::Machine,
+        line: &crate::gcode::Line,
+        axis_items: &[usize],
+        meaning: &super::BlockMeaning,
+        absolute: bool,
+    ) {
+        for &i in axis_items {
             let ItemKind::Word(w) = &line.items[i].kind else {
                 continue;
             };
@@ -308,7 +383,7 @@ impl MachineAxisTracker {
             };
             let v = w.value * scale;
             let modulo = machine.axes[k].rotary == crate::machine::RotaryMode::Modulo;
-            self.ext[k] = match (meaning.absolute, modulo) {
+            self.ext[k] = match (absolute, modulo) {
                 (false, _) => self.ext[k] + v,
                 // A modulo axis turns the short way to an absolute target
                 // (LinuxCNC's wrapped rotary, a roll-over axis): followed
@@ -316,12 +391,10 @@ impl MachineAxisTracker {
                 (true, true) => crate::machine::rotary::unwind_near_degrees(v, self.ext[k]),
                 (true, false) => v,
             };
+            if absolute {
+                self.unknown[k] = false;
+            }
         }
-        Ok(Some(MachineBlock {
-            q: machine.to_internal(&self.ext).to_vec(),
-            meaning,
-            axis_items,
-        }))
     }
 }
 
@@ -335,6 +408,8 @@ pub fn machine_axis_blocks<R: BufRead>(
 ) -> Result<()> {
     let mut tracker = MachineAxisTracker::new(machine);
     let mut lines = LineReader::new(input);
+    // A block was left out since the last event because its end is not known.
+    let mut gap = false;
     while let Some(line) = lines.next_line() {
         let line = line.map_err(|e| Error::io(file, e))?;
         let Some(b) = tracker.line(machine, line, file)? else {
@@ -344,7 +419,13 @@ pub fn machine_axis_blocks<R: BufRead>(
         if !matches!(m.motion, Motion::Rapid | Motion::Linear) {
             continue;
         }
+        if !b.end_known {
+            gap = true;
+            continue;
+        }
+        let restart = std::mem::take(&mut gap) || !b.start_known;
         f(AxisEvent {
+            restart,
             line: line.number,
             feed_mm_min: match m.feed_mode {
                 super::FeedMode::PerMinute => m.feed.map(|v| v * m.units.mm_per_unit()),

@@ -57,6 +57,7 @@ mod kinematics_programs;
 mod kinematics_props;
 mod kinematics_wang;
 mod linkage_fixtures;
+mod linkage_words;
 mod linuxcnc_import;
 mod model_file_strict;
 mod output_safety;
