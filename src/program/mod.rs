@@ -3,6 +3,7 @@
 mod block_delete;
 pub mod format;
 pub mod heidenhain;
+pub mod ijk;
 pub mod integrity;
 pub mod inverse_time;
 pub mod modal;

@@ -450,22 +450,26 @@ pub fn looks_like_poses(head: &[u8]) -> bool {
         return true;
     }
     // I J K are a tool vector only on straight moves: on an arc (G2/G3,
-    // modal) they are its centre, on G33.1/G76/G68.2 and the like something
-    // else again.
+    // modal) they are its centre, on threads, splines, G68.2, G87/G88 and
+    // with G40–G42, G54–G59, G65 something else again (`program::ijk`).
     let mut straight = true;
     for (n, raw) in head.split(|b| *b == b'\n').enumerate() {
         let line = crate::gcode::parse_line(raw, n + 1);
-        let mut other_ijk = false;
+        let pairs: Vec<(&str, f64)> = line
+            .words()
+            .map(|w| (w.address.as_str(), w.value))
+            .collect();
+        let mut other_ijk = super::ijk::owner(pairs.iter().copied()).is_some();
         for w in line.words() {
             if w.address == "G" {
                 let g = w.value;
+                let c = (g * 10.0).round() as i64;
                 if g == 0.0 || g == 1.0 {
                     straight = true;
                 } else if g == 2.0 || g == 3.0 {
                     straight = false;
-                } else if [33.0, 33.1, 76.0, 68.2, 5.0, 5.1, 5.2, 87.0, 88.0]
-                    .iter()
-                    .any(|c| (g - c).abs() < 1e-9)
+                } else if super::ijk::other_motion(c, pairs.iter().copied())
+                    || [682, 870, 880].contains(&c)
                 {
                     other_ijk = true;
                 }

@@ -60,6 +60,7 @@ mod linkage_fixtures;
 mod linkage_words;
 mod linuxcnc_import;
 mod model_file_strict;
+mod not_tool_vectors;
 mod output_safety;
 mod panic_cleanup;
 mod parse_throughput;
