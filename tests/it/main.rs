@@ -17,6 +17,7 @@ mod cl;
 mod cl_dialects;
 mod cl_driver;
 mod cl_real;
+mod cl_words;
 mod cli_corpus_echo;
 mod cli_diagnose;
 mod cli_help;
