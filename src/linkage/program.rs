@@ -292,9 +292,11 @@ struct Block {
     feed_item: Option<usize>,
     /// Items of the machine-axis words in the (converted) line.
     axis_items: Vec<usize>,
-    /// Whether the program's coordinates give where the block starts (not
-    /// after G28, G30, G53 until the axes they moved are programmed again).
-    start_known: bool,
+    /// Whether the block can be measured and divided: the program's
+    /// coordinates give where it starts (not after G28, G30, G53 until the
+    /// axes they moved are programmed again), or no rotary axis turns
+    /// (`MachineBlock::measurable`).
+    measurable: bool,
 }
 
 /// Items of machine-axis words in a line.
@@ -385,7 +387,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                         },
                         feed_item,
                         axis_items: items,
-                        start_known: true,
+                        measurable: true,
                     };
                     (ml, Some(b))
                 }
@@ -408,7 +410,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                         },
                         feed_item: mb.meaning.feed_item,
                         axis_items: mb.axis_items,
-                        start_known: mb.start_known,
+                        measurable: mb.measurable,
                     });
                 (line, b)
             }
@@ -453,10 +455,10 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             mline.write_to(&mut &mut *out).map_err(io)?;
             continue;
         }
-        if !block.start_known {
+        if !block.measurable {
             return Err(Error::input_with(
                 Location::new(&opts.file_name, mline.number, 0),
-                "where this G1 block starts is not known in the program's coordinates (G28, G30 or G53 moved an axis to the reference point or in machine coordinates before it): linkage cannot measure or divide it; program every axis moved there (a G0 to a known position) before it",
+                "where this G1 block starts is not known in the program's coordinates (G28, G30 or G53 moved an axis to the reference point or in machine coordinates before it) and a rotary axis turns: linkage cannot measure or divide it; program every axis moved there (a G0 to a known position) before it",
                 mline.text_lossy(),
             ));
         }

@@ -253,6 +253,11 @@ pub struct MachineBlock {
     pub start_known: bool,
     /// Whether every axis is at a known position where the block ends.
     pub end_known: bool,
+    /// Whether the block's segment can be measured (its nonlinear error,
+    /// the points `linkage` inserts): where it starts is known, or no
+    /// rotary axis turns (none moves, none not known is programmed): the
+    /// tool tip then moves on a straight line whatever the start.
+    pub measurable: bool,
 }
 
 /// Sinumerik frame instructions: their X Y Z are offsets, angles or
@@ -312,6 +317,32 @@ impl MachineAxisTracker {
             let col = e.item.map(|i| line.items[i].start + 1).unwrap_or(0);
             Error::input(Location::new(file, line.number, col), e.message)
         })?;
+        // Tool centre point control switched on past the start of the
+        // program (where the program was taken for one in machine axes):
+        // from here its X Y Z are tool-tip positions, not axes.
+        let tcp = meaning
+            .tcp_codes
+            .first()
+            .map(|c| match c {
+                super::modal::TcpCode::FanucOn(i) | super::modal::TcpCode::SiemensOn(i) => *i,
+            })
+            .or_else(|| {
+                line.items.iter().position(|it| match &it.kind {
+                    ItemKind::Keyword(k) => k == "TRAORI",
+                    ItemKind::Opaque => {
+                        super::opaque::known_call(&String::from_utf8_lossy(line.item_bytes(it)))
+                            == Some("TRAORI")
+                    }
+                    _ => false,
+                })
+            });
+        if let Some(i) = tcp {
+            return Err(Error::input_with(
+                Location::new(file, line.number, line.items[i].start + 1),
+                "tool centre point control (G43.4, G43.5, G234, TRAORI) in a program read as machine axes: from here its X Y Z are tool-tip positions, which this command does not read as axes; convert the program with `kinpost post` first, or give a program that switches TCP on at its start",
+                line.text_lossy(),
+            ));
+        }
         // A block that is not a move in program coordinates: data (G10,
         // G52, a frame, a pole, a dwell such as Fanuc's `G4 X1.5`) leaves
         // the position as it is; G92 says where the axes it names are now;
@@ -332,16 +363,44 @@ impl MachineAxisTracker {
                     matches!(&line.items[i].kind, ItemKind::Word(w) if w.address == machine.axes[k].name)
                 })
             };
+            // kinpost writes rotary words as the chain's joint angles: a
+            // rotary axis's program and machine coordinates are one (no
+            // rotary work offset). So G53 puts a rotary where its word says,
+            // and G28 at its reference point, 0°; linear axes there, and
+            // any axis after G30, are not known.
+            let rotary = |k: usize| machine.axes[k].kind == crate::machine::JointKind::Revolute;
+            // G28/G30 without any axis word send every axis home.
+            let all = !g(53.0)
+                && !line.words().any(|w| {
+                    matches!(
+                        w.address.as_str(),
+                        "X" | "Y" | "Z" | "A" | "B" | "C" | "U" | "V" | "W"
+                    )
+                });
             for k in 0..machine.axes.len() {
                 if g(92.1) || g(92.2) || g(92.3) {
                     self.unknown[k] = true;
-                } else if g(28.0) || g(30.0) || g(53.0) {
-                    let all = axis_items.is_empty() && !g(53.0);
+                } else if g(28.0) && rotary(k) && (all || named(k)) {
+                    self.ext[k] = 0.0;
+                    self.unknown[k] = false;
+                } else if (g(28.0) || g(30.0) || g(53.0)) && !(g(53.0) && rotary(k)) {
                     self.unknown[k] |= all || named(k);
                 }
             }
             if g(92.0) {
                 self.set_axes(machine, line, &axis_items, &meaning, true);
+            } else if g(53.0) {
+                let rotaries: Vec<usize> = axis_items
+                    .iter()
+                    .copied()
+                    .filter(|&i| {
+                        (0..machine.axes.len()).any(|k| {
+                            rotary(k)
+                                && matches!(&line.items[i].kind, ItemKind::Word(w) if w.address == machine.axes[k].name)
+                        })
+                    })
+                    .collect();
+                self.set_axes(machine, line, &rotaries, &meaning, true);
             }
             return Ok(None);
         }
@@ -349,13 +408,27 @@ impl MachineAxisTracker {
             return Ok(None);
         }
         let start_known = !self.unknown.contains(&true);
+        let rotary = |k: usize| machine.axes[k].kind == crate::machine::JointKind::Revolute;
+        // Only where the start is not known: the positions before, and
+        // which axes were not known.
+        let before = (!start_known).then(|| (self.ext.clone(), self.unknown.clone()));
         self.set_axes(machine, line, &axis_items, &meaning, meaning.absolute);
+        // A rotary that turns, or one not known that is programmed to a
+        // position (it may turn), makes the tip's path depend on the start.
+        let rotary_still = before.as_ref().is_none_or(|(ext, unknown)| {
+            (0..ext.len()).all(|k| {
+                let programmed_from_unknown = unknown[k] && !self.unknown[k];
+                let turns = ext[k] != self.ext[k] || programmed_from_unknown;
+                !rotary(k) || !turns
+            })
+        });
         Ok(Some(MachineBlock {
             q: machine.to_internal(&self.ext).to_vec(),
             meaning,
             axis_items,
             start_known,
             end_known: !self.unknown.contains(&true),
+            measurable: start_known || rotary_still,
         }))
     }
 

@@ -252,6 +252,20 @@ fn blocks_that_are_not_moves_are_not_followed() {
     );
     assert_eq!(code, 1, "{err}");
     assert!(err.contains("g53.nc:4:") && err.contains("G53"), "{err}");
+    // A move of linear axes alone is a straight line whatever the start.
+    let (code, _, err) = linkage(
+        "g53lin.nc",
+        "G90 G21 G94\nG0 X50 Y0 Z20 B30 C40\nG53 G0 Z0\nG1 Z5 F300\nM30\n",
+    );
+    assert_eq!(code, 0, "{err}");
+    // NX's tool change: G28 homes B to 0°, the linear axes are programmed
+    // again before the cut (an NX post's Mori Seiki NMV sample).
+    let (code, out, err) = linkage(
+        "g28.nc",
+        "G91 G28 Z0.0\nG28 X0.0 Y0.0 B0.0\nG90 G0 X50 Y0 Z20\nG1 X60 Y10 Z10 B40 C60 F300\nM30\n",
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("(kinpost linkage 1/"), "{out}");
     // Programmed again, Z is known: the next G1 is divided as usual.
     let (code, out, err) = linkage(
         "g53z.nc",
@@ -259,4 +273,36 @@ fn blocks_that_are_not_moves_are_not_followed() {
     );
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("(kinpost linkage 1/"), "{out}");
+}
+
+#[test]
+fn tool_centre_point_control_past_the_start_is_refused() {
+    // A program taken for one in machine axes (nothing in its first 4 kB
+    // asks for TCP) that switches G43.4 on later, as an NX post's
+    // Mori Seiki NMV sample does at line 350: from there X Y Z are tool-tip
+    // positions. Before, linkage divided those blocks as machine axes and
+    // analyze --nonlinear measured them, exit 0.
+    let mut program = String::from("G90 G21 G94\n");
+    for i in 0..300 {
+        program.push_str(&format!("G1 X{} Y0 Z5 B0 C0 F500\n", i % 7));
+    }
+    program.push_str("G43.4 H1\nG1 X10 Y0 Z5 B30 C10\nG1 X20 Y10 Z5 B40 C60\nG49\nM30\n");
+    assert!(program.len() > 4096);
+    let line = program.lines().position(|l| l == "G43.4 H1").unwrap() + 1;
+    for (code, err) in [
+        {
+            let (c, _, e) = linkage("tcp.nc", &program);
+            (c, e)
+        },
+        {
+            let (c, _, e) = nonlinear("tcp.nc", &program);
+            (c, e)
+        },
+    ] {
+        assert_eq!(code, 1, "{err}");
+        assert!(
+            err.contains(&format!("tcp.nc:{line}:1:")) && err.contains("tool centre point"),
+            "{err}"
+        );
+    }
 }
