@@ -99,3 +99,49 @@ fn dialect_words_that_move_the_tool_are_refused() {
         );
     }
 }
+
+/// Runs `kinpost post -m xyzbc-trt ARGS -` on `cl`: (exit code, stdout, stderr).
+fn post_with(args: &[&str], cl: &str) -> (i32, String, String) {
+    let mut child = Command::new(BIN)
+        .args(["post", "--machine", "xyzbc-trt", "--input-kind", "cl"])
+        .args(args)
+        .arg("-")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(cl.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    (
+        out.status.code().unwrap(),
+        String::from_utf8(out.stdout).unwrap(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn a_tool_length_in_the_axis_words_is_not_compensated_again() {
+    let cl = "UNITS/MM\nLOAD/TOOL,1\nGOTO/0,0,50,0,0,1\nFINI\n";
+    // With the job's tool in the chain the axis words put its tip on the
+    // point (Z100 for a 50 mm tool); before, `G43 H1` followed, and the
+    // controller added the length a second time.
+    let (code, out, err) = post_with(&["--tool-length", "50"], cl);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("Z100.0000"), "{out}");
+    assert!(!out.contains("\nG43 H1\n"), "{out}");
+    assert!(out.contains("\nG49 "), "{out}");
+    // Without a tool length the chain ends at the gauge line: the
+    // controller's compensation adds the tool (as before).
+    let (code, out, err) = post_with(&[], cl);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("T1 M6\nG43 H1\n") && out.contains("Z50.0000"),
+        "{out}"
+    );
+}
