@@ -27,6 +27,11 @@ pub struct TrajectoryBlock {
     pub feed_mm_min: Option<f64>,
     /// Rapid move (G0 / RAPID).
     pub rapid: bool,
+    /// The block does not start where the previous one ended (it follows a
+    /// move in machine coordinates or to the reference point, `G53`,
+    /// `G28`, `G30`, whose end the program does not give): the segment
+    /// between them is not known.
+    pub restart: bool,
 }
 
 /// The theoretical joint values of `pose` (continuing from `previous`), or
@@ -82,6 +87,7 @@ pub fn joint_trajectory<R: BufRead>(
                 pose: Some(ev.pose),
                 feed_mm_min: ev.feed_mm_min,
                 rapid: ev.rapid,
+                restart: false,
             };
             previous = Some(q);
             f(block)
@@ -94,6 +100,7 @@ pub fn joint_trajectory<R: BufRead>(
                 pose: None,
                 feed_mm_min: ev.feed_mm_min,
                 rapid: ev.rapid,
+                restart: ev.restart,
             })
         })
     }

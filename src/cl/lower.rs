@@ -35,14 +35,33 @@ use crate::error::Error;
 pub const DEFAULT_ARC_TOLERANCE_MM: f64 = 1e-3;
 
 /// Majors that move the tool or change how it moves. One that reaches the
-/// end of lowering unconverted is refused, never commented.
+/// end of lowering unconverted is refused, never commented; so is any
+/// major that starts with `CYCLE` but is not `CYCLE` (a dialect's
+/// `CYCLE81`, `CYCLE83`: drilling written as a controller cycle).
+///
+/// Besides the APT words, NX's splines (`NURBS`, `KNOT`, `CNTRL`: the path
+/// between two `GOTO`s), the moves and settings of ISO 4343 (`RETRCT`,
+/// `GOCLER`, `SAFPOS`, `POSTN`, `PREFUN`, `ZSURF`, `PIVOTZ`, `COUPLE`,
+/// `OPSKIP`: the following blocks may be skipped) and of other dialects
+/// (`TLCOMP`: cutter compensation, `WPLANE`: the working plane, `CALL`,
+/// `CALLSUB`: subprograms), and the post-processor words of NX's APT table
+/// that move or lock axes, probe, or define and call subroutines
+/// (`MOVETO`, `PLUNGE`, `PROBX`, `PROBY`, `PICKUP`, `CLEARP`, `VTLAXS`,
+/// `LOCKX`, `ULOCKX`, `CALSUB`, `DEFSUB`, `ENDSUB`: the statements between
+/// `DEFSUB` and `ENDSUB` run where `CALSUB` calls them, not where they
+/// stand). Before, these were kept as comments (counted
+/// in a warning, exit 0): the tool went straight from one `GOTO` to the
+/// next past an NX spline of 3 mm sag.
 pub const MOTION_MAJORS: &[&str] = &[
     "GOTO", "GODLTA", "GOHOME", "FROM", "CIRCLE", "MOVARC", "CYCLE", "CUTCOM", "CSYS", "TRNTYP",
     "TLAXIS", "MULTAX", "RAPID", "FEDRAT", "SPINDL", "LOAD", "LOADTL", "SELECT", "TURRET", "UNITS",
     "UNIT", "DELAY", "STOP", "OPSTOP", "INDIRV", "INDIRP", "GOFWD", "GOLFT", "GORGT", "GOBACK",
     "GOUP", "GODOWN", "TLON", "TLLFT", "TLRGT", "PSIS", "ROTABL", "ROTATE", "ROTHED", "HEAD",
     "ORIGIN", "TRANS", "REFSYS", "MATRIX", "COPY", "INDEX", "TRACUT", "ARCSLP", "THREAD", "MODE",
-    "PITCH", "CLAMP", "COOLNT",
+    "PITCH", "CLAMP", "COOLNT", "NURBS", "KNOT", "CNTRL", "RETRCT", "GOCLER", "SAFPOS", "POSTN",
+    "PREFUN", "ZSURF", "PIVOTZ", "COUPLE", "OPSKIP", "TLCOMP", "WPLANE", "CALL", "CALLSUB",
+    "CALSUB", "DEFSUB", "ENDSUB", "MOVETO", "PLUNGE", "PROBX", "PROBY", "PICKUP", "CLEARP",
+    "VTLAXS", "LOCKX", "ULOCKX",
 ];
 
 /// Lowers the records of `inner` (see the module documentation); arcs are
@@ -216,6 +235,12 @@ impl<R: BufRead> Lowered<R> {
                 }
                 self.block(r, format!("({})", String::from_utf8_lossy(&r.text).trim()));
             }
+            // `MODE/MILL` (Autodesk's ISO 4343 APT starts with it): the
+            // milling mode kinpost converts in. Lathe modes are refused.
+            "MODE" if args.len() == 1 && a(0) == "MILL" => {
+                self.count_commented(major);
+                return Ok(true);
+            }
             "CUTCOM" => match a(0).as_str() {
                 "LEFT" | "RIGHT" => {
                     // G41/G42 compensate in the plane in force, G17 (X Y):
@@ -228,8 +253,25 @@ impl<R: BufRead> Lowered<R> {
                         return Err(self.err(r, format!("CUTCOM/{},{} asks for cutter compensation in another plane than X Y, and kinpost writes G41/G42 in G17 (X Y) only: have the CAM system output the tool-centre path for this operation", a(0), p.upper())));
                     }
                     let g = if a(0) == "LEFT" { "G41" } else { "G42" };
+                    // `CUTCOM/LEFT[,XYPLAN][,n]`: n is the offset register
+                    // (Autodesk writes the tool's diameter offset there).
+                    let mut register = self.tool;
+                    for x in &args[1..] {
+                        match (x.upper().as_str(), x.number()) {
+                            ("XYPLAN", _) => {}
+                            (_, Some(n)) if n >= 0.0 && n.fract() == 0.0 && n < 1e9 => {
+                                register = Some(n as u32);
+                            }
+                            (w, _) => {
+                                return Err(self.err(
+                                    r,
+                                    format!("CUTCOM/{},{w} is not supported (expected CUTCOM/LEFT|RIGHT[,XYPLAN][,register]: compensation in the XY plane)", a(0)),
+                                ));
+                            }
+                        }
+                    }
                     self.cutcom = true;
-                    let block = match self.tool {
+                    let block = match register {
                         Some(t) => format!("{g} D{t}"),
                         None => g.to_string(),
                     };
@@ -345,7 +387,12 @@ impl<R: BufRead> Lowered<R> {
                 };
                 self.goto(r, add(p, d), None)?;
             }
-            _ if MOTION_MAJORS.contains(&major) => {
+            "NURBS" | "KNOT" | "CNTRL" => {
+                return Err(self.err(r, format!("{major}: a NURBS spline (the path between two GOTO points) is not converted; refused rather than kept as a comment, which would move the tool straight past it; have the CAM system write the path as GOTO points")));
+            }
+            _ if MOTION_MAJORS.contains(&major)
+                || (major.starts_with("CYCLE") && major != "CYCLE") =>
+            {
                 return Err(self.err(r, format!("{major} moves the tool or changes how it moves and kinpost does not convert it; refused rather than kept as a comment")));
             }
             _ => {

@@ -201,7 +201,12 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
     let keep_nonlinear = a.json || a.svg.is_some();
     let mut nl_count = 0usize;
     let mut nl_max: Option<NonlinearBlock> = None;
-    let mut step = |line: usize, q: Vec<f64>| {
+    // `restart`: where this block starts is not known (after a move in
+    // machine coordinates): no segment to measure.
+    let mut step = |line: usize, q: Vec<f64>, restart: bool| {
+        if restart {
+            prev_q = None;
+        }
         if let (true, Some(p)) = (a.nonlinear, &prev_q) {
             let e = nonlinear_error(&machine.chain, nl_errors, p, &q);
             let b = NonlinearBlock {
@@ -241,7 +246,7 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
                 an.add(b.line, pose)
                     .map_err(|m| Error::input(crate::error::Location::new(&name, b.line, 0), m))?;
             }
-            step(b.line, b.q);
+            step(b.line, b.q, b.restart);
             Ok(())
         },
     )?;

@@ -6,13 +6,16 @@
 //! more axes than allowed, or whose nonlinear error exceeds the tolerance, is
 //! preceded by inserted blocks (marked `(kinpost linkage i/n)`) and keeps its
 //! own line, N number and comments; its axis words are rewritten to the axes
-//! that still move.
+//! that still move. Its other words that act where it starts (modal codes,
+//! `S`, `T`, M codes other than stops) move to the first inserted block, a
+//! block delete goes on every inserted block (`linkage::carry`).
 //!
 //! Feeds: in `G94` the feed carries over (the inserted blocks repeat an `F`
 //! the block sets); in `G93` every inserted block gets `F = n·F₀` so each of
 //! the `n` segments takes `1/n` of the original block's time and the original
 //! segment keeps its time (tool tips are evenly spaced along the line).
 
+use super::carry::share_out;
 use super::nonlinear::nonlinear_error;
 use super::plan::{Pattern, RotaryPair, insert_points, worst_segment};
 use crate::error::{Error, Location, Result};
@@ -289,6 +292,11 @@ struct Block {
     feed_item: Option<usize>,
     /// Items of the machine-axis words in the (converted) line.
     axis_items: Vec<usize>,
+    /// Whether the block can be measured and divided: the program's
+    /// coordinates give where it starts (not after G28, G30, G53 until the
+    /// axes they moved are programmed again), or no rotary axis turns
+    /// (`MachineBlock::measurable`).
+    measurable: bool,
 }
 
 /// Items of machine-axis words in a line.
@@ -350,6 +358,8 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
     let mut conv = poses.then(|| GcodeConverter::new(machine, &post_opts));
     let mut tracker = MachineAxisTracker::new(machine);
     let mut prev: Option<Vec<f64>> = None;
+    // Whether the block that gave `prev` may be skipped (block delete).
+    let mut prev_skippable = false;
     let mut buf = Vec::with_capacity(256);
     let mut text = Vec::with_capacity(256);
     for line in LineReader::new(input) {
@@ -377,6 +387,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                         },
                         feed_item,
                         axis_items: items,
+                        measurable: true,
                     };
                     (ml, Some(b))
                 }
@@ -399,6 +410,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                         },
                         feed_item: mb.meaning.feed_item,
                         axis_items: mb.axis_items,
+                        measurable: mb.measurable,
                     });
                 (line, b)
             }
@@ -421,6 +433,11 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                 }
             }
         }
+        let skippable = mline
+            .items
+            .iter()
+            .any(|it| matches!(it.kind, ItemKind::BlockDelete));
+        let start_skippable = std::mem::replace(&mut prev_skippable, skippable);
         let Some(qa) = prev.replace(block.q.clone()) else {
             mline.write_to(&mut &mut *out).map_err(io)?;
             continue;
@@ -437,6 +454,13 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             report.cycle_time_after_s += 60.0 * time_before;
             mline.write_to(&mut &mut *out).map_err(io)?;
             continue;
+        }
+        if !block.measurable {
+            return Err(Error::input_with(
+                Location::new(&opts.file_name, mline.number, 0),
+                "where this G1 block starts is not known in the program's coordinates (G28, G30 or G53 moved an axis to the reference point or in machine coordinates before it) and a rotary axis turns: linkage cannot measure or divide it; program every axis moved there (a G0 to a known position) before it",
+                mline.text_lossy(),
+            ));
         }
         report.over_axes_before += usize::from(moved > opts.max_axes);
         let before = nonlinear_error(&machine.chain, &NoErrors, &qa, qb);
@@ -463,8 +487,34 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             }
             Some(p) => p,
         };
-        // Divided: inserted blocks, then the original block's line.
+        // Divided: inserted blocks, then the original block's line. The
+        // words that act where the block starts go to the first inserted
+        // block, a block delete to all of them (`linkage::carry`).
+        let at = |item: Option<usize>| {
+            Location::new(
+                &opts.file_name,
+                mline.number,
+                item.map(|i| mline.items[i].start + 1).unwrap_or(0),
+            )
+        };
+        if start_skippable {
+            return Err(Error::input_with(
+                at(None),
+                "this block must be divided, but the block before it may be skipped (block delete /): where this block starts depends on the switch, so its inserted points cannot be placed; take the / off, or program a position after it",
+                mline.text_lossy(),
+            ));
+        }
+        let carried = share_out(&mline, &block.axis_items, block.feed_item)
+            .map_err(|(i, m)| Error::input_with(at(Some(i)), m, mline.text_lossy()))?;
         let segments = points.len() + 1;
+        // The feed of each segment: in G93 every one gets n·F₀.
+        let segment_feed = match block.feed.mode {
+            FeedMode::InverseTime => FeedState {
+                value: block.feed.value.map(|f| f * segments as f64),
+                ..block.feed
+            },
+            _ => block.feed,
+        };
         report.blocks_split += 1;
         report.points_inserted += points.len();
         report.blocks_out += points.len();
@@ -478,7 +528,19 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
         };
         let mut from = qa.clone();
         for (i, p) in points.iter().enumerate() {
-            let mut s = String::from("G1 ");
+            let mut s = String::new();
+            if let Some(bd) = &carried.block_delete {
+                s.push_str(&String::from_utf8_lossy(bd));
+            }
+            s.push_str("G1 ");
+            if i == 0 {
+                for &item in &carried.to_first {
+                    s.push_str(&String::from_utf8_lossy(
+                        mline.item_bytes(&mline.items[item]),
+                    ));
+                    s.push(' ');
+                }
+            }
             s.push_str(&axes.words(&from, p, block.units, block.absolute));
             if block.feed.mode == FeedMode::InverseTime {
                 feed_text(&mut s);
@@ -497,13 +559,13 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             let m = axes.moved(&from, p);
             report.max_axes_moved_after = report.max_axes_moved_after.max(m);
             report.over_axes_after += usize::from(m > opts.max_axes);
-            report.cycle_time_after_s += 60.0 * move_minutes(machine, &from, p, &block.feed);
+            report.cycle_time_after_s += 60.0 * move_minutes(machine, &from, p, &segment_feed);
             from = p.clone();
         }
         let m = axes.moved(&from, qb);
         report.max_axes_moved_after = report.max_axes_moved_after.max(m);
         report.over_axes_after += usize::from(m > opts.max_axes);
-        report.cycle_time_after_s += 60.0 * move_minutes(machine, &from, qb, &block.feed);
+        report.cycle_time_after_s += 60.0 * move_minutes(machine, &from, qb, &segment_feed);
         let mut words = axes.words(&from, qb, block.units, block.absolute);
         let mut replace = block.axis_items.clone();
         if let (FeedMode::InverseTime, Some(item)) = (block.feed.mode, block.feed_item) {
@@ -519,7 +581,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             &replace,
             words.trim_start().as_bytes(),
             &[],
-            &[],
+            &carried.to_first,
             &mut text,
         );
         out.write_all(&text).map_err(io)?;

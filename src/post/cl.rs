@@ -395,7 +395,20 @@ impl ClFormat<'_> {
                         self.apply_g80(self.g80);
                     }
                 }
-                line(out, format_args!("{b}"));
+                if b.starts_with("G43 H") && self.machine.tool_length_mm > 0.0 {
+                    // The chain ends at the tip of a tool of known length
+                    // (`--tool-length`, or the machine file's `tool_length`):
+                    // the axis words include it, so the controller's tool
+                    // length compensation must be off, as G43.4 becomes G49.
+                    // Before, `G43 H1` made the controller add the length a
+                    // second time.
+                    line(
+                        out,
+                        format_args!("G49 ({b}: the tool length is in the axis words)"),
+                    );
+                } else {
+                    line(out, format_args!("{b}"));
+                }
             }
             ClStatement::CutterCompensation { block, on } => {
                 self.cutcom = on.then(|| CutcomOn {

@@ -4,6 +4,7 @@ mod block_delete;
 pub mod block_delete_switch;
 pub mod format;
 pub mod heidenhain;
+pub mod ijk;
 pub mod integrity;
 pub mod inverse_time;
 pub mod modal;

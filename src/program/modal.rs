@@ -24,6 +24,7 @@
 //!   (`/`) pose block. The modes a `/` block changes are checked beside
 //!   this state (`block_delete_switch::BlockDeleteSwitch`).
 
+use super::ijk;
 use nalgebra::Vector3;
 
 /// One word of a block, as the modal state needs it.
@@ -35,6 +36,11 @@ pub struct WordRef<'a> {
     pub value: f64,
     /// Index of the word's item in the parsed line (for error columns and rewriting).
     pub item: usize,
+}
+
+/// The (address, value) pairs of `words`, as `program::ijk` reads them.
+fn pairs<'a>(words: &'a [WordRef<'a>]) -> impl ijk::Words<'a> {
+    words.iter().map(|w| (w.address, w.value))
 }
 
 /// Motion mode (G-code group 1).
@@ -272,11 +278,10 @@ impl ModalState {
                         20 | 30 => self.motion = Motion::Arc,
                         800 => self.motion = Motion::Rapid,
                         810..=890 => self.motion = Motion::Other,
-                        // Threads and splines: motion modes whose I J K are
-                        // pitches, tapers or control points, not a tool axis.
-                        330 | 331 | 760 | 50 | 51 | 52 | 62 | 730 | 740 => {
-                            self.motion = Motion::Other
-                        }
+                        // Threads, tapping and splines: motion modes whose
+                        // I J K are not a tool axis (`program::ijk`).
+                        c if ijk::other_motion(c, pairs(words)) => self.motion = Motion::Other,
+                        50 | 51 => {} // Fanuc G05 P…, G05.1 Q…: a mode, not a motion.
                         // A tilted or rotated work plane (G68.2, G68.3,
                         // G68.4, G68, G51.1 mirroring): its I J K are angles.
                         // It changes how every later move lands, so it is
@@ -458,7 +463,7 @@ impl ModalState {
             }
             non_modal = true;
         }
-        if straight && has_axis && !non_modal {
+        if straight && has_axis && !non_modal && ijk::owner(pairs(words)).is_none() {
             self.pose_mode = true;
         }
         if self.pose_mode && self.frame_seen {

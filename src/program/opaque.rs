@@ -380,12 +380,19 @@ fn holds_tool_vector(bytes: &[u8]) -> bool {
         })
         .map(u8::to_ascii_uppercase)
         .collect();
-    up.windows(2).any(|w| {
-        matches!(w[0], b'I' | b'J' | b'K')
-            && (w[1].is_ascii_digit() || matches!(w[1], b'-' | b'+' | b'.'))
-    }) || up
-        .windows(3)
-        .any(|w| matches!(w[0], b'A' | b'B' | b'C') && w[1] == b'3' && w[2] == b'=')
+    // A word starts where no letter comes before it: the `I3` inside a
+    // name (`Node name : cyi3w080`, a line of an NX listing's header) is
+    // no tool vector.
+    let starts_word = |i: usize| i == 0 || !up[i - 1].is_ascii_alphabetic();
+    let ijk = |i: usize| {
+        matches!(up[i], b'I' | b'J' | b'K')
+            && up
+                .get(i + 1)
+                .is_some_and(|n| n.is_ascii_digit() || matches!(n, b'-' | b'+' | b'.'))
+    };
+    let abc3 =
+        |i: usize| matches!(up[i], b'A' | b'B' | b'C') && up.get(i + 1..i + 3) == Some(&b"3="[..]);
+    (0..up.len()).any(|i| (ijk(i) || abc3(i)) && starts_word(i))
 }
 
 #[cfg(test)]

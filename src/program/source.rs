@@ -240,6 +240,10 @@ pub struct AxisEvent {
     pub inverse_time: Option<f64>,
     /// Rapid move (G0).
     pub rapid: bool,
+    /// The block does not start where the previous event ended: it follows
+    /// a move whose end the program's coordinates do not give (G28, G30,
+    /// G53), so the segment between the two is not known.
+    pub restart: bool,
 }
 
 /// A motion block of a program in machine axes.
@@ -251,7 +255,25 @@ pub struct MachineBlock {
     pub meaning: super::BlockMeaning,
     /// Items of the machine-axis words in the line.
     pub axis_items: Vec<usize>,
+    /// Whether every axis was at a known position (in program coordinates)
+    /// where the block starts: not after `G28`, `G30`, `G53` or
+    /// `G92.1`–`G92.3` until each axis they moved is programmed again.
+    pub start_known: bool,
+    /// Whether every axis is at a known position where the block ends.
+    pub end_known: bool,
+    /// Whether the block's segment can be measured (its nonlinear error,
+    /// the points `linkage` inserts): where it starts is known, or no
+    /// rotary axis turns (none moves, none not known is programmed): the
+    /// tool tip then moves on a straight line whatever the start.
+    pub measurable: bool,
 }
+
+/// Sinumerik frame instructions: their X Y Z are offsets, angles or
+/// factors, not a position.
+const FRAME_KEYWORDS: [&str; 11] = [
+    "TRANS", "ATRANS", "ROT", "AROT", "SCALE", "ASCALE", "MIRROR", "AMIRROR", "ROTS", "AROTS",
+    "CROTS",
+];
 
 /// Follows the axis positions and modal state of a program in machine axes
 /// (absolute or incremental, mm or inch). Axes not yet programmed are 0
@@ -260,6 +282,9 @@ pub struct MachineBlock {
 pub struct MachineAxisTracker {
     modal: ModalState,
     ext: Vec<f64>,
+    /// Axes whose position in program coordinates is not known (after a
+    /// move to the reference point or in machine coordinates).
+    unknown: Vec<bool>,
 }
 
 impl MachineAxisTracker {
@@ -268,6 +293,7 @@ impl MachineAxisTracker {
         MachineAxisTracker {
             modal: ModalState::new(PoseStart::Off),
             ext: vec![0.0; machine.axes.len()],
+            unknown: vec![false; machine.axes.len()],
         }
     }
 
@@ -299,10 +325,132 @@ impl MachineAxisTracker {
             let col = e.item.map(|i| line.items[i].start + 1).unwrap_or(0);
             Error::input(Location::new(file, line.number, col), e.message)
         })?;
+        // Tool centre point control switched on past the start of the
+        // program (where the program was taken for one in machine axes):
+        // from here its X Y Z are tool-tip positions, not axes.
+        let tcp = meaning
+            .tcp_codes
+            .first()
+            .map(|c| match c {
+                super::modal::TcpCode::FanucOn(i) | super::modal::TcpCode::SiemensOn(i) => *i,
+            })
+            .or_else(|| {
+                line.items.iter().position(|it| match &it.kind {
+                    ItemKind::Keyword(k) => k == "TRAORI",
+                    ItemKind::Opaque => {
+                        super::opaque::known_call(&String::from_utf8_lossy(line.item_bytes(it)))
+                            == Some("TRAORI")
+                    }
+                    _ => false,
+                })
+            });
+        if let Some(i) = tcp {
+            return Err(Error::input_with(
+                Location::new(file, line.number, line.items[i].start + 1),
+                "tool centre point control (G43.4, G43.5, G234, TRAORI) in a program read as machine axes: from here its X Y Z are tool-tip positions, which this command does not read as axes; convert the program with `kinpost post` first, or give a program that switches TCP on at its start",
+                line.text_lossy(),
+            ));
+        }
+        // A block that is not a move in program coordinates: data (G10,
+        // G52, a frame, a pole, a dwell such as Fanuc's `G4 X1.5`) leaves
+        // the position as it is; G92 says where the axes it names are now;
+        // after G28, G30 or G53 the axes they move (G28/G30 alone: all),
+        // after G92.1–G92.3 all axes, are somewhere the program's
+        // coordinates do not say, until programmed again.
+        let frame = line.items.iter().any(
+            |it| matches!(&it.kind, ItemKind::Keyword(k) if FRAME_KEYWORDS.contains(&k.as_str())),
+        );
+        if meaning.non_modal || frame {
+            let g = |c: f64| {
+                modal_words
+                    .iter()
+                    .any(|w| w.address == "G" && (w.value - c).abs() < 1e-6)
+            };
+            let named = |k: usize| {
+                axis_items.iter().any(|&i| {
+                    matches!(&line.items[i].kind, ItemKind::Word(w) if w.address == machine.axes[k].name)
+                })
+            };
+            // kinpost writes rotary words as the chain's joint angles: a
+            // rotary axis's program and machine coordinates are one (no
+            // rotary work offset). So G53 puts a rotary where its word says,
+            // and G28 at its reference point, 0°; linear axes there, and
+            // any axis after G30, are not known.
+            let rotary = |k: usize| machine.axes[k].kind == crate::machine::JointKind::Revolute;
+            // G28/G30 without any axis word send every axis home.
+            let all = !g(53.0)
+                && !line.words().any(|w| {
+                    matches!(
+                        w.address.as_str(),
+                        "X" | "Y" | "Z" | "A" | "B" | "C" | "U" | "V" | "W"
+                    )
+                });
+            for k in 0..machine.axes.len() {
+                if g(92.1) || g(92.2) || g(92.3) {
+                    self.unknown[k] = true;
+                } else if g(28.0) && rotary(k) && (all || named(k)) {
+                    self.ext[k] = 0.0;
+                    self.unknown[k] = false;
+                } else if (g(28.0) || g(30.0) || g(53.0)) && !(g(53.0) && rotary(k)) {
+                    self.unknown[k] |= all || named(k);
+                }
+            }
+            if g(92.0) {
+                self.set_axes(machine, line, &axis_items, &meaning, true);
+            } else if g(53.0) {
+                let rotaries: Vec<usize> = axis_items
+                    .iter()
+                    .copied()
+                    .filter(|&i| {
+                        (0..machine.axes.len()).any(|k| {
+                            rotary(k)
+                                && matches!(&line.items[i].kind, ItemKind::Word(w) if w.address == machine.axes[k].name)
+                        })
+                    })
+                    .collect();
+                self.set_axes(machine, line, &rotaries, &meaning, true);
+            }
+            return Ok(None);
+        }
         if axis_items.is_empty() {
             return Ok(None);
         }
-        for &i in &axis_items {
+        let start_known = !self.unknown.contains(&true);
+        let rotary = |k: usize| machine.axes[k].kind == crate::machine::JointKind::Revolute;
+        // Only where the start is not known: the positions before, and
+        // which axes were not known.
+        let before = (!start_known).then(|| (self.ext.clone(), self.unknown.clone()));
+        self.set_axes(machine, line, &axis_items, &meaning, meaning.absolute);
+        // A rotary that turns, or one not known that is programmed to a
+        // position (it may turn), makes the tip's path depend on the start.
+        let rotary_still = before.as_ref().is_none_or(|(ext, unknown)| {
+            (0..ext.len()).all(|k| {
+                let programmed_from_unknown = unknown[k] && !self.unknown[k];
+                let turns = ext[k] != self.ext[k] || programmed_from_unknown;
+                !rotary(k) || !turns
+            })
+        });
+        Ok(Some(MachineBlock {
+            q: machine.to_internal(&self.ext).to_vec(),
+            meaning,
+            axis_items,
+            start_known,
+            end_known: !self.unknown.contains(&true),
+            measurable: start_known || rotary_still,
+        }))
+    }
+
+    /// Puts the axes of `axis_items` where the line's words say (`absolute`:
+    /// at their values, else moved by them).
+    fn set_axes(
+        &mut self,
+        machine: &crate::machine::Machine,
+        line: &crate::gcode::Line,
+        axis_items: &[usize],
+        meaning: &super::BlockMeaning,
+        absolute: bool,
+    ) {
+        for &i in axis_items {
             let ItemKind::Word(w) = &line.items[i].kind else {
                 continue;
             };
@@ -316,7 +464,7 @@ impl MachineAxisTracker {
             };
             let v = w.value * scale;
             let modulo = machine.axes[k].rotary == crate::machine::RotaryMode::Modulo;
-            self.ext[k] = match (meaning.absolute, modulo) {
+            self.ext[k] = match (absolute, modulo) {
                 (false, _) => self.ext[k] + v,
                 // A modulo axis turns the short way to an absolute target
                 // (LinuxCNC's wrapped rotary, a roll-over axis): followed
@@ -324,12 +472,10 @@ impl MachineAxisTracker {
                 (true, true) => crate::machine::rotary::unwind_near_degrees(v, self.ext[k]),
                 (true, false) => v,
             };
+            if absolute {
+                self.unknown[k] = false;
+            }
         }
-        Ok(Some(MachineBlock {
-            q: machine.to_internal(&self.ext).to_vec(),
-            meaning,
-            axis_items,
-        }))
     }
 }
 
@@ -343,6 +489,8 @@ pub fn machine_axis_blocks<R: BufRead>(
 ) -> Result<()> {
     let mut tracker = MachineAxisTracker::new(machine);
     let mut lines = LineReader::new(input);
+    // A block was left out since the last event because its end is not known.
+    let mut gap = false;
     while let Some(line) = lines.next_line() {
         let line = line.map_err(|e| Error::io(file, e))?;
         let Some(b) = tracker.line(machine, line, file)? else {
@@ -352,7 +500,13 @@ pub fn machine_axis_blocks<R: BufRead>(
         if !matches!(m.motion, Motion::Rapid | Motion::Linear) {
             continue;
         }
+        if !b.end_known {
+            gap = true;
+            continue;
+        }
+        let restart = std::mem::take(&mut gap) || !b.start_known;
         f(AxisEvent {
+            restart,
             line: line.number,
             feed_mm_min: match m.feed_mode {
                 super::FeedMode::PerMinute => m.feed.map(|v| v * m.units.mm_per_unit()),
@@ -377,22 +531,26 @@ pub fn looks_like_poses(head: &[u8]) -> bool {
         return true;
     }
     // I J K are a tool vector only on straight moves: on an arc (G2/G3,
-    // modal) they are its centre, on G33.1/G76/G68.2 and the like something
-    // else again.
+    // modal) they are its centre, on threads, splines, G68.2, G87/G88 and
+    // with G40–G42, G54–G59, G65 something else again (`program::ijk`).
     let mut straight = true;
     for (n, raw) in head.split(|b| *b == b'\n').enumerate() {
         let line = crate::gcode::parse_line(raw, n + 1);
-        let mut other_ijk = false;
+        let pairs: Vec<(&str, f64)> = line
+            .words()
+            .map(|w| (w.address.as_str(), w.value))
+            .collect();
+        let mut other_ijk = super::ijk::owner(pairs.iter().copied()).is_some();
         for w in line.words() {
             if w.address == "G" {
                 let g = w.value;
+                let c = (g * 10.0).round() as i64;
                 if g == 0.0 || g == 1.0 {
                     straight = true;
                 } else if g == 2.0 || g == 3.0 {
                     straight = false;
-                } else if [33.0, 33.1, 76.0, 68.2, 5.0, 5.1, 5.2, 87.0, 88.0]
-                    .iter()
-                    .any(|c| (g - c).abs() < 1e-9)
+                } else if super::ijk::other_motion(c, pairs.iter().copied())
+                    || [682, 870, 880].contains(&c)
                 {
                     other_ijk = true;
                 }

@@ -1,0 +1,147 @@
+//! APT CL words met on CL data from outside the project: Autodesk's
+//! "Common ISO 4343 APT" post (`MODE/MILL` first, `CUTCOM/LEFT, n` with
+//! the tool's offset register), NX's NURBS output (`NURBS/`, `KNOT/`,
+//! `CNTRL/` between two `GOTO`s, on a real NX CLSF), and words of other
+//! dialects and of ISO 4343 that move the tool. Before: `MODE/MILL`
+//! refused every such file at line 1; `CUTCOM/LEFT, 3` wrote `G41 D1` (the
+//! tool number); the spline and the other words were kept as comments with
+//! exit 0, the tool going straight from one `GOTO` to the next.
+
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+use crate::util::BIN;
+
+/// Runs `kinpost post -m xyzbc-trt -` on `cl`: (exit code, stdout, stderr).
+fn post(cl: &str) -> (i32, String, String) {
+    let mut child = Command::new(BIN)
+        .args(["post", "--machine", "xyzbc-trt", "--input-kind", "cl", "-"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(cl.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    (
+        out.status.code().unwrap(),
+        String::from_utf8(out.stdout).unwrap(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn autodesk_common_apt_mode_and_cutter_compensation_register() {
+    let cl = "MODE/MILL\nPARTNO/'1001'\nUNITS/MM\nMULTAX/ON\nLOADTL/1, 0, 60.000000, 1\nSPINDL/5000.000000, RPM, CLW\nRAPID\nGOTO/10.000000, 0.000000, 50.000000, 0.000000000, 0.000000000, 1.000000000\nFEDRAT/500.000000, MMPM\nCUTCOM/LEFT, 3\nGOTO/10.000000, 0.000000, 5.000000, 0.000000000, 0.000000000, 1.000000000\nCUTCOM/OFF\nCUTCOM/RIGHT,XYPLAN\nGOTO/10.000000, 5.000000, 5.000000, 0.000000000, 0.000000000, 1.000000000\nCUTCOM/OFF\nEND\nFINI\n";
+    let (code, out, err) = post(cl);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("(MODE/MILL)"), "{out}");
+    assert!(
+        out.contains("\nG41 D3\n"),
+        "the register the CL names: {out}"
+    );
+    assert!(
+        out.contains("\nG42 D1\n"),
+        "the loaded tool's register: {out}"
+    );
+    assert!(err.contains("MODE 1"), "counted as a comment: {err}");
+    // A lathe mode, or compensation in another plane, is refused.
+    let (code, _, err) = post("MODE/TURN\nUNITS/MM\nGOTO/0,0,0\n");
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("<stdin>:1:1:") && err.contains("MODE"),
+        "{err}"
+    );
+    let (code, _, err) = post("UNITS/MM\nCUTCOM/LEFT,YZPLAN\nGOTO/0,0,0\n");
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("<stdin>:2:1:") && err.contains("YZPLAN"),
+        "{err}"
+    );
+}
+
+#[test]
+fn nx_nurbs_output_is_refused() {
+    // The shape of an NX CLSF with NURBS output: the spline lies between
+    // the GOTO before it and the GOTO after it.
+    let cl = "TOOL PATH/FIXED_CONTOUR,TOOL,BALL_MILL\nUNITS/MM\nRAPID\nGOTO/0.0000,166.5681,6.8891,0.0000000,0.0000000,1.0000000\nFEDRAT/MMPM,250.0000\nNURBS/\nKNOT/0.0416667,0.3750000,0.6250000,0.9583333,1.0000000\nCNTRL/0.0000,166.2698,6.9401\nCNTRL/0.0000,163.5692,7.2380\nCNTRL/0.0000,159.2589,9.0136\nCNTRL/0.0000,154.6135,13.9021\nGOTO/0.0000,152.7940,23.3200\nEND-OF-PATH\n";
+    let (code, out, err) = post(cl);
+    assert_eq!(code, 1, "{out}");
+    assert!(
+        err.contains("<stdin>:6:1:") && err.contains("NURBS"),
+        "{err}"
+    );
+    assert!(out.is_empty());
+}
+
+#[test]
+fn dialect_words_that_move_the_tool_are_refused() {
+    for (word, statement) in [
+        ("CYCLE81", "CYCLE81 / 10, 0, 2, -25, 0"),
+        ("TLCOMP", "TLCOMP / ON, LEFT"),
+        ("CALLSUB", "CALLSUB / 1001"),
+        ("RETRCT", "RETRCT"),
+        ("PREFUN", "PREFUN/91"),
+        ("OPSKIP", "OPSKIP/ON"),
+        ("ZSURF", "ZSURF/10"),
+    ] {
+        let cl = format!("UNITS/MM\nGOTO/0,0,10\n{statement}\nGOTO/10,0,10\nFINI\n");
+        let (code, _, err) = post(&cl);
+        assert_eq!(code, 1, "{statement}: {err}");
+        assert!(
+            err.contains("<stdin>:3:1:") && err.contains(word),
+            "{statement}: {err}"
+        );
+    }
+}
+
+/// Runs `kinpost post -m xyzbc-trt ARGS -` on `cl`: (exit code, stdout, stderr).
+fn post_with(args: &[&str], cl: &str) -> (i32, String, String) {
+    let mut child = Command::new(BIN)
+        .args(["post", "--machine", "xyzbc-trt", "--input-kind", "cl"])
+        .args(args)
+        .arg("-")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(cl.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    (
+        out.status.code().unwrap(),
+        String::from_utf8(out.stdout).unwrap(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn a_tool_length_in_the_axis_words_is_not_compensated_again() {
+    let cl = "UNITS/MM\nLOAD/TOOL,1\nGOTO/0,0,50,0,0,1\nFINI\n";
+    // With the job's tool in the chain the axis words put its tip on the
+    // point (Z100 for a 50 mm tool); before, `G43 H1` followed, and the
+    // controller added the length a second time.
+    let (code, out, err) = post_with(&["--tool-length", "50"], cl);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("Z100.0000"), "{out}");
+    assert!(!out.contains("\nG43 H1\n"), "{out}");
+    assert!(out.contains("\nG49 "), "{out}");
+    // Without a tool length the chain ends at the gauge line: the
+    // controller's compensation adds the tool (as before).
+    let (code, out, err) = post_with(&[], cl);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("T1 M6\nG43 H1\n") && out.contains("Z50.0000"),
+        "{out}"
+    );
+}
