@@ -173,8 +173,14 @@ impl BlockDeleteSwitch {
         keywords: &[(usize, &str)],
         line: &Line,
     ) -> Result<BlockMeaning, Refused> {
+        let slash = keywords.iter().find(|(_, k)| *k == "/");
+        // The common block: no `/`, and no `/` block before makes anything
+        // depend on the switch.
+        if slash.is_none() && self.on.is_none() && self.position.is_none() {
+            return modal.apply(words, keywords).map_err(Refused::Block);
+        }
         let feeds = self.converts_feeds;
-        if let Some(&(item, _)) = keywords.iter().find(|(_, k)| *k == "/") {
+        if let Some(&(item, _)) = slash {
             // With the switch on the block is skipped: the state stays the
             // one before it (or the one kept already).
             let before = self.on.is_none().then(|| modal.clone());
