@@ -282,16 +282,7 @@ mod tests {
 
     impl JointErrors for Waves {
         fn error(&self, joint: usize, q: f64) -> Option<ErrorMotion> {
-            let (a, k) = (self.amp, self.k(joint));
-            let (s, c) = (k * q).sin_cos();
-            Some(ErrorMotion::new(
-                a * s,
-                a * c,
-                -a * s,
-                1e-2 * a * c,
-                1e-2 * a * s,
-                -1e-2 * a * c,
-            ))
+            self.error_and_derivative(joint, q).map(|(e, _)| e)
         }
         fn error_and_derivative(&self, joint: usize, q: f64) -> Option<(ErrorMotion, ErrorMotion)> {
             let (a, k) = (self.amp, self.k(joint));

@@ -6,7 +6,7 @@ use super::effects::StaticTerm;
 use super::merged::MergedAxis;
 use crate::machine::chain::{ErrorMotion, JointErrors, SlopeBounds};
 
-/// An [`ErrorModel`] bound to a chain's joint indices: the chain evaluator's
+/// An [`ErrorModel`](super::ErrorModel) bound to a chain's joint indices: the chain evaluator's
 /// error source, with analytic derivatives.
 #[derive(Debug, Clone)]
 pub struct BoundErrors<'a> {

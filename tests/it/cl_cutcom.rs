@@ -11,32 +11,10 @@
 
 use crate::util;
 
-/// `kinpost args…` with `input` on standard input: exit code, stdout,
-/// stderr.
+/// `kinpost args… --input-kind cl -` with `input` on standard input: exit
+/// code, stdout, stderr.
 fn run(args: &[&str], input: &str) -> (i32, String, String) {
-    use std::io::Write;
-    use std::process::{Command, Stdio};
-    let mut child = Command::new(util::BIN)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(args)
-        .args(["--input-kind", "cl", "-"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(input.as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    crate::cl_support::cl_stdin(args, input)
 }
 
 /// A pocket side under compensation: the approach at tool axis `before`,

@@ -48,11 +48,19 @@ pub fn kinpost(args: &[&str]) -> std::process::Output {
 /// `kinpost post -m machine --input-kind cl args` on `input`: exit code,
 /// stdout, stderr.
 pub fn post_stdin(machine: &str, args: &[&str], input: &str) -> (i32, String, String) {
+    let mut all = vec!["post", "-m", machine];
+    all.extend_from_slice(args);
+    cl_stdin(&all, input)
+}
+
+/// `kinpost args --input-kind cl -` with `input` on standard input: exit
+/// code, stdout, stderr.
+pub fn cl_stdin(args: &[&str], input: &str) -> (i32, String, String) {
     use std::io::Write;
     let mut child = Command::new(crate::util::BIN)
         .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(["post", "-m", machine, "--input-kind", "cl"])
         .args(args)
+        .args(["--input-kind", "cl", "-"])
         .stdin(std::process::Stdio::piped())
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())

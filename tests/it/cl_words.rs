@@ -7,32 +7,9 @@
 //! tool number); the spline and the other words were kept as comments with
 //! exit 0, the tool going straight from one `GOTO` to the next.
 
-use std::io::Write;
-use std::process::{Command, Stdio};
-
-use crate::util::BIN;
-
 /// Runs `kinpost post -m xyzbc-trt -` on `cl`: (exit code, stdout, stderr).
 fn post(cl: &str) -> (i32, String, String) {
-    let mut child = Command::new(BIN)
-        .args(["post", "--machine", "xyzbc-trt", "--input-kind", "cl", "-"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(cl.as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    (
-        out.status.code().unwrap(),
-        String::from_utf8(out.stdout).unwrap(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    crate::cl_support::post_stdin("xyzbc-trt", &[], cl)
 }
 
 #[test]
@@ -102,27 +79,7 @@ fn dialect_words_that_move_the_tool_are_refused() {
 
 /// Runs `kinpost post -m xyzbc-trt ARGS -` on `cl`: (exit code, stdout, stderr).
 fn post_with(args: &[&str], cl: &str) -> (i32, String, String) {
-    let mut child = Command::new(BIN)
-        .args(["post", "--machine", "xyzbc-trt", "--input-kind", "cl"])
-        .args(args)
-        .arg("-")
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(cl.as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    (
-        out.status.code().unwrap(),
-        String::from_utf8(out.stdout).unwrap(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    crate::cl_support::post_stdin("xyzbc-trt", args, cl)
 }
 
 #[test]

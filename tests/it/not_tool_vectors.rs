@@ -7,25 +7,9 @@
 //! and `G05.1 Q1` are modes, not spline moves. Before, a pitch of 1 mm or a
 //! unit exit direction was converted into machine axis words, exit 0.
 
-use std::process::Command;
-
-use crate::util::BIN;
-
 /// Runs `kinpost post` on xyzbc-trt: (exit code, stdout, stderr).
 fn post(name: &str, bytes: &[u8]) -> (i32, Vec<u8>, String) {
-    let dir = tempfile::tempdir().unwrap();
-    let p = dir.path().join(name);
-    std::fs::write(&p, bytes).unwrap();
-    let out = Command::new(BIN)
-        .args(["post", "--machine", "xyzbc-trt"])
-        .arg(&p)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap(),
-        out.stdout,
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    crate::util::post_file("xyzbc-trt", name, bytes)
 }
 
 /// `program` passes through byte for byte with exit 0.

@@ -9,19 +9,7 @@ use crate::util::BIN;
 
 /// Runs `kinpost post` on `bytes` written to `name`: (exit code, stdout, stderr).
 fn post(name: &str, bytes: &[u8]) -> (i32, Vec<u8>, String) {
-    let dir = tempfile::tempdir().unwrap();
-    let p = dir.path().join(name);
-    std::fs::write(&p, bytes).unwrap();
-    let out = Command::new(BIN)
-        .args(["post", "--machine", "zhao2022-xzbc"])
-        .arg(&p)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap(),
-        out.stdout,
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    crate::util::post_file("zhao2022-xzbc", name, bytes)
 }
 
 #[test]

@@ -81,3 +81,21 @@ pub fn shared_dir(sub: &str) -> Option<PathBuf> {
     );
     None
 }
+
+/// Runs `kinpost post --machine machine` on `bytes` written to a file
+/// `name` in a temporary folder: (exit code, stdout, stderr).
+pub fn post_file(machine: &str, name: &str, bytes: &[u8]) -> (i32, Vec<u8>, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join(name);
+    std::fs::write(&p, bytes).unwrap();
+    let out = std::process::Command::new(BIN)
+        .args(["post", "--machine", machine])
+        .arg(&p)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap(),
+        out.stdout,
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
