@@ -312,6 +312,8 @@ pub struct GcodeConverter<'a> {
     modal: ModalState,
     /// The modal state with the block-delete switch on, where it differs.
     switch: crate::program::block_delete_switch::BlockDeleteSwitch,
+    /// Plain tool length compensation (`G43 Hn`) the program switched on.
+    length_comp: crate::program::length_comp::LengthCompensation,
     writer: AxisWriter<'a>,
     previous: Option<crate::machine::chain::JointValues>,
     /// Machine axis positions (output order, mm / deg) followed through
@@ -340,6 +342,7 @@ impl<'a> GcodeConverter<'a> {
             opts,
             modal: ModalState::new(opts.pose_start),
             switch: crate::program::block_delete_switch::BlockDeleteSwitch::new(opts.inverse_time),
+            length_comp: Default::default(),
             writer: AxisWriter::new(machine, opts.decimals),
             previous: None,
             machine_ext: vec![0.0; machine.axes.len()],
@@ -423,6 +426,7 @@ impl<'a> GcodeConverter<'a> {
         let has_words = !words.is_empty() || !keywords.is_empty();
         let start_tip = self.modal.tip;
         let applied = self.switch.apply(&mut self.modal, &words, &keywords, line);
+        self.length_comp.block(&words, line);
         self.words = recycle(words);
         let meaning = applied.map_err(|e| match e {
             crate::program::block_delete_switch::Refused::Slash { at, message } => {
@@ -502,6 +506,23 @@ impl<'a> GcodeConverter<'a> {
                 Location::new(&opts.file_name, line.number, line.bytes.len() + 1),
                 "the file ends inside this pose block, without a line end: a truncated file? A block cut short would put the tool elsewhere; if the program is complete, end it with a line break (and M30)",
                 String::from_utf8_lossy(&line.bytes),
+            ));
+        }
+        // The chain ends at the tool's tip: a G43 of the program's own
+        // would add the tool's length to axis words that include it.
+        let tool_in_chain = self.machine.tool_length_mm != 0.0
+            || opts
+                .tool_machines
+                .iter()
+                .any(|(_, m)| m.tool_length_mm != 0.0);
+        if tool_in_chain && let Some(at) = self.length_comp.on() {
+            return Err(Error::input_with(
+                Location::new(&opts.file_name, at.line, at.col),
+                format!(
+                    "tool length compensation (G43/G43.1/G44) is on while the pose at line {} is converted, and the machine's chain ends at the tool's tip (--tool-length, --tool-table or the machine file's tool_length): the axis words include the tool, and the controller would add its length again; switch it off (G49) before the poses, or start them with G43.4 (written as G49)",
+                    line.number
+                ),
+                at.text.clone(),
             ));
         }
         Ok(Some(PendingPose {

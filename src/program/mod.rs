@@ -7,6 +7,7 @@ pub mod heidenhain;
 pub mod ijk;
 pub mod integrity;
 pub mod inverse_time;
+pub mod length_comp;
 pub mod modal;
 pub mod opaque;
 pub mod rewrite;

@@ -505,3 +505,60 @@ X5 Y-10 Z20 I-0.3 J0 K0.9539392\nG49\nT3 M6\nG43.4 H3 X-4 Y6 Z12 I0 J0 K1\nX-8 Y
         }
     }
 }
+
+/// A program's own plain tool length compensation (`G43 H1`, no TCP code)
+/// before poses started by their tool vectors: with the tool's length in
+/// the chain (`--tool-length`, `--tool-table`) the axis words include it,
+/// and the controller would add it again. Before: converted, `G43 H1`
+/// passed on, exit 0 (the tip 50 mm off on the machine). Now refused at the
+/// `G43`; after `G49`, with `G43.4`, or without a tool length in the chain,
+/// converted as before.
+#[test]
+fn plain_tool_length_compensation_under_a_tool_in_the_chain_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("tool.tbl");
+    std::fs::write(&table, "T1 P1 Z+50.0 D6 ;end mill\n").unwrap();
+    let program = "G21 G90\nT1 M6\nG43 H1\nG0 X0 Y0 Z100\nG1 X10 Y0 Z5 I0 J0 K1 F100\nX20 I0.6 J0 K0.8\nM30\n";
+    let run = |args: &[&str], text: &str| {
+        let p = dir.path().join("p.ngc");
+        std::fs::write(&p, text).unwrap();
+        let out = std::process::Command::new(crate::util::BIN)
+            .args(["post", "--machine", "xyzbc-trt"])
+            .args(args)
+            .arg(&p)
+            .output()
+            .unwrap();
+        (
+            out.status.code().unwrap(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let table = table.display().to_string();
+    for args in [
+        vec!["--tool-length", "50"],
+        vec!["--tool-table", table.as_str()],
+        vec!["--tool-length", "50", "--pose-start", "on"],
+    ] {
+        let (code, err) = run(&args, program);
+        assert_eq!(code, 1, "{args:?}: {err}");
+        assert!(
+            err.contains("p.ngc:3:1:") && err.contains("G49"),
+            "{args:?}: {err}"
+        );
+    }
+    // Switched off before the poses, TCP instead, or the tool not in the chain.
+    for (args, text) in [
+        (
+            vec!["--tool-length", "50"],
+            program.replace("G43 H1\n", "G43 H1\nG49\n"),
+        ),
+        (
+            vec!["--tool-length", "50"],
+            program.replace("G43 H1\n", "G43.4 H1\n"),
+        ),
+        (vec![], program.to_string()),
+    ] {
+        let (code, err) = run(&args, &text);
+        assert_eq!(code, 0, "{args:?} {text}: {err}");
+    }
+}
