@@ -314,6 +314,9 @@ pub struct GcodeConverter<'a> {
     switch: crate::program::block_delete_switch::BlockDeleteSwitch,
     /// Plain tool length compensation (`G43 Hn`) the program switched on.
     length_comp: crate::program::length_comp::LengthCompensation,
+    /// The chain ends at a tool's tip (the machine's or a job tool's
+    /// length): the axis words of a pose include the tool.
+    tool_in_chain: bool,
     writer: AxisWriter<'a>,
     previous: Option<crate::machine::chain::JointValues>,
     /// Machine axis positions (output order, mm / deg) followed through
@@ -343,6 +346,11 @@ impl<'a> GcodeConverter<'a> {
             modal: ModalState::new(opts.pose_start),
             switch: crate::program::block_delete_switch::BlockDeleteSwitch::new(opts.inverse_time),
             length_comp: Default::default(),
+            tool_in_chain: machine.tool_length_mm != 0.0
+                || opts
+                    .tool_machines
+                    .iter()
+                    .any(|(_, m)| m.tool_length_mm != 0.0),
             writer: AxisWriter::new(machine, opts.decimals),
             previous: None,
             machine_ext: vec![0.0; machine.axes.len()],
@@ -510,12 +518,9 @@ impl<'a> GcodeConverter<'a> {
         }
         // The chain ends at the tool's tip: a G43 of the program's own
         // would add the tool's length to axis words that include it.
-        let tool_in_chain = self.machine.tool_length_mm != 0.0
-            || opts
-                .tool_machines
-                .iter()
-                .any(|(_, m)| m.tool_length_mm != 0.0);
-        if tool_in_chain && let Some(at) = self.length_comp.on() {
+        if self.tool_in_chain
+            && let Some(at) = self.length_comp.on()
+        {
             return Err(Error::input_with(
                 Location::new(&opts.file_name, at.line, at.col),
                 format!(

@@ -143,10 +143,9 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
         // The sines and cosines at the theoretical solution serve the
         // refinement and the axes as written, both near it.
         let near = chain.trig_at(&job.th);
-        let plan = bounds.as_ref().filter(|_| written_here);
         let (r, bound) =
             refine_near_linearized(&chain, errors, pose, &job.th, &options, &near, |lin| {
-                plan.and_then(|b| b.bound(pose, &job.th, lin))
+                bounds.as_ref().and_then(|b| b.bound(pose, &job.th, lin))
             });
         if written_here {
             job.written = Some(match bound.flatten() {

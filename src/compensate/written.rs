@@ -35,11 +35,12 @@
 
 use super::refine::Linearization;
 use crate::geometric::axis_errors::wrap_angle;
-use crate::machine::RotaryMode;
+use crate::machine::AxisSpec;
 use crate::machine::chain::{
     Chain, JointErrors, JointKind, MAX_JOINTS, NearTrig, Pose, SlopeBounds,
 };
-use crate::machine::rotary::wrap_degrees;
+use crate::machine::output_value;
+use crate::machine::rotary::input_value;
 use nalgebra::Vector3;
 
 /// A block's tool-tip (mm) and tool-axis (rad) errors as written.
@@ -93,11 +94,11 @@ pub fn written_residual(
 #[derive(Debug, Clone)]
 pub struct WrittenBounds {
     n: usize,
-    /// Per joint: the decimals' scale of the axis writing it, and how its
-    /// value is written (revolute: degrees; modulo: wrapped to [0, 360)).
+    /// Per joint: the decimals' scale of the axis writing it, and that
+    /// axis (how its value is written: `output_value`).
     scale: [f64; MAX_JOINTS],
+    axes: Vec<AxisSpec>,
     revolute: [bool; MAX_JOINTS],
-    modulo: [bool; MAX_JOINTS],
     slopes: [SlopeBounds; MAX_JOINTS],
     /// The fixed part of the chain's reach ([`Chain::frame_reach`] with
     /// the prismatic joints at 0).
@@ -119,29 +120,31 @@ impl WrittenBounds {
         if n > MAX_JOINTS || machine.axes.len() != decimals.len() {
             return None;
         }
+        // Each joint written by exactly one axis, of its kind.
+        let mut writer: Vec<Option<(&AxisSpec, u32)>> = vec![None; n];
+        for (axis, &dec) in machine.axes.iter().zip(decimals) {
+            let slot = writer.get_mut(axis.joint)?;
+            if slot.is_some() {
+                return None;
+            }
+            *slot = Some((axis, dec));
+        }
         let mut plan = WrittenBounds {
             n,
             scale: [f64::NAN; MAX_JOINTS],
+            axes: Vec::with_capacity(n),
             revolute: [false; MAX_JOINTS],
-            modulo: [false; MAX_JOINTS],
             slopes: [SlopeBounds::default(); MAX_JOINTS],
             fixed_reach: chain.frame_reach(&[0.0; MAX_JOINTS][..n]),
         };
-        for (axis, &dec) in machine.axes.iter().zip(decimals) {
-            let j = axis.joint;
-            if j >= n || !plan.scale[j].is_nan() {
+        for (j, w) in writer.into_iter().enumerate() {
+            let (axis, dec) = w?;
+            plan.revolute[j] = axis.kind == JointKind::Revolute;
+            if (chain.joints()[j].kind == JointKind::Revolute) != plan.revolute[j] {
                 return None;
             }
             plan.scale[j] = crate::numeric::pow10(dec);
-            plan.revolute[j] = axis.kind == JointKind::Revolute;
-            plan.modulo[j] = plan.revolute[j] && axis.rotary == RotaryMode::Modulo;
-        }
-        for j in 0..n {
-            if plan.scale[j].is_nan()
-                || (chain.joints()[j].kind == JointKind::Revolute) != plan.revolute[j]
-            {
-                return None;
-            }
+            plan.axes.push(axis.clone());
             plan.slopes[j] = errors.slope_bounds(j)?;
         }
         Some(plan)
@@ -169,19 +172,9 @@ impl WrittenBounds {
         for (j, &q0_j) in q0.iter().enumerate().take(n) {
             let q = q0_j + lin.d[j];
             // The word's rounding, as `written_residual` rounds it.
-            let v = if self.revolute[j] {
-                let deg = q.to_degrees();
-                if self.modulo[j] {
-                    wrap_degrees(deg)
-                } else {
-                    deg
-                }
-            } else {
-                q
-            };
+            let v = output_value(&self.axes[j], q);
             let delta = match crate::numeric::round_half_away(v * self.scale[j]) {
-                Some(i) if self.revolute[j] => (i as f64 / self.scale[j] - v).to_radians(),
-                Some(i) => i as f64 / self.scale[j] - v,
+                Some(i) => input_value(&self.axes[j], i as f64 / self.scale[j] - v),
                 None => 0.0,
             };
             let c = &lin.jacobian[j];

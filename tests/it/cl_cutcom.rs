@@ -39,13 +39,7 @@ fn table(dir: &std::path::Path, name: &str) -> String {
     if name == "xyzbc-trt" {
         return util::repo_file("fixtures/errors/zhao2022-xzbc.csv");
     }
-    let wang =
-        std::fs::read_to_string(util::repo_file("fixtures/errors/wang2023-xyzab.csv")).unwrap();
-    let xyz: String = wang
-        .lines()
-        .take_while(|l| !l.starts_with("A,"))
-        .map(|l| format!("{l}\n"))
-        .collect();
+    let xyz = crate::cl_support::wang_linear_table();
     let p = dir.join("xyz.csv");
     std::fs::write(&p, xyz).unwrap();
     p.to_string_lossy().into_owned()

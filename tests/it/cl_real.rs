@@ -183,13 +183,7 @@ fn units_and_arc_tolerance_options() {
 fn solidworks_cam_compensate_wherever_post_succeeds() {
     let Some(files) = files() else { return };
     // An X, Y, Z table for the A/C machine: the linear axes of wang2023's.
-    let wang =
-        std::fs::read_to_string(util::repo_file("fixtures/errors/wang2023-xyzab.csv")).unwrap();
-    let xyz: String = wang
-        .lines()
-        .take_while(|l| !l.starts_with("A,"))
-        .map(|l| format!("{l}\n"))
-        .collect();
+    let xyz = crate::cl_support::wang_linear_table();
     let dir = std::env::temp_dir().join(format!("kinpost-cl-real-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let xyz_path = dir.join("xyz.csv");

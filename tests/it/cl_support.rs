@@ -588,3 +588,14 @@ pub fn agree(name: &str, cl: &ClPath, pts: &[V], holes: &[V]) -> (f64, f64) {
     }
     (worst_out, worst_cl)
 }
+
+/// An X, Y, Z error table: the linear axes' rows of wang2023-xyzab's
+/// (everything before its `A` rows), for machines with other rotaries.
+pub fn wang_linear_table() -> String {
+    std::fs::read_to_string(crate::util::repo_file("fixtures/errors/wang2023-xyzab.csv"))
+        .unwrap()
+        .lines()
+        .take_while(|l| !l.starts_with("A,"))
+        .map(|l| format!("{l}\n"))
+        .collect()
+}
