@@ -318,6 +318,10 @@ pub struct GcodeConverter<'a> {
     /// length): the axis words of a pose include the tool.
     tool_in_chain: bool,
     writer: AxisWriter<'a>,
+    /// The joint values the program continues from: those of the last
+    /// pose begun (as the first pass solved it: `post`'s solution,
+    /// `compensate`'s theoretical one; [`GcodeConverter::begun`]) or of the
+    /// machine position followed since.
     previous: Option<crate::machine::chain::JointValues>,
     /// Machine axis positions (output order, mm / deg) followed through
     /// blocks in machine coordinates (pose mode off); unknown axes are 0.
@@ -375,6 +379,7 @@ impl<'a> GcodeConverter<'a> {
         let solved = solver
             .solve(&pending.pose, self.previous.as_deref(), line.number)
             .map_err(|m| self.solve_error(line, &pending, m))?;
+        self.begun(&solved.q);
         self.finish(line, &pending, &solved, out)?;
         Ok(Some(Converted {
             q: solved.q,
@@ -532,6 +537,7 @@ impl<'a> GcodeConverter<'a> {
         }
         Ok(Some(PendingPose {
             pose: Pose::new(tip, axis),
+            from: self.previous.clone(),
             start_tip: match start_tip {
                 [Some(x), Some(y), Some(z)] => Some(Vector3::new(x, y, z)),
                 _ => None,
@@ -595,7 +601,7 @@ impl<'a> GcodeConverter<'a> {
             )
             .map_err(|m| Error::input(loc(meaning.pose_items.first().copied()), m))?;
         let feed = opts.inverse_time.then(|| {
-            let moved = self.previous.as_ref().is_some_and(|p| {
+            let moved = pending.from.as_ref().is_some_and(|p| {
                 self.machine
                     .chain
                     .joints()
@@ -645,7 +651,7 @@ impl<'a> GcodeConverter<'a> {
             );
         }
         if matches!(meaning.motion, Motion::Linear | Motion::Rapid)
-            && let Some(prev) = &self.previous
+            && let Some(prev) = &pending.from
             && let Some(w) = crate::machine::midblock::branch_change_warning(
                 self.machine_at(line.number),
                 prev,
@@ -657,10 +663,19 @@ impl<'a> GcodeConverter<'a> {
                 .warnings
                 .push(format!("{}: {w}", loc(meaning.pose_items.first().copied())));
         }
+        Ok(())
+    }
+
+    /// The pose last begun was solved to `q` in the first pass (`post`'s
+    /// solution, `compensate`'s theoretical one): the blocks after it
+    /// continue from there. Called between [`GcodeConverter::begin`] and the
+    /// next `begin`; [`GcodeConverter::finish`] may come later (under
+    /// `compensate` a chunk's poses are written after the next chunk is
+    /// begun), so nothing `begin` reads depends on it.
+    pub fn begun(&mut self, q: &[f64]) {
+        self.previous = Some(q.iter().copied().collect());
         // `machine_ext` follows from `previous` when next needed.
         self.machine_ext_stale = true;
-        self.previous = Some(solved.q.clone());
-        Ok(())
     }
 }
 
@@ -747,6 +762,9 @@ impl GcodeConverter<'_> {
 pub struct PendingPose {
     /// The tool pose to solve.
     pub pose: Pose,
+    /// The joint values the block starts from: the pose before's (as
+    /// solved in the first pass) or the machine position followed since.
+    pub from: Option<crate::machine::chain::JointValues>,
     /// The tool tip before the block, mm, when known.
     pub start_tip: Option<Vector3<f64>>,
     /// What the block means.
@@ -851,6 +869,9 @@ impl Format for GcodeFormat<'_> {
     }
     fn previous(&self) -> Option<&[f64]> {
         self.conv.previous.as_deref()
+    }
+    fn begun(&mut self, q: &[f64]) {
+        self.conv.begun(q);
     }
     fn solve_error(&self, unit: &GcodeUnit, pending: &PendingPose, message: String) -> Error {
         self.conv.solve_error(&unit.line, pending, message)

@@ -55,6 +55,9 @@ impl Stage for Compensating<'_, '_> {
         self.solver
             .commit(pose, &job.th, refined, job.written, line)
     }
+    fn joints(job: &Job) -> &[f64] {
+        &job.th
+    }
 }
 
 /// Which program format [`compensate`] reads.

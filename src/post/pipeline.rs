@@ -88,9 +88,18 @@ pub trait Format: Send {
     }
     /// The pose to solve.
     fn pose(pending: &Self::Pending) -> &Pose;
-    /// The joint values of the last pose written or followed (what a solver
-    /// continues from).
+    /// The joint values the program continues from: the last pose's as
+    /// [`Format::begun`] gave them, or the machine position followed since
+    /// (what a solver continues from).
     fn previous(&self) -> Option<&[f64]>;
+    /// In order, in the first pass: the pose last begun was solved to `q`
+    /// there (`post`: its solution; `compensate`: its theoretical one, to
+    /// which the refinement adds micrometres). What is begun after it
+    /// continues from there, whether or not the pose is written yet (a
+    /// block in machine coordinates moves on from the machine's position).
+    fn begun(&mut self, q: &[f64]) {
+        let _ = q;
+    }
     /// The error of a failed solve of `pending`.
     fn solve_error(&self, unit: &Self::Unit, pending: &Self::Pending, message: String) -> Error;
     /// In order: appends the pose's output with the joint values `solved`.
@@ -137,6 +146,8 @@ pub trait Stage: Send {
         job: &Self::Job,
         line: usize,
     ) -> std::result::Result<SolvedPose, String>;
+    /// The joint values the first pass gave a job's pose ([`Format::begun`]).
+    fn joints(job: &Self::Job) -> &[f64];
     /// The solver, when the stage solves every pose in the first pass
     /// ([`Step::Done`]): the format may plan with it in
     /// [`Format::begin`], where everything before is converted.
@@ -166,6 +177,9 @@ impl Stage for Whole<'_> {
         job: &Self::Job,
         _: usize,
     ) -> std::result::Result<SolvedPose, String> {
+        match *job {}
+    }
+    fn joints(job: &Self::Job) -> &[f64] {
         match *job {}
     }
     fn planner(&mut self) -> Option<&mut dyn PoseSolver> {
@@ -413,11 +427,13 @@ fn first_of<F: Format, S: Stage>(
     match stage.first(F::pose(&pending), format.previous(), F::line(unit)) {
         Err(m) => Err(format.solve_error(unit, &pending, m)),
         Ok(Step::Done(solved)) => {
+            format.begun(&solved.q);
             format.finish(unit, &pending, &solved, &mut c.text)?;
             c.entries.push(Entry::Text(start, c.text.len()));
             Ok(())
         }
         Ok(Step::Later(job)) => {
+            format.begun(S::joints(&job));
             c.entries.push(Entry::Pose);
             c.jobs.push(Job {
                 unit: i,

@@ -259,3 +259,99 @@ fn the_largest_errors_as_written_do_not_depend_on_the_report() {
         }
     }
 }
+
+/// A block in machine coordinates after the poses (`G49`, then `G91 G1
+/// Z5`) moves on from the machine's position at the last pose, and a pose
+/// after it that gives only X continues from the tip there. Under
+/// `compensate` the first pass of a chunk runs before the chunk before it
+/// is written: the position followed was that of the last pose *written*
+/// (none in the first chunk, the chunk before's otherwise), so the pose
+/// went to Z5 instead of Z17.5 (exit 0). Now it is that of the last pose
+/// begun, wherever the chunks end; `post` (no errors) is the independent
+/// reference, within the compensation (micrometres).
+#[test]
+fn a_machine_move_after_the_poses_continues_from_the_last_pose() {
+    let fixture =
+        std::fs::read_to_string(repo_file("fixtures/programs/zhao2022-xzbc.ngc")).unwrap();
+    let poses: Vec<&str> = fixture
+        .lines()
+        .filter(|l| l.starts_with("G1 X"))
+        .map(|l| l.trim_end_matches(" F200.0"))
+        .take(150)
+        .collect();
+    let tail = [
+        "G49",
+        "G91 G1 Z5. F100",
+        "G90",
+        "G43.5 H1",
+        "G1 X30 I0 J0 K1 F200",
+        "G1 X31 I0 J0 K1",
+        "G49",
+        "M30",
+    ];
+    // The last pose before the machine move in the first chunk, at the end
+    // of the first chunk (512 lines) and in the middle of the second.
+    let dir = tempfile::tempdir().unwrap();
+    let mut results = Vec::new();
+    for (pad, count) in [(0, 300), (0, 508), (100, 508)] {
+        let mut lines = vec!["(pad)"; pad];
+        lines.extend(["G21 G90 G94", "G43.5 H1"]);
+        lines.extend(poses.iter().cycle().take(count));
+        lines.extend(tail);
+        let prog = dir.path().join(format!("p{pad}-{count}.nc"));
+        std::fs::write(&prog, lines.join("\n") + "\n").unwrap();
+        let run = |args: &[&str]| {
+            let out = Command::new(crate::util::BIN)
+                .args(args)
+                .arg(&prog)
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let text = String::from_utf8(out.stdout).unwrap();
+            // The two poses after the machine move: X Z B C.
+            text.lines()
+                .rev()
+                .skip(2)
+                .take(2)
+                .map(|l| {
+                    ["X", "Z", "B", "C"].map(|a| {
+                        l.split(' ')
+                            .find_map(|w| w.strip_prefix(a))
+                            .unwrap_or_else(|| panic!("{a} in {l}"))
+                            .parse::<f64>()
+                            .unwrap()
+                    })
+                })
+                .collect::<Vec<_>>()
+        };
+        let table = repo_file("fixtures/errors/zhao2022-xzbc.csv");
+        let compensated = run(&[
+            "compensate",
+            "-q",
+            "--machine",
+            "zhao2022-xzbc",
+            "--errors",
+            &table,
+        ]);
+        let nominal = run(&["post", "-q", "--machine", "zhao2022-xzbc"]);
+        for (c, n) in compensated.iter().zip(&nominal) {
+            for k in 0..4 {
+                assert!(
+                    (c[k] - n[k]).abs() < 0.01,
+                    "pad {pad}, {count} poses: compensate {c:?}, post {n:?}"
+                );
+            }
+        }
+        // The retract from the last pose: Z 5 mm above it, not at 5.
+        assert!(nominal[1][1] > 15.0, "{nominal:?}");
+        results.push(compensated);
+    }
+    assert_eq!(
+        results[1], results[2],
+        "the chunk boundaries change nothing"
+    );
+}
