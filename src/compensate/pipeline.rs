@@ -21,24 +21,45 @@ struct Job {
     written: Option<Written>,
 }
 
-/// The stage of `compensate`: [`CompensatingSolver`] split around the
-/// refinement.
-struct Compensating<'s, 'm> {
-    solver: &'s mut CompensatingSolver<'m>,
+/// The first half of [`Compensating`]: the analytic IK, in order.
+struct Theoretical<'m> {
+    /// The solver's IK (a copy: the solver is the other half).
+    ik: crate::machine::IkSolver,
+    machine: &'m crate::machine::Machine,
+    axis_tolerance_rad: f64,
     /// The theoretical joint values of the previous pose.
     previous_th: Option<JointValues>,
 }
 
-impl Stage for Compensating<'_, '_> {
+/// The stage of `compensate`: [`CompensatingSolver`] split around the
+/// refinement; its analytic IK is the first half ([`Theoretical`]), the
+/// solver's failure policy, backlash and records the second.
+struct Compensating<'s, 'm> {
+    front: Theoretical<'m>,
+    solver: &'s mut CompensatingSolver<'m>,
+}
+
+impl<'s, 'm> Stage for Compensating<'s, 'm> {
     type Job = Job;
+    type Front = Theoretical<'m>;
+    type Back = &'s mut CompensatingSolver<'m>;
+    fn halves(&mut self) -> (&mut Theoretical<'m>, &mut &'s mut CompensatingSolver<'m>) {
+        (&mut self.front, &mut self.solver)
+    }
     fn first(
-        &mut self,
+        front: &mut Theoretical<'m>,
         pose: &Pose,
         _: Option<&[f64]>,
         _: usize,
     ) -> std::result::Result<Step<Job>, String> {
-        let th = self.solver.theoretical(pose, self.previous_th.as_deref())?;
-        self.previous_th = Some(th.clone());
+        let th = super::solver::theoretical(
+            &front.ik,
+            front.machine,
+            front.axis_tolerance_rad,
+            pose,
+            front.previous_th.as_deref(),
+        )?;
+        front.previous_th = Some(th.clone());
         Ok(Step::Later(Job {
             th,
             refined: None,
@@ -46,14 +67,13 @@ impl Stage for Compensating<'_, '_> {
         }))
     }
     fn commit(
-        &mut self,
+        solver: &mut &'s mut CompensatingSolver<'m>,
         pose: &Pose,
         job: &Job,
         line: usize,
     ) -> std::result::Result<SolvedPose, String> {
         let refined = job.refined.as_ref().expect("refined in parallel");
-        self.solver
-            .commit(pose, &job.th, refined, job.written, line)
+        solver.commit(pose, &job.th, refined, job.written, line)
     }
     fn joints(job: &Job) -> &[f64] {
         &job.th
@@ -171,8 +191,13 @@ pub fn compensate<R: BufRead, W: Write + ?Sized>(
         job.refined = Some(r);
     };
     let mut stage = Compensating {
+        front: Theoretical {
+            ik: solver.ik.clone(),
+            machine: solver.machine,
+            axis_tolerance_rad: solver.axis_tolerance_rad,
+            previous_th: None,
+        },
         solver,
-        previous_th: None,
     };
     // The records go on after each chunk, on this thread.
     let after = |s: &mut Compensating<'_, '_>| records(&mut s.solver.records);

@@ -143,6 +143,27 @@ impl crate::post::PoseSolver for CompensatingSolver<'_> {
     }
 }
 
+/// The analytic IK of `machine` (by `ik`) for `pose`, continuing from
+/// `previous`; a tool axis missed by more than `axis_tolerance_rad` is
+/// refused (a four-axis machine off its cone), as by `post`.
+pub fn theoretical(
+    ik: &crate::machine::IkSolver,
+    machine: &crate::machine::Machine,
+    axis_tolerance_rad: f64,
+    pose: &Pose,
+    previous: Option<&[f64]>,
+) -> std::result::Result<JointValues, String> {
+    let s = ik.solve(pose, previous).map_err(|e| e.to_string())?;
+    if s.axis_miss_rad > axis_tolerance_rad {
+        return Err(crate::post::unreachable_axis(
+            &machine.name,
+            s.axis_miss_rad,
+            axis_tolerance_rad,
+        ));
+    }
+    Ok(s.q)
+}
+
 impl CompensatingSolver<'_> {
     /// Stage 1 of [`crate::post::PoseSolver::solve`] (in block order): the
     /// analytic IK of the theoretical machine, continuing from `previous`.
@@ -151,15 +172,13 @@ impl CompensatingSolver<'_> {
         pose: &Pose,
         previous: Option<&[f64]>,
     ) -> std::result::Result<JointValues, String> {
-        let s = self.ik.solve(pose, previous).map_err(|e| e.to_string())?;
-        if s.axis_miss_rad > self.axis_tolerance_rad {
-            return Err(crate::post::unreachable_axis(
-                &self.machine.name,
-                s.axis_miss_rad,
-                self.axis_tolerance_rad,
-            ));
-        }
-        Ok(s.q)
+        theoretical(
+            &self.ik,
+            self.machine,
+            self.axis_tolerance_rad,
+            pose,
+            previous,
+        )
     }
 
     /// Stage 2 (independent per block, any thread): the Newton refinement

@@ -38,7 +38,7 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
 ) -> Result<PostStats> {
     convert_cl(
         machine,
-        &mut Whole(solver),
+        &mut Whole::new(solver),
         &|_, j| match *j {},
         |_| Ok(()),
         input,
@@ -81,31 +81,42 @@ pub fn convert_cl<S: Stage, R: BufRead, W: Write + ?Sized>(
         opts.cl_units,
     );
     let format = ClFormat {
-        machine,
-        opts,
-        stats: PostStats::default(),
-        warnings: Vec::new(),
-        seq: 0,
-        queue: VecDeque::new(),
-        axis: Vector3::z(),
-        rapid_next: false,
-        units: Units::Mm,
-        feed: None,
-        per_rev: false,
-        g80: 0,
-        cutcom: None,
-        writer: AxisWriter::new(machine, opts.decimals),
-        previous: None,
-        previous_th: None,
-        cutcom_reference: None,
-        probe: None,
-        last_tip: None,
-        g93: false,
-        feed_written: None,
-        motion_written: None,
-        plane_written: None,
-        g80_applied: 0,
-        scratch: String::new(),
+        front: ClFront {
+            machine,
+            opts,
+            lines: 0,
+            max_vector_deviation: 0.0,
+            warnings: Vec::new(),
+            seq: 0,
+            queue: VecDeque::new(),
+            axis: Vector3::z(),
+            rapid_next: false,
+            units: Units::Mm,
+            feed: None,
+            per_rev: false,
+            g80: 0,
+            cutcom: None,
+            previous: None,
+        },
+        back: ClBack {
+            machine,
+            opts,
+            poses: 0,
+            max_axis_miss_rad: 0.0,
+            warnings: Vec::new(),
+            writer: AxisWriter::new(machine, opts.decimals),
+            previous: None,
+            previous_th: None,
+            cutcom_reference: None,
+            probe: None,
+            last_tip: None,
+            g93: false,
+            feed_written: None,
+            motion_written: None,
+            plane_written: None,
+            g80_applied: 0,
+            scratch: String::new(),
+        },
     };
     // Nothing is read after a statement that failed (it is raised in order).
     let mut failed = false;
@@ -152,31 +163,41 @@ pub struct ClPending {
     cutcom: Option<CutcomOn>,
 }
 
+/// Warnings with the place of their statement and half (0: begin,
+/// 1: finish): sorted at the end into statement order.
+type Warnings = Vec<((u64, u8), String)>;
+
 /// APT CL as a [`Format`]: the lowered statements (read in order on the
 /// driver's thread: the reader and the lowering keep state from statement
 /// to statement), converted in order.
 ///
 /// Its state is in two halves. [`Format::begin`] reads and sets the modal
-/// state of the program (units, tool axis, `RAPID`, feed), captured in each
-/// pose's [`ClPending`]; [`Format::finish`] the state of what is written
-/// (joint values, axis words, modal words written). Under `compensate` the
-/// first pass of a chunk runs before the chunk before it is written, so
-/// `begin` does not touch the written state; with a planner (`post`) every
-/// pose before is written when `begin` runs, and arcs and holes are planned
-/// and written there.
+/// state of the program (units, tool axis, `RAPID`, feed: [`ClFront`]),
+/// captured in each pose's [`ClPending`]; [`Format::finish`] the state of
+/// what is written (joint values, axis words, modal words written:
+/// [`ClBack`]). Under `compensate` the first pass of a chunk runs beside
+/// the last pass of the chunk two before it, so `begin` does not touch
+/// the written state; with a planner (`post`) every pose before is written
+/// when `begin` runs, and arcs and holes are planned and written there.
 struct ClFormat<'a> {
+    front: ClFront<'a>,
+    back: ClBack<'a>,
+}
+
+/// The program's modal state ([`Format::begin`]).
+struct ClFront<'a> {
     machine: &'a Machine,
     opts: &'a PostOptions,
-    stats: PostStats,
-    /// Warnings with the place of their statement and half (0: begin,
-    /// 1: finish): sorted at the end into statement order.
-    warnings: Vec<((u64, u8), String)>,
+    /// Statements read.
+    lines: usize,
+    /// Largest deviation of a tool axis's length from 1.
+    max_vector_deviation: f64,
+    warnings: Warnings,
     /// Statements begun.
     seq: u64,
     /// Statements an arc or a hole of the unit turned into (its moves, or
     /// the steps of its canned form), given out one `begin` at a time.
     queue: VecDeque<ClStatement>,
-    // The program's modal state (begin).
     /// The tool axis in force.
     axis: Vector3<f64>,
     rapid_next: bool,
@@ -190,7 +211,21 @@ struct ClFormat<'a> {
     /// Cutter compensation in force (`CUTCOM/LEFT|RIGHT` until
     /// `CUTCOM/OFF`).
     cutcom: Option<CutcomOn>,
-    // What is written (finish; begin with a planner).
+    /// The joint values the program continues from: the last pose's as the
+    /// first pass solved it ([`Format::begun`]), or a planned arc's or
+    /// hole's end.
+    previous: Option<JointValues>,
+}
+
+/// What is written ([`Format::finish`]; [`Format::begin`] with a planner).
+struct ClBack<'a> {
+    machine: &'a Machine,
+    opts: &'a PostOptions,
+    /// Poses written.
+    poses: usize,
+    /// Largest tool-axis miss, rad.
+    max_axis_miss_rad: f64,
+    warnings: Warnings,
     writer: AxisWriter<'a>,
     /// Joint values of the last pose written.
     previous: Option<JointValues>,
@@ -246,7 +281,7 @@ fn line(out: &mut Vec<u8>, args: std::fmt::Arguments) {
     out.push(b'\n');
 }
 
-impl ClFormat<'_> {
+impl ClBack<'_> {
     /// Resets the motion code written for the `G80` blocks up to `upto`.
     fn apply_g80(&mut self, upto: u64) {
         if self.g80_applied != upto {
@@ -254,11 +289,12 @@ impl ClFormat<'_> {
             self.g80_applied = upto;
         }
     }
+}
 
-    /// A warning of the statement begun last (`half` 0) or of the pose
-    /// `seq` (`half` 1).
-    fn warn(&mut self, seq: u64, half: u8, w: String) {
-        self.warnings.push(((seq, half), w));
+impl ClFront<'_> {
+    /// A warning of the statement begun last.
+    fn warn(&mut self, w: String) {
+        self.warnings.push(((self.seq, 0), w));
     }
 
     /// The pose of a `GOTO` to tip `tip` (CL units), tool axis `a` or the
@@ -288,14 +324,12 @@ impl ClFormat<'_> {
                 ),
             ));
         }
-        self.stats.max_vector_deviation = self.stats.max_vector_deviation.max((norm - 1.0).abs());
+        self.max_vector_deviation = self.max_vector_deviation.max((norm - 1.0).abs());
         if (norm - 1.0).abs() > crate::program::modal::QUIET_NORMALISATION {
             let loc = location(self.opts, record);
-            self.warn(
-                self.seq,
-                0,
-                format!("{loc}: tool axis of length {norm:.9} normalised to unit length"),
-            );
+            self.warn(format!(
+                "{loc}: tool axis of length {norm:.9} normalised to unit length"
+            ));
         }
         Ok(Some(ClPending {
             pose: Pose::new(tip, self.axis / norm),
@@ -310,9 +344,10 @@ impl ClFormat<'_> {
     }
 
     /// In order: one statement of `record` (its own, or one its arc or
-    /// hole turned into).
+    /// hole turned into). `back`: what is written, with a planner.
     fn statement(
         &mut self,
+        mut back: Option<&mut ClBack<'_>>,
         record: &ClRecord,
         statement: &ClStatement,
         planner: Option<&mut dyn PoseSolver>,
@@ -323,17 +358,18 @@ impl ClFormat<'_> {
         // (an arc, a hole, the end): it keeps the programmed feed. (Only
         // `post` writes G93, and it writes each pose before the next
         // statement begins.)
-        if self.g93
+        if let Some(b) = back.as_deref_mut()
+            && b.g93
             && matches!(
                 statement,
                 ClStatement::Arc(_) | ClStatement::Hole(_) | ClStatement::End
             )
         {
             out.extend_from_slice(b"G94\n");
-            self.g93 = false;
-            self.feed_written = None;
+            b.g93 = false;
+            b.feed_written = None;
         }
-        self.stats.lines += 1;
+        self.lines += 1;
         match statement {
             ClStatement::Goto { tip, axis } => return self.goto(record, tip, axis.as_ref()),
             ClStatement::Fedrat { value, unit } => {
@@ -391,8 +427,10 @@ impl ClFormat<'_> {
             ClStatement::Block(b) => {
                 if b == "G80" {
                     self.g80 += 1;
-                    if planner.is_some() {
-                        self.apply_g80(self.g80);
+                    if planner.is_some()
+                        && let Some(back) = back
+                    {
+                        back.apply_g80(self.g80);
                     }
                 }
                 if b.starts_with("G43 H") && self.machine.tool_length_mm > 0.0 {
@@ -418,15 +456,15 @@ impl ClFormat<'_> {
                 });
                 line(out, format_args!("{block}"));
             }
-            ClStatement::Warning(w) => self.warn(self.seq, 0, w.clone()),
-            ClStatement::Arc(arc) => self.arc(record, arc, planner, out)?,
-            ClStatement::Hole(hole) => self.hole(record, hole, planner, out)?,
+            ClStatement::Warning(w) => self.warn(w.clone()),
+            ClStatement::Arc(arc) => self.arc(back, record, arc, planner, out)?,
+            ClStatement::Hole(hole) => self.hole(back, record, hole, planner, out)?,
         }
         Ok(None)
     }
 }
 
-impl ClFormat<'_> {
+impl ClBack<'_> {
     /// Refuses the move `pending` under cutter compensation `on` where the
     /// controller's `G41`/`G42` would not be the compensation the CL asks
     /// for ([`cl_motion::cutcom_refusal`]), comparing theoretical joint
@@ -472,9 +510,18 @@ impl ClFormat<'_> {
     }
 }
 
-impl Format for ClFormat<'_> {
+impl<'a> Format for ClFormat<'a> {
     type Unit = ClUnit;
     type Pending = ClPending;
+    type Front = ClFront<'a>;
+    type Back = ClBack<'a>;
+    fn halves(&mut self) -> (&mut ClFront<'a>, &mut ClBack<'a>) {
+        (&mut self.front, &mut self.back)
+    }
+    fn splits(&self) -> bool {
+        // Only `post` writes G93 (and plans: it has a planner).
+        !self.front.opts.inverse_time
+    }
     fn prepare(_: &mut ClUnit) {}
     fn line(unit: &ClUnit) -> usize {
         match unit {
@@ -483,7 +530,8 @@ impl Format for ClFormat<'_> {
         }
     }
     fn begin(
-        &mut self,
+        front: &mut ClFront<'a>,
+        back: Option<&mut ClBack<'a>>,
         unit: &mut ClUnit,
         out: &mut Vec<u8>,
         planner: Option<&mut dyn PoseSolver>,
@@ -494,23 +542,61 @@ impl Format for ClFormat<'_> {
             return Err(e);
         }
         let record = record(unit);
-        match self.queue.pop_front() {
-            Some(s) => self.statement(record, &s, planner, out),
-            None => self.statement(record, &record.statement, planner, out),
+        match front.queue.pop_front() {
+            Some(s) => front.statement(back, record, &s, planner, out),
+            None => front.statement(back, record, &record.statement, planner, out),
         }
     }
-    fn unit_done(&self) -> bool {
-        self.queue.is_empty()
+    fn unit_done(front: &ClFront<'a>) -> bool {
+        front.queue.is_empty()
     }
     fn pose(pending: &ClPending) -> &Pose {
         &pending.pose
     }
-    fn previous(&self) -> Option<&[f64]> {
-        self.previous.as_deref()
+    fn previous<'r>(front: &'r ClFront<'a>) -> Option<&'r [f64]> {
+        front.previous.as_deref()
     }
-    fn solve_error(&self, unit: &ClUnit, _: &ClPending, message: String) -> Error {
-        error_at(self.opts, record(unit), message)
+    fn begun(front: &mut ClFront<'a>, q: &[f64]) {
+        front.previous = Some(q.iter().copied().collect());
     }
+    fn front_error(front: &ClFront<'a>, unit: &ClUnit, _: &ClPending, message: String) -> Error {
+        error_at(front.opts, record(unit), message)
+    }
+    fn back_error(back: &ClBack<'a>, unit: &ClUnit, _: &ClPending, message: String) -> Error {
+        error_at(back.opts, record(unit), message)
+    }
+    fn finish(
+        back: &mut ClBack<'a>,
+        unit: &ClUnit,
+        pending: &ClPending,
+        solved: &SolvedPose,
+        out: &mut Vec<u8>,
+    ) -> Result<()> {
+        back.finish(unit, pending, solved, out)
+    }
+    fn end(&mut self, out: &mut Vec<u8>) {
+        if self.back.g93 {
+            out.extend_from_slice(b"G94\n");
+        }
+    }
+    fn stats(self) -> PostStats {
+        let (f, b) = (self.front, self.back);
+        let mut warnings = f.warnings;
+        warnings.extend(b.warnings);
+        // Stable: the warnings of one statement and half keep their order.
+        warnings.sort_by_key(|w| w.0);
+        PostStats {
+            lines: f.lines,
+            poses: b.poses,
+            max_axis_miss_rad: b.max_axis_miss_rad,
+            max_vector_deviation: f.max_vector_deviation,
+            warnings: warnings.into_iter().map(|w| w.1).collect(),
+        }
+    }
+}
+
+impl ClBack<'_> {
+    /// Appends the pose `pending` with the joint values `solved`.
     fn finish(
         &mut self,
         unit: &ClUnit,
@@ -531,8 +617,8 @@ impl Format for ClFormat<'_> {
             self.check_cutcom(record, pending, solved, on)?;
         }
         self.apply_g80(pending.g80);
-        self.stats.max_axis_miss_rad = self.stats.max_axis_miss_rad.max(solved.axis_miss_rad);
-        self.stats.poses += 1;
+        self.max_axis_miss_rad = self.max_axis_miss_rad.max(solved.axis_miss_rad);
+        self.poses += 1;
         if let Some(prev) = &self.previous
             && let Some(w) = crate::machine::midblock::branch_change_warning(
                 machine,
@@ -542,7 +628,8 @@ impl Format for ClFormat<'_> {
             )
         {
             let loc = location(opts, record);
-            self.warn(pending.seq, 1, format!("{loc}: {w}"));
+            self.warnings
+                .push(((pending.seq, 1), format!("{loc}: {w}")));
         }
         let motion = if pending.rapid { 0 } else { 1 };
         // Inverse time: a feed move per minute that turns a rotary axis
@@ -608,17 +695,6 @@ impl Format for ClFormat<'_> {
         self.previous_th = Some(solved.theoretical_q().iter().copied().collect());
         self.last_tip = Some(pending.tip);
         Ok(())
-    }
-    fn end(&mut self, out: &mut Vec<u8>) {
-        if self.g93 {
-            out.extend_from_slice(b"G94\n");
-        }
-    }
-    fn stats(mut self) -> PostStats {
-        // Stable: the warnings of one statement and half keep their order.
-        self.warnings.sort_by_key(|w| w.0);
-        self.stats.warnings = self.warnings.into_iter().map(|w| w.1).collect();
-        self.stats
     }
 }
 

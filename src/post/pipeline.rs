@@ -52,13 +52,29 @@ pub fn prefetch_bytes<T: ?Sized>(x: &T) {
 /// A program format the driver converts: prepared on any thread,
 /// converted in order in two halves around the solve. (Its units are read
 /// by the driver's caller, on the driver's thread: the input need not be
-/// [`Send`]; the conversion runs on a pool thread.)
+/// [`Send`]; the conversion runs on pool threads.)
+///
+/// Its state is in two halves: the [`Format::Front`] that
+/// [`Format::begin`] reads and sets (the program's modal state), and the
+/// [`Format::Back`] that [`Format::finish`] writes (the joint values and
+/// words written). Where `begin` needs no back ([`Format::splits`]) and
+/// the stage solves nothing in the first pass, the first pass of a chunk
+/// runs beside the last pass of the chunk two before it.
 pub trait Format: Send {
     /// One unit of the program (a line, a statement), reused from chunk to
     /// chunk.
     type Unit: Send + Default;
     /// A pose between [`Format::begin`] and [`Format::finish`].
     type Pending: Send;
+    /// What [`Format::begin`] reads and sets.
+    type Front: Send;
+    /// What [`Format::finish`] reads and sets.
+    type Back: Send;
+    /// The two halves.
+    fn halves(&mut self) -> (&mut Self::Front, &mut Self::Back);
+    /// Whether [`Format::begin`] needs no back when it has no planner (it
+    /// is then given none).
+    fn splits(&self) -> bool;
     /// Prepares a read unit (any thread; G-code: parsing).
     fn prepare(unit: &mut Self::Unit);
     /// Asks the processor for the memory of a prepared unit (the pool
@@ -73,9 +89,11 @@ pub trait Format: Send {
     /// be solved. `planner`: the stage's solver when it solves every pose
     /// in this pass ([`Stage::planner`]), so that everything written before
     /// the unit is converted already (a format may plan with it: APT CL
-    /// arcs and holes).
+    /// arcs and holes). `back`: the back half, unless the format
+    /// [`Format::splits`] and there is no planner.
     fn begin(
-        &mut self,
+        front: &mut Self::Front,
+        back: Option<&mut Self::Back>,
         unit: &mut Self::Unit,
         out: &mut Vec<u8>,
         planner: Option<&mut dyn PoseSolver>,
@@ -83,7 +101,8 @@ pub trait Format: Send {
     /// Whether the unit last begun is done; else [`Format::begin`] is
     /// called again for it (a unit that gives several poses: an APT CL arc
     /// or hole as its moves).
-    fn unit_done(&self) -> bool {
+    fn unit_done(front: &Self::Front) -> bool {
+        let _ = front;
         true
     }
     /// The pose to solve.
@@ -91,20 +110,30 @@ pub trait Format: Send {
     /// The joint values the program continues from: the last pose's as
     /// [`Format::begun`] gave them, or the machine position followed since
     /// (what a solver continues from).
-    fn previous(&self) -> Option<&[f64]>;
+    fn previous(front: &Self::Front) -> Option<&[f64]>;
     /// In order, in the first pass: the pose last begun was solved to `q`
     /// there (`post`: its solution; `compensate`: its theoretical one, to
     /// which the refinement adds micrometres). What is begun after it
     /// continues from there, whether or not the pose is written yet (a
     /// block in machine coordinates moves on from the machine's position).
-    fn begun(&mut self, q: &[f64]) {
-        let _ = q;
-    }
-    /// The error of a failed solve of `pending`.
-    fn solve_error(&self, unit: &Self::Unit, pending: &Self::Pending, message: String) -> Error;
+    fn begun(front: &mut Self::Front, q: &[f64]);
+    /// The error of a failed solve of `pending` in the first pass.
+    fn front_error(
+        front: &Self::Front,
+        unit: &Self::Unit,
+        pending: &Self::Pending,
+        message: String,
+    ) -> Error;
+    /// The error of a failed commit of `pending` in the last pass.
+    fn back_error(
+        back: &Self::Back,
+        unit: &Self::Unit,
+        pending: &Self::Pending,
+        message: String,
+    ) -> Error;
     /// In order: appends the pose's output with the joint values `solved`.
     fn finish(
-        &mut self,
+        back: &mut Self::Back,
         unit: &Self::Unit,
         pending: &Self::Pending,
         solved: &SolvedPose,
@@ -125,15 +154,23 @@ pub enum Step<J> {
     Later(J),
 }
 
-/// What the driver does with each pose (in order on a pool thread, so
-/// [`Send`]).
+/// What the driver does with each pose (in order on pool threads, so
+/// [`Send`]), in two halves like a [`Format`]'s: the [`Stage::Front`] of
+/// the first pass and the [`Stage::Back`] of the last.
 pub trait Stage: Send {
     /// A pose's work between the passes.
     type Job: Send;
+    /// What [`Stage::first`] reads and sets.
+    type Front: Send;
+    /// What [`Stage::commit`] reads and sets.
+    type Back: Send;
+    /// The two halves.
+    fn halves(&mut self) -> (&mut Self::Front, &mut Self::Back);
     /// In order: solves `pose` (line `line`), continuing from `previous`
-    /// (the converter's last joint values), or starts its job.
+    /// (the converter's last joint values), or starts its job. A stage
+    /// without a planner ([`Stage::planner`]) gives only [`Step::Later`].
     fn first(
-        &mut self,
+        front: &mut Self::Front,
         pose: &Pose,
         previous: Option<&[f64]>,
         line: usize,
@@ -141,7 +178,7 @@ pub trait Stage: Send {
     /// In order, in the writing pass: the joint values of a job that was
     /// worked on.
     fn commit(
-        &mut self,
+        back: &mut Self::Back,
         pose: &Pose,
         job: &Self::Job,
         line: usize,
@@ -151,7 +188,8 @@ pub trait Stage: Send {
     /// The solver, when the stage solves every pose in the first pass
     /// ([`Step::Done`]): the format may plan with it in
     /// [`Format::begin`], where everything before is converted.
-    fn planner(&mut self) -> Option<&mut dyn PoseSolver> {
+    fn planner(front: &mut Self::Front) -> Option<&mut dyn PoseSolver> {
+        let _ = front;
         None
     }
 }
@@ -159,20 +197,36 @@ pub trait Stage: Send {
 /// The stage of `post`: a [`PoseSolver`] solves each pose in order, so
 /// branch choice and rotary unwinding see the poses in order, and every
 /// solver works (a compensating solver block by block, one IK per tool).
-pub struct Whole<'s>(pub &'s mut (dyn PoseSolver + Send));
+pub struct Whole<'s> {
+    solver: &'s mut (dyn PoseSolver + Send),
+    /// The back half: nothing (every pose is written in the first pass).
+    back: (),
+}
 
-impl Stage for Whole<'_> {
+impl<'s> Whole<'s> {
+    /// The stage of `solver`.
+    pub fn new(solver: &'s mut (dyn PoseSolver + Send)) -> Self {
+        Whole { solver, back: () }
+    }
+}
+
+impl<'s> Stage for Whole<'s> {
     type Job = std::convert::Infallible;
+    type Front = &'s mut (dyn PoseSolver + Send);
+    type Back = ();
+    fn halves(&mut self) -> (&mut Self::Front, &mut ()) {
+        (&mut self.solver, &mut self.back)
+    }
     fn first(
-        &mut self,
+        solver: &mut Self::Front,
         pose: &Pose,
         previous: Option<&[f64]>,
         line: usize,
     ) -> std::result::Result<Step<Self::Job>, String> {
-        self.0.solve(pose, previous, line).map(Step::Done)
+        solver.solve(pose, previous, line).map(Step::Done)
     }
     fn commit(
-        &mut self,
+        _: &mut (),
         _: &Pose,
         job: &Self::Job,
         _: usize,
@@ -182,8 +236,8 @@ impl Stage for Whole<'_> {
     fn joints(job: &Self::Job) -> &[f64] {
         match *job {}
     }
-    fn planner(&mut self) -> Option<&mut dyn PoseSolver> {
-        Some(&mut *self.0)
+    fn planner(solver: &mut Self::Front) -> Option<&mut dyn PoseSolver> {
+        Some(&mut **solver)
     }
 }
 
@@ -248,16 +302,20 @@ impl<F: Format, J> Default for Chunk<F, J> {
 ///    [`Stage::first`] on each pose (branch choice and rotary unwinding
 ///    need the order); a pose solved there is converted at once;
 /// 3. `work` runs on the stage's jobs, independent per pose, in parallel;
-/// 4. a last pass in order (the same task as stage 2, before it) commits
-///    the jobs ([`Stage::commit`]) and converts them; this thread writes the
-///    chunk's text in the next round.
+/// 4. a last pass in order commits the jobs ([`Stage::commit`]) and
+///    converts them; this thread writes the chunk's text in the next round.
 ///
 /// The stages are pipelined: while the pool works on chunk *k* (stage 3)
-/// and prepares chunk *k + 2* (stage 1), one pool task converts chunk
-/// *k − 1* (stage 4) and runs the first pass of chunk *k + 1* (stage 2),
-/// and this thread writes the text of chunk *k − 2* and reads chunk
-/// *k + 3*, then joins the pool (so the output's system calls overlap the
-/// conversion); at most five chunks are alive.
+/// and prepares chunk *k + 2* (stage 1), the pool converts chunk *k − 1*
+/// (stage 4) and runs the first pass of chunk *k + 1* (stage 2), and this
+/// thread writes the text of chunk *k − 2* and reads chunk *k + 3*, then
+/// joins the pool (so the output's system calls overlap the conversion);
+/// at most five chunks are alive. Stages 2 and 4 touch different halves of
+/// the format and the stage ([`Format::Front`], [`Format::Back`]), and run
+/// as two tasks at the same time, unless the stage solves in the first
+/// pass ([`Stage::planner`]: `post`, where the last pass has nothing to
+/// do) or the format's first pass needs its back ([`Format::splits`]);
+/// then they run as one task, stage 4 first.
 #[allow(clippy::too_many_arguments)]
 pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
     mut format: F,
@@ -307,6 +365,7 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
     let mut current: Option<Chunk<F, S::Job>> = None;
     let mut previous: Option<Chunk<F, S::Job>> = None;
     let mut stopped = false;
+    let split = format.splits() && S::planner(stage.halves().0).is_none();
     while prepared.is_some() || current.is_some() || previous.is_some() {
         let mut to_prepare = (reading.count > 0 && !stopped).then(|| std::mem::take(&mut reading));
         let mut next_reading = spare.pop().unwrap_or_default();
@@ -316,22 +375,35 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
         let mut out_result: Result<()> = Ok(());
         buf.clear();
         rayon::in_place_scope(|scope| {
-            // The in-order task first: it is the pipeline's critical path,
-            // and the pool's other threads take the oldest task first.
-            {
-                let (format, stage, buf) = (&mut format, &mut *stage, &mut buf);
-                let (previous, prepared) = (&mut previous, &mut prepared);
-                let (written, next) = (&mut written, &mut next);
-                let stopped = stopped;
+            // The in-order tasks first: they are the pipeline's critical
+            // path, and the pool's other threads take the oldest task first.
+            let (front, back) = format.halves();
+            let (stage_front, stage_back) = stage.halves();
+            let (previous, prepared) = (&mut previous, &mut prepared);
+            let (written, next, buf) = (&mut written, &mut next, &mut buf);
+            let stopped = stopped;
+            if split {
+                scope.spawn(move |_| {
+                    if !stopped && let Some(mut c) = prepared.take() {
+                        first_pass::<F, S>(front, None, stage_front, &mut c);
+                        *next = Some(c);
+                    }
+                });
                 scope.spawn(move |_| {
                     if let Some(p) = previous.as_mut() {
-                        *written = write(format, stage, p, buf);
+                        *written = write::<F, S>(back, stage_back, p, buf);
+                    }
+                });
+            } else {
+                scope.spawn(move |_| {
+                    if let Some(p) = previous.as_mut() {
+                        *written = write::<F, S>(back, stage_back, p, buf);
                     }
                     if written.is_ok()
                         && !stopped
                         && let Some(mut c) = prepared.take()
                     {
-                        first_pass(format, stage, &mut c);
+                        first_pass::<F, S>(front, Some(back), stage_front, &mut c);
                         *next = Some(c);
                     }
                 });
@@ -392,18 +464,24 @@ fn write_out<W: Write + ?Sized>(out: &mut W, text: &[u8]) -> Result<()> {
 }
 
 /// Stage 2 of a prepared chunk: the modal state and [`Stage::first`] of
-/// each unit, in order; a pose solved there converted at once.
-fn first_pass<F: Format, S: Stage>(format: &mut F, stage: &mut S, c: &mut Chunk<F, S::Job>) {
+/// each unit, in order; a pose solved there converted at once (`back`:
+/// the format's back half, when the first pass may use it).
+fn first_pass<F: Format, S: Stage>(
+    front: &mut F::Front,
+    mut back: Option<&mut F::Back>,
+    stage: &mut S::Front,
+    c: &mut Chunk<F, S::Job>,
+) {
     for i in 0..c.count {
         if let Some(ahead) = c.units[..c.count].get(i + PREFETCH_AHEAD) {
             F::prefetch(ahead);
         }
         loop {
-            if let Err(e) = first_of(format, stage, c, i) {
+            if let Err(e) = first_of::<F, S>(front, back.as_deref_mut(), stage, c, i) {
                 c.stop = Some(e);
                 return;
             }
-            if format.unit_done() {
+            if F::unit_done(front) {
                 break;
             }
         }
@@ -413,27 +491,41 @@ fn first_pass<F: Format, S: Stage>(format: &mut F, stage: &mut S, c: &mut Chunk<
 /// One [`Format::begin`] of unit `i` of `c` and, for a pose,
 /// [`Stage::first`] (and [`Format::finish`] when solved there).
 fn first_of<F: Format, S: Stage>(
-    format: &mut F,
-    stage: &mut S,
+    front: &mut F::Front,
+    mut back: Option<&mut F::Back>,
+    stage: &mut S::Front,
     c: &mut Chunk<F, S::Job>,
     i: usize,
 ) -> Result<()> {
     let start = c.text.len();
-    let Some(pending) = format.begin(&mut c.units[i], &mut c.text, stage.planner())? else {
+    let begun = F::begin(
+        front,
+        back.as_deref_mut(),
+        &mut c.units[i],
+        &mut c.text,
+        S::planner(stage),
+    )?;
+    let Some(pending) = begun else {
         c.entries.push(Entry::Text(start, c.text.len()));
         return Ok(());
     };
     let unit = &c.units[i];
-    match stage.first(F::pose(&pending), format.previous(), F::line(unit)) {
-        Err(m) => Err(format.solve_error(unit, &pending, m)),
+    match S::first(stage, F::pose(&pending), F::previous(front), F::line(unit)) {
+        Err(m) => Err(F::front_error(front, unit, &pending, m)),
         Ok(Step::Done(solved)) => {
-            format.begun(&solved.q);
-            format.finish(unit, &pending, &solved, &mut c.text)?;
+            F::begun(front, &solved.q);
+            // A stage that solves here has a planner, and the driver then
+            // gives the back ([`drive`]).
+            let Some(back) = back else {
+                let m = "internal error: a pose solved in the first pass without the format's back half; please report it".to_string();
+                return Err(F::front_error(front, unit, &pending, m));
+            };
+            F::finish(back, unit, &pending, &solved, &mut c.text)?;
             c.entries.push(Entry::Text(start, c.text.len()));
             Ok(())
         }
         Ok(Step::Later(job)) => {
-            format.begun(S::joints(&job));
+            F::begun(front, S::joints(&job));
             c.entries.push(Entry::Pose);
             c.jobs.push(Job {
                 unit: i,
@@ -449,8 +541,8 @@ fn first_of<F: Format, S: Stage>(
 /// committed and converted in order; its first-pass error, if any, after
 /// its units are converted. The chunk's buffers are kept for the next.
 fn write<F: Format, S: Stage>(
-    format: &mut F,
-    stage: &mut S,
+    back: &mut F::Back,
+    stage: &mut S::Back,
     c: &mut Chunk<F, S::Job>,
     buf: &mut Vec<u8>,
 ) -> Result<()> {
@@ -465,10 +557,9 @@ fn write<F: Format, S: Stage>(
                     prefetch_bytes(ahead);
                 }
                 let unit = &c.units[job.unit];
-                let converted = stage
-                    .commit(F::pose(&job.pending), &job.job, F::line(unit))
-                    .map_err(|m| format.solve_error(unit, &job.pending, m))
-                    .and_then(|solved| format.finish(unit, &job.pending, &solved, buf));
+                let converted = S::commit(stage, F::pose(&job.pending), &job.job, F::line(unit))
+                    .map_err(|m| F::back_error(back, unit, &job.pending, m))
+                    .and_then(|solved| F::finish(back, unit, &job.pending, &solved, buf));
                 if let Err(e) = converted {
                     // Nothing of a chunk that fails here is written.
                     buf.clear();

@@ -2,26 +2,27 @@
 //! `G2`/`G3` and canned cycles through the planner (`post`) and written
 //! there, or given out as their moves.
 
-use super::{ClFormat, error_at, line, location};
+use super::{ClBack, ClFront, error_at, line, location};
 use crate::cl::ClRecord;
 use crate::error::{Error, Result};
 use crate::post::PoseSolver;
 use crate::post::cl_motion;
 use nalgebra::Vector3;
 
-impl ClFormat<'_> {
-    /// An arc: its `G2`/`G3` block when the planner finds one, else its
-    /// moves queued.
+impl ClFront<'_> {
+    /// An arc: its `G2`/`G3` block when the planner finds one (written
+    /// with `back`), else its moves queued.
     pub(super) fn arc(
         &mut self,
+        back: Option<&mut ClBack<'_>>,
         record: &ClRecord,
         arc: &crate::cl::ArcMove,
         planner: Option<&mut dyn PoseSolver>,
         out: &mut Vec<u8>,
     ) -> Result<()> {
         let scale = self.units.mm_per_unit();
-        let plan = match (planner, &self.previous, self.rapid_next) {
-            (Some(solver), Some(p), false) => {
+        let plan = match (planner, back, &self.previous, self.rapid_next) {
+            (Some(solver), Some(back), Some(p), false) => {
                 let cutcom = self.cutcom.is_some();
                 cl_motion::plan_arc(
                     self.machine,
@@ -33,83 +34,92 @@ impl ClFormat<'_> {
                     record.line,
                     cutcom,
                 )
+                .map(|plan| (plan, back))
             }
             _ => None,
         };
-        let Some(plan) = plan else {
+        let Some((plan, back)) = plan else {
             cl_motion::put_back(&mut self.queue, arc.moves.iter().cloned());
             return Ok(());
         };
-        self.apply_g80(self.g80);
-        let mut block = cl_motion::arc_block(&mut self.writer, &plan, &mut self.plane_written)
+        back.apply_g80(self.g80);
+        let mut block = cl_motion::arc_block(&mut back.writer, &plan, &mut back.plane_written)
             .map_err(|m| Error::input(location(self.opts, record), m))?;
-        if self.feed.is_some() && self.feed != self.feed_written {
+        if self.feed.is_some() && self.feed != back.feed_written {
             block.push_str(" F");
             cl_motion::push_number(&mut block, self.feed.unwrap_or(0.0));
-            self.feed_written = self.feed;
+            back.feed_written = self.feed;
         }
         line(out, format_args!("{block}"));
-        self.motion_written = Some(plan.motion);
+        back.motion_written = Some(plan.motion);
         self.axis = Vector3::from(arc.tool_axis);
-        self.stats.poses += 1;
-        self.previous_th = Some(plan.q_end.clone());
-        self.previous = Some(plan.q_end);
-        self.last_tip = Some(Vector3::from(arc.end) * scale);
+        back.poses += 1;
+        back.previous_th = Some(plan.q_end.clone());
+        self.previous = Some(plan.q_end.clone());
+        back.previous = Some(plan.q_end);
+        back.last_tip = Some(Vector3::from(arc.end) * scale);
         Ok(())
     }
 
-    /// A hole: its canned cycle when the planner finds one (with the steps
-    /// before and after it queued), else its moves queued; a hole without
-    /// moves is refused.
+    /// A hole: its canned cycle when the planner finds one (written with
+    /// `back`; the steps before and after it queued), else its moves
+    /// queued; a hole without moves is refused.
     pub(super) fn hole(
         &mut self,
+        back: Option<&mut ClBack<'_>>,
         record: &ClRecord,
         hole: &crate::cl::HoleMove,
         planner: Option<&mut dyn PoseSolver>,
         out: &mut Vec<u8>,
     ) -> Result<()> {
         let scale = self.units.mm_per_unit();
-        let plan = planner.and_then(|solver| {
-            let prev = self.previous.as_deref();
-            cl_motion::plan_hole(
-                self.machine,
-                solver,
-                self.opts,
-                hole,
-                prev,
-                scale,
-                record.line,
-            )
-        });
+        let plan = match (planner, back) {
+            (Some(solver), Some(back)) => {
+                let prev = self.previous.as_deref();
+                cl_motion::plan_hole(
+                    self.machine,
+                    solver,
+                    self.opts,
+                    hole,
+                    prev,
+                    scale,
+                    record.line,
+                )
+                .map(|plan| (plan, back))
+            }
+            _ => None,
+        };
         match (plan, hole.positioned) {
-            (Some(plan), true) => {
-                self.apply_g80(self.g80);
+            (Some((plan, back)), true) => {
+                back.apply_g80(self.g80);
                 let block = cl_motion::hole_block(
-                    &mut self.writer,
+                    &mut back.writer,
                     hole,
                     &plan,
                     scale,
                     self.feed,
-                    &mut self.plane_written,
+                    &mut back.plane_written,
                 )
                 .map_err(|m| Error::input(location(self.opts, record), m))?;
                 line(out, format_args!("{block}"));
-                self.feed_written = None;
+                back.feed_written = None;
                 self.rapid_next = false;
-                self.motion_written = hole.code;
+                back.motion_written = hole.code;
                 self.axis = Vector3::from(hole.axis);
-                self.stats.poses += 1;
-                self.previous = Some(plan.q_after(hole));
-                self.previous_th = self.previous.clone();
+                back.poses += 1;
+                let q = plan.q_after(hole);
+                self.previous = Some(q.clone());
+                back.previous_th = Some(q.clone());
+                back.previous = Some(q);
                 let after = if hole.retract_to_r {
                     hole.r_plane
                 } else {
                     hole.clear
                 };
-                self.last_tip = Some(Vector3::from(after) * scale);
+                back.last_tip = Some(Vector3::from(after) * scale);
                 cl_motion::put_back(&mut self.queue, hole.feed_after.iter().cloned());
             }
-            (Some(plan), false) => {
+            (Some((plan, _)), false) => {
                 let steps = cl_motion::canned_steps(hole, plan.preposition);
                 cl_motion::put_back(&mut self.queue, steps.into_iter());
             }

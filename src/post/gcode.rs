@@ -1,0 +1,645 @@
+//! The G-code converter: a program's lines, one at a time, in two halves
+//! around the solve. The [`BlockReader`] reads a line's modal state and
+//! gives its pose ([`BlockReader::begin`]); the [`BlockWriter`] writes the
+//! pose block with the solved joint values ([`BlockWriter::finish`]).
+//! The driver of `compensate` runs the two on different chunks at the same
+//! time, so nothing the reader reads depends on what is written.
+
+use super::{AxisWriter, PoseSolver, PostOptions, PostStats, SolvedPose, unreachable_axis};
+use crate::error::{Error, Location, Result};
+use crate::gcode::{ItemKind, Line};
+use crate::machine::chain::JointValues;
+use crate::machine::{Machine, Pose};
+use crate::program::modal::Motion;
+use crate::program::opaque::opaque_in_pose_block;
+use crate::program::rewrite::rewrite;
+use crate::program::{ModalState, WordRef};
+use nalgebra::Vector3;
+
+/// A converted pose block.
+#[derive(Debug, Clone)]
+pub struct Converted {
+    /// Joint values (chain order, mm / rad).
+    pub q: crate::machine::chain::JointValues,
+    /// What the block meant (modal state, items).
+    pub meaning: crate::program::BlockMeaning,
+}
+
+/// Warnings with the line and half (0: reading, 1: writing) they belong
+/// to, sorted into program order at the end.
+type Warnings = Vec<((usize, u8), String)>;
+
+/// Converts G-code line by line: the per-line core of `post` and
+/// `compensate`, reused by `linkage` on pose programs.
+pub struct GcodeConverter<'a> {
+    /// The first half: modal state and poses.
+    pub reader: BlockReader<'a>,
+    /// The second half: what is written.
+    pub writer: BlockWriter<'a>,
+}
+
+/// The first half of the [`GcodeConverter`]: the program's modal state,
+/// line by line, and the position the program continues from.
+pub struct BlockReader<'a> {
+    machine: &'a Machine,
+    opts: &'a PostOptions,
+    modal: ModalState,
+    /// The modal state with the block-delete switch on, where it differs.
+    switch: crate::program::block_delete_switch::BlockDeleteSwitch,
+    /// Plain tool length compensation (`G43 Hn`) the program switched on.
+    length_comp: crate::program::length_comp::LengthCompensation,
+    /// The chain ends at a tool's tip (the machine's or a job tool's
+    /// length): the axis words of a pose include the tool.
+    tool_in_chain: bool,
+    /// The joint values the program continues from: those of the last
+    /// pose begun (as the first pass solved it: `post`'s solution,
+    /// `compensate`'s theoretical one; [`BlockReader::begun`]) or of the
+    /// machine position followed since.
+    previous: Option<JointValues>,
+    /// Machine axis positions (output order, mm / deg) followed through
+    /// blocks in machine coordinates (pose mode off); unknown axes are 0.
+    machine_ext: Vec<f64>,
+    /// `machine_ext` is that of `previous` (a pose block came since it was
+    /// last followed) and is recomputed before use.
+    machine_ext_stale: bool,
+    /// The allocation of the vector of a block's words, kept from block to
+    /// block (empty between blocks).
+    words: Vec<WordRef<'static>>,
+    /// Lines read.
+    lines: usize,
+    /// Largest deviation of a tool vector's length from 1.
+    max_vector_deviation: f64,
+    warnings: Warnings,
+}
+
+/// The second half of the [`GcodeConverter`]: the axis words and feed
+/// mode written.
+pub struct BlockWriter<'a> {
+    machine: &'a Machine,
+    opts: &'a PostOptions,
+    axes: AxisWriter<'a>,
+    /// The feed mode written (`--feed inverse-time`).
+    feed: crate::program::inverse_time::InverseTime,
+    /// Pose blocks written.
+    poses: usize,
+    /// Largest tool-axis miss, rad.
+    max_axis_miss_rad: f64,
+    warnings: Warnings,
+}
+
+impl<'a> GcodeConverter<'a> {
+    /// A converter for `machine`. It does not solve poses: a driver solves
+    /// each pose [`GcodeConverter::begin`] gives and hands the joint values
+    /// to [`GcodeConverter::finish`] ([`GcodeConverter::convert`] does both
+    /// with a [`PoseSolver`]).
+    pub fn new(machine: &'a Machine, opts: &'a PostOptions) -> Self {
+        GcodeConverter {
+            reader: BlockReader {
+                machine,
+                opts,
+                modal: ModalState::new(opts.pose_start),
+                switch: crate::program::block_delete_switch::BlockDeleteSwitch::new(
+                    opts.inverse_time,
+                ),
+                length_comp: Default::default(),
+                tool_in_chain: machine.tool_length_mm != 0.0
+                    || opts
+                        .tool_machines
+                        .iter()
+                        .any(|(_, m)| m.tool_length_mm != 0.0),
+                previous: None,
+                machine_ext: vec![0.0; machine.axes.len()],
+                machine_ext_stale: false,
+                words: Vec::with_capacity(16),
+                lines: 0,
+                max_vector_deviation: 0.0,
+                warnings: Vec::new(),
+            },
+            writer: BlockWriter {
+                machine,
+                opts,
+                axes: AxisWriter::new(machine, opts.decimals),
+                feed: Default::default(),
+                poses: 0,
+                max_axis_miss_rad: 0.0,
+                warnings: Vec::new(),
+            },
+        }
+    }
+
+    /// Converts one line with `solver`, appending the bytes to write to
+    /// `out`; returns the joint values when the line was a pose.
+    pub fn convert(
+        &mut self,
+        line: &Line,
+        solver: &mut dyn PoseSolver,
+        out: &mut Vec<u8>,
+    ) -> Result<Option<Converted>> {
+        let Some(pending) = self.begin(line, out)? else {
+            return Ok(None);
+        };
+        let solved = solver
+            .solve(&pending.pose, self.reader.previous(), line.number)
+            .map_err(|m| solve_error(&self.reader.opts.file_name, line, &pending, m))?;
+        self.reader.begun(&solved.q);
+        self.finish(line, &pending, &solved, out)?;
+        Ok(Some(Converted {
+            q: solved.q,
+            meaning: pending.meaning,
+        }))
+    }
+
+    /// First half of [`GcodeConverter::convert`]: [`BlockReader::begin`].
+    pub fn begin(&mut self, line: &Line, out: &mut Vec<u8>) -> Result<Option<PendingPose>> {
+        self.reader.begin(Some(&mut self.writer), line, out)
+    }
+
+    /// Second half of [`GcodeConverter::convert`]: [`BlockWriter::finish`].
+    pub fn finish(
+        &mut self,
+        line: &Line,
+        pending: &PendingPose,
+        solved: &SolvedPose,
+        out: &mut Vec<u8>,
+    ) -> Result<()> {
+        self.writer.finish(line, pending, solved, out)
+    }
+
+    /// What ends the program: a last `G94` when the output is in `G93`.
+    pub fn end(&mut self) -> Option<&'static str> {
+        self.writer.feed.end()
+    }
+
+    /// What was done, the warnings in program order.
+    pub fn stats(self) -> PostStats {
+        let (r, w) = (self.reader, self.writer);
+        let mut warnings = r.warnings;
+        warnings.extend(w.warnings);
+        // Stable: the warnings of one line and half keep their order.
+        warnings.sort_by_key(|w| w.0);
+        PostStats {
+            lines: r.lines,
+            poses: w.poses,
+            max_axis_miss_rad: w.max_axis_miss_rad,
+            max_vector_deviation: r.max_vector_deviation,
+            warnings: warnings.into_iter().map(|w| w.1).collect(),
+        }
+    }
+}
+
+impl BlockReader<'_> {
+    /// The modal state and the pose of `line`. A line that is not a pose
+    /// is written to `out` and `None` returned; a pose is returned for
+    /// solving. `writer`: the second half, for the feed mode written under
+    /// `--feed inverse-time` (a line that is not a pose may have to go back
+    /// to `G94` first); without it (the driver's first pass beside its last)
+    /// that option must be off.
+    pub fn begin(
+        &mut self,
+        writer: Option<&mut BlockWriter<'_>>,
+        line: &Line,
+        out: &mut Vec<u8>,
+    ) -> Result<Option<PendingPose>> {
+        let opts = self.opts;
+        self.lines += 1;
+        let loc = |item: Option<usize>| {
+            let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);
+            Location::new(&opts.file_name, line.number, col)
+        };
+        crate::program::integrity::check_line(line, &opts.file_name, self.modal.pose_mode)?;
+        let mut words = recycle(std::mem::take(&mut self.words));
+        let mut keywords = Vec::new();
+        for (i, item) in line.items.iter().enumerate() {
+            match &item.kind {
+                ItemKind::Word(w) => words.push(WordRef {
+                    address: w.address.as_str(),
+                    value: w.value,
+                    item: i,
+                }),
+                ItemKind::Keyword(k) => keywords.push((i, k.as_str())),
+                // Block delete reaches the modal state as a pseudo-keyword.
+                ItemKind::BlockDelete => keywords.push((i, "/")),
+                ItemKind::Opaque => {
+                    if let Some(k) = crate::program::opaque::known_call(&String::from_utf8_lossy(
+                        line.item_bytes(item),
+                    )) {
+                        keywords.push((i, k));
+                    }
+                }
+                _ => {}
+            }
+        }
+        let opaque_error = |i: usize| {
+            Error::input_with(
+                loc(Some(i)),
+                crate::program::opaque::describe_opaque(line.item_bytes(&line.items[i])),
+                String::from_utf8_lossy(&line.bytes),
+            )
+        };
+        // Only G codes of a plain move (no cycle, no non-modal code): the
+        // blocks whose unreadable text may still be a tool vector.
+        let plain_move = words.iter().all(|w| {
+            w.address != "G"
+                || [
+                    0.0, 1.0, 17.0, 18.0, 19.0, 20.0, 21.0, 40.0, 49.0, 90.0, 91.0, 93.0, 94.0,
+                ]
+                .contains(&w.value)
+        });
+        let has_words = !words.is_empty() || !keywords.is_empty();
+        let start_tip = self.modal.tip;
+        let applied = self.switch.apply(&mut self.modal, &words, &keywords, line);
+        self.length_comp.block(&words, line);
+        self.words = recycle(words);
+        let meaning = applied.map_err(|e| match e {
+            crate::program::block_delete_switch::Refused::Slash { at, message } => {
+                Error::input_with(
+                    Location::new(&opts.file_name, at.line, at.col),
+                    message,
+                    at.text,
+                )
+            }
+            // Text not understood in the block explains the failure best.
+            crate::program::block_delete_switch::Refused::Block(e) => {
+                match opaque_in_pose_block(line, true, true, true) {
+                    Some(i) => opaque_error(i),
+                    None => Error::input_with(
+                        loc(e.item),
+                        e.message,
+                        String::from_utf8_lossy(&line.bytes),
+                    ),
+                }
+            }
+        })?;
+        for w in &meaning.warnings {
+            let at = loc(meaning.pose_items.first().copied());
+            self.warnings.push(((line.number, 0), format!("{at}: {w}")));
+        }
+        self.max_vector_deviation = self.max_vector_deviation.max(meaning.vector_deviation);
+        let straight = plain_move && matches!(meaning.motion, Motion::Rapid | Motion::Linear);
+        if let Some(i) =
+            opaque_in_pose_block(line, self.modal.pose_mode, meaning.pose.is_some(), straight)
+        {
+            return Err(opaque_error(i));
+        }
+        let Some((tip, axis)) = meaning.pose else {
+            let text = String::from_utf8_lossy(&line.bytes);
+            let unended = !line.bytes.ends_with(b"\n")
+                && !text.trim().is_empty()
+                && !crate::program::integrity::ends_program(line);
+            if unended {
+                self.warnings.push(((line.number, 0), format!(
+                    "{}: the file ends without a line end after `{}`: a truncated file? (passed on unchanged)",
+                    Location::new(&opts.file_name, line.number, 1),
+                    crate::error::visible(text.trim())
+                )));
+            }
+            if !self.modal.pose_mode {
+                self.follow_machine_words(line, &meaning);
+            }
+            let crlf = line.bytes.ends_with(b"\r\n");
+            if opts.inverse_time
+                && let Some(w) = writer
+                && let Some(s) = w.feed.before_other(has_words, meaning.feed, crlf)
+            {
+                out.extend_from_slice(s.as_bytes());
+            }
+            if meaning.tcp_codes.is_empty() {
+                out.extend_from_slice(&line.bytes);
+            } else {
+                rewrite(
+                    line,
+                    &[],
+                    b"",
+                    &meaning.tcp_codes,
+                    &meaning.tcp_offset_items,
+                    out,
+                );
+            }
+            return Ok(None);
+        };
+        // Only the last line of a file can lack its line end. A pose block
+        // there may have been cut mid-number (`X12.3` of `X12.345`).
+        if !line.bytes.ends_with(b"\n") {
+            return Err(Error::input_with(
+                Location::new(&opts.file_name, line.number, line.bytes.len() + 1),
+                "the file ends inside this pose block, without a line end: a truncated file? A block cut short would put the tool elsewhere; if the program is complete, end it with a line break (and M30)",
+                String::from_utf8_lossy(&line.bytes),
+            ));
+        }
+        // The chain ends at the tool's tip: a G43 of the program's own
+        // would add the tool's length to axis words that include it.
+        if self.tool_in_chain
+            && let Some(at) = self.length_comp.on()
+        {
+            return Err(Error::input_with(
+                Location::new(&opts.file_name, at.line, at.col),
+                format!(
+                    "tool length compensation (G43/G43.1/G44) is on while the pose at line {} is converted, and the machine's chain ends at the tool's tip (--tool-length, --tool-table or the machine file's tool_length): the axis words include the tool, and the controller would add its length again; switch it off (G49) before the poses, or start them with G43.4 (written as G49)",
+                    line.number
+                ),
+                at.text.clone(),
+            ));
+        }
+        Ok(Some(PendingPose {
+            pose: Pose::new(tip, axis),
+            from: self.previous.clone(),
+            start_tip: match start_tip {
+                [Some(x), Some(y), Some(z)] => Some(Vector3::new(x, y, z)),
+                _ => None,
+            },
+            meaning,
+        }))
+    }
+
+    /// Whether the feed is converted to inverse time (`--feed
+    /// inverse-time`): [`BlockReader::begin`] then needs the writer.
+    pub fn inverse_time(&self) -> bool {
+        self.opts.inverse_time
+    }
+
+    /// The joint values the program continues from.
+    pub fn previous(&self) -> Option<&[f64]> {
+        self.previous.as_deref()
+    }
+
+    /// The error of a failed solve of `pending` (programmed at `line`).
+    pub fn solve_error(&self, line: &Line, pending: &PendingPose, message: String) -> Error {
+        solve_error(&self.opts.file_name, line, pending, message)
+    }
+}
+
+/// The error of a failed solve of `pending` (programmed at `line` of
+/// `file`).
+fn solve_error(file: &str, line: &Line, pending: &PendingPose, message: String) -> Error {
+    let col = pending
+        .meaning
+        .pose_items
+        .first()
+        .map(|&i| line.items[i].start + 1)
+        .unwrap_or(0);
+    Error::input_with(
+        Location::new(file, line.number, col),
+        message,
+        String::from_utf8_lossy(&line.bytes),
+    )
+}
+
+impl BlockWriter<'_> {
+    /// The error of a failed solve of `pending` (programmed at `line`).
+    pub fn solve_error(&self, line: &Line, pending: &PendingPose, message: String) -> Error {
+        solve_error(&self.opts.file_name, line, pending, message)
+    }
+
+    /// Writes the pose block `pending` of `line` with the machine axes of
+    /// `solved`.
+    pub fn finish(
+        &mut self,
+        line: &Line,
+        pending: &PendingPose,
+        solved: &SolvedPose,
+        out: &mut Vec<u8>,
+    ) -> Result<()> {
+        let opts = self.opts;
+        let meaning = &pending.meaning;
+        let loc = |item: Option<usize>| {
+            let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);
+            Location::new(&opts.file_name, line.number, col)
+        };
+        if solved.axis_miss_rad > opts.axis_tolerance_rad {
+            return Err(Error::input_with(
+                loc(meaning.pose_items.first().copied()),
+                unreachable_axis(
+                    &self.machine.name,
+                    solved.axis_miss_rad,
+                    opts.axis_tolerance_rad,
+                ),
+                String::from_utf8_lossy(&line.bytes),
+            ));
+        }
+        self.max_axis_miss_rad = self.max_axis_miss_rad.max(solved.axis_miss_rad);
+        self.poses += 1;
+        let sep = separator(line, &meaning.pose_items);
+        let words_text = self
+            .axes
+            .words(
+                &solved.q,
+                meaning.units,
+                meaning.absolute,
+                opts.modal_axes,
+                sep,
+            )
+            .map_err(|m| Error::input(loc(meaning.pose_items.first().copied()), m))?;
+        let feed = opts.inverse_time.then(|| {
+            let moved = pending.from.as_ref().is_some_and(|p| {
+                self.machine
+                    .chain
+                    .joints()
+                    .iter()
+                    .zip(p.iter().zip(&solved.q))
+                    .any(|(j, (a, b))| {
+                        j.kind == crate::machine::JointKind::Revolute && (a - b).abs() > 1e-12
+                    })
+            });
+            let tip = pending.pose.tip;
+            self.feed.pose_block(meaning, pending.start_tip, tip, moved)
+        });
+        if let Some(crate::program::inverse_time::PoseFeed::Append(extra)) = feed {
+            let mut drop = meaning.tcp_offset_items.clone();
+            drop.extend(
+                line.items
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, it)| match &it.kind {
+                        ItemKind::Word(w) if w.address == "F" => Some(i),
+                        ItemKind::Word(w)
+                            if w.address == "G" && [93.0, 94.0].contains(&w.value) =>
+                        {
+                            Some(i)
+                        }
+                        _ => None,
+                    }),
+            );
+            let mut words = words_text.to_vec();
+            words.extend_from_slice(extra.as_bytes());
+            rewrite(
+                line,
+                &meaning.pose_items,
+                &words,
+                &meaning.tcp_codes,
+                &drop,
+                out,
+            );
+        } else {
+            rewrite(
+                line,
+                &meaning.pose_items,
+                words_text,
+                &meaning.tcp_codes,
+                &meaning.tcp_offset_items,
+                out,
+            );
+        }
+        if matches!(meaning.motion, Motion::Linear | Motion::Rapid)
+            && let Some(prev) = &pending.from
+            && let Some(w) = crate::machine::midblock::branch_change_warning(
+                machine_at(self.machine, self.opts, line.number),
+                prev,
+                &solved.q,
+                &pending.pose,
+            )
+        {
+            let at = loc(meaning.pose_items.first().copied());
+            self.warnings.push(((line.number, 1), format!("{at}: {w}")));
+        }
+        Ok(())
+    }
+}
+
+impl BlockReader<'_> {
+    /// The pose last begun was solved to `q` in the first pass (`post`'s
+    /// solution, `compensate`'s theoretical one): the blocks after it
+    /// continue from there. Called between [`BlockReader::begin`] and the
+    /// next `begin`; [`BlockWriter::finish`] may come later (under
+    /// `compensate` a chunk's poses are written after the next chunk is
+    /// begun), so nothing `begin` reads depends on it.
+    pub fn begun(&mut self, q: &[f64]) {
+        self.previous = Some(q.iter().copied().collect());
+        // `machine_ext` follows from `previous` when next needed.
+        self.machine_ext_stale = true;
+    }
+
+    /// A block in machine coordinates (pose mode off): follow its axis words
+    /// and tell the modal state where the tool tip now is, so that a pose
+    /// block after `G43.4`/`TRAORI` that gives only some coordinates
+    /// continues from the machine's position.
+    fn follow_machine_words(&mut self, line: &Line, meaning: &crate::program::BlockMeaning) {
+        if meaning.non_modal {
+            let g = |v: f64| {
+                line.words()
+                    .any(|w| w.address == "G" && (w.value - v).abs() < 1e-9)
+            };
+            if [28.0, 30.0, 53.0, 92.1, 92.2, 92.3].into_iter().any(g) {
+                // Home, machine coordinates, offsets reset: where the tool
+                // is in program coordinates is no longer known, so the
+                // next pose must give X, Y and Z.
+                self.modal.tip = [None; 3];
+            }
+            if !g(92.0) {
+                // `G10 L2 P1 X100`, `G52 X5`, `G68 X10 Y10 R30`, `G111 X0
+                // Y0`: data, not a position. `G92 X100` says where the tool
+                // is now, and is followed.
+                return;
+            }
+        }
+        if std::mem::take(&mut self.machine_ext_stale)
+            && let Some(q) = &self.previous
+        {
+            for (e, axis) in self.machine_ext.iter_mut().zip(&self.machine.axes) {
+                *e = crate::machine::output_value(axis, q.get(axis.joint).copied().unwrap_or(0.0));
+            }
+        }
+        let mut moved = false;
+        let mut given = 0usize;
+        for w in line.words() {
+            if let Some(k) = self.machine.axes.iter().position(|a| a.name == w.address) {
+                given |= 1 << k;
+                let scale = if self.machine.axes[k].kind == crate::machine::JointKind::Prismatic {
+                    meaning.units.mm_per_unit()
+                } else {
+                    1.0
+                };
+                let v = w.value * scale;
+                self.machine_ext[k] = if meaning.absolute {
+                    v
+                } else {
+                    self.machine_ext[k] + v
+                };
+                moved = true;
+            }
+        }
+        if moved {
+            let slash = line
+                .items
+                .iter()
+                .position(|i| matches!(i.kind, ItemKind::BlockDelete));
+            let whole = meaning.absolute && given.count_ones() as usize == self.machine.axes.len();
+            self.switch.followed_move(&self.modal, line, slash, whole);
+            let q = self.machine.to_internal(&self.machine_ext);
+            let pose = machine_at(self.machine, self.opts, line.number)
+                .chain
+                .pose(&q, &crate::machine::NoErrors);
+            self.modal.seed_from_machine(pose.tip, pose.axis);
+            self.previous = Some(q);
+        }
+    }
+}
+
+/// The machine in force at `line` (the tool of that part of the job).
+fn machine_at<'m>(machine: &'m Machine, opts: &'m PostOptions, line: usize) -> &'m Machine {
+    let tools = &opts.tool_machines;
+    match tools.iter().rposition(|(from, _)| *from <= line) {
+        Some(k) => &tools[k].1,
+        None => tools.first().map_or(machine, |t| &t.1),
+    }
+}
+
+/// A pose block between [`GcodeConverter::begin`] and
+/// [`GcodeConverter::finish`].
+#[derive(Debug, Clone)]
+pub struct PendingPose {
+    /// The tool pose to solve.
+    pub pose: Pose,
+    /// The joint values the block starts from: the pose before's (as
+    /// solved in the first pass) or the machine position followed since.
+    pub from: Option<crate::machine::chain::JointValues>,
+    /// The tool tip before the block, mm, when known.
+    pub start_tip: Option<Vector3<f64>>,
+    /// What the block means.
+    pub meaning: crate::program::BlockMeaning,
+}
+
+/// `v` emptied, keeping its allocation, as a vector whose elements borrow
+/// for another lifetime: the words of each block borrow from that block's
+/// line, and one allocation serves them all. (Collecting a vector's
+/// `into_iter` into a vector of a type of the same size and alignment reuses
+/// its buffer; the map never runs, `v` being empty.)
+fn recycle<'x, 'y>(mut v: Vec<WordRef<'x>>) -> Vec<WordRef<'y>> {
+    v.clear();
+    v.into_iter()
+        .map(|w| WordRef {
+            address: "",
+            value: w.value,
+            item: w.item,
+        })
+        .collect()
+}
+
+/// The separator between words in this line's style: nothing when the first
+/// replaced word is glued to the item before it (`G1X1Y2`), else a space.
+fn separator(line: &Line, replace: &[usize]) -> &'static str {
+    match replace.first() {
+        Some(&i) if i > 0 && !matches!(line.items[i - 1].kind, ItemKind::Space) => "",
+        _ => " ",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recycle_keeps_the_allocation() {
+        let text = String::from("X");
+        let mut v = Vec::with_capacity(16);
+        v.push(WordRef {
+            address: text.as_str(),
+            value: 1.0,
+            item: 0,
+        });
+        let ptr = v.as_ptr() as usize;
+        let r: Vec<WordRef<'static>> = recycle(v);
+        assert!(r.is_empty());
+        assert_eq!(r.capacity(), 16);
+        assert_eq!(r.as_ptr() as usize, ptr);
+    }
+}
