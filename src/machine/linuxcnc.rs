@@ -17,6 +17,12 @@
 //!   translate −(R + D), translate `[0,0,−T]`.
 //! - `xyzbc-trt-kins`: the same with D = (x-offset, 0, z-offset) and
 //!   revolute B `[0,con,0]`.
+//! - `xyzab_tdr_kins` (a tilting A table carrying a B table; its TCP
+//!   kinematics, type 1): translate R + (0, 0, z-offset), revolute A
+//!   `[1,0,0]`, translate `[0,0,−z-offset]`, revolute B `[0,1,0]`,
+//!   prismatic X, Y, Z, translate −R, translate `[0,0,−T]` (T =
+//!   `tool-offset-z`; `x-offset` moves the A axis along itself and changes
+//!   no pose).
 //! - `5axiskins`: prismatic X, Y, Z, translate `[0,0,L]`, revolute C
 //!   `[0,0,1]`, revolute B `[0,−1,0]`, translate `[0,0,−(L+T)]`
 //!   (L = `pivot-length`, default 250).
@@ -263,11 +269,13 @@ fn resolve_ini_ref(ini: &Ini, tok: &str) -> Option<String> {
 enum Kins {
     TrtAc,
     TrtBc,
+    /// `xyzab_tdr_kins`: a tilting A table carrying a B table.
+    TdrAb,
     FiveAxis,
 }
 
 /// The modules named in messages.
-const SUPPORTED: &str = "xyzac-trt-kins, xyzbc-trt-kins, 5axiskins or trivkins";
+const SUPPORTED: &str = "xyzac-trt-kins, xyzbc-trt-kins, xyzab_tdr_kins, 5axiskins or trivkins";
 
 /// mm per inch.
 const MM_PER_INCH: f64 = 25.4;
@@ -290,6 +298,7 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
     let kins = match module {
         "xyzac-trt-kins" | "xyzac-trt" => Kins::TrtAc,
         "xyzbc-trt-kins" | "xyzbc-trt" => Kins::TrtBc,
+        "xyzab_tdr_kins" => Kins::TdrAb,
         "5axiskins" => Kins::FiveAxis,
         "trivkins" => {
             let mm_per_unit = linear_unit(&ini)?;
@@ -342,6 +351,7 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
     let prefix = match kins {
         Kins::TrtAc => "xyzac-trt-kins",
         Kins::TrtBc => "xyzbc-trt-kins",
+        Kins::TdrAb => "xyzab_tdr_kins",
         Kins::FiveAxis => "5axiskins",
     };
     let pin = |p: &str| format!("{prefix}.{p}");
@@ -353,6 +363,7 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
         match tool_length_mm {
             Some(t) => Ok(t),
             None if kins == Kins::FiveAxis => Ok(0.0),
+            None if kins == Kins::TdrAb => length(hal, &pin("tool-offset-z"), 0.0),
             None => length(hal, &pin("tool-offset"), 0.0),
         }
     };
@@ -412,6 +423,36 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
                 d[2]
             );
             (chain, vec!["X", "Y", "Z", tilt, "C"], summary)
+        }
+        Kins::TdrAb => {
+            // The A table turns about X through the rotation point raised
+            // by z-offset, and carries the B table, which turns about Y
+            // through the rotation point. x-offset moves the A axis along
+            // itself: it changes no pose (the module's forward kinematics
+            // leaves it out; its inverse adds and takes it away again).
+            let r = [
+                length(&hal, &pin("x-rot-point"), 0.0)?,
+                length(&hal, &pin("y-rot-point"), 0.0)?,
+                length(&hal, &pin("z-rot-point"), 0.0)?,
+            ];
+            let dx = length(&hal, &pin("x-offset"), 0.0)?;
+            let dz = length(&hal, &pin("z-offset"), 0.0)?;
+            let chain = vec![
+                translate(v3(r[0], r[1], r[2] + dz)),
+                joint("revolute", "A", v3(1.0, 0.0, 0.0)),
+                translate(v3(0.0, 0.0, -dz)),
+                joint("revolute", "B", v3(0.0, 1.0, 0.0)),
+                joint("prismatic", "X", v3(1.0, 0.0, 0.0)),
+                joint("prismatic", "Y", v3(0.0, 1.0, 0.0)),
+                joint("prismatic", "Z", v3(0.0, 0.0, 1.0)),
+                translate(v3(-r[0], -r[1], -r[2])),
+                translate(v3(0.0, 0.0, -t)),
+            ];
+            let summary = format!(
+                "rot-point ({}, {}, {}) mm, z-offset {dz} mm, x-offset {dx} mm (along the A axis: it moves no pose)",
+                r[0], r[1], r[2]
+            );
+            (chain, vec!["X", "Y", "Z", "A", "B"], summary)
         }
         Kins::FiveAxis => {
             let l = length(&hal, &pin("pivot-length"), 250.0)?;

@@ -64,6 +64,23 @@ fn lcnc_xyzbc(g: &Geometry, [x, y, z, b, c]: [f64; 5]) -> [f64; 3] {
     ]
 }
 
+/// xyzab_tdr_kins forward kinematics with TCP (switchkins type 1; joints
+/// x, y, z mm; a, b deg), as the module's documentation gives it; its
+/// `x-offset` does not appear.
+fn lcnc_xyzab_tdr(g: &Geometry, [x, y, z, a, b]: [f64; 5]) -> [f64; 3] {
+    let (sa, ca) = a.to_radians().sin_cos();
+    let (sb, cb) = b.to_radians().sin_cos();
+    let dz = g.d[2];
+    let px = x - g.r[0];
+    let py = y - g.r[1];
+    let pz = z - g.r[2] - g.t;
+    [
+        cb * px + sb * pz + g.r[0],
+        sa * sb * px + ca * py - cb * sa * pz + sa * dz + g.r[1],
+        -ca * sb * px + sa * py + ca * cb * pz - ca * dz + g.r[2] + dz + g.t,
+    ]
+}
+
 /// 5axiskins forward kinematics (joints x, y, z mm; b, c deg; W = 0): the
 /// pivot point sits `p` above the spindle end and the tool hangs from it
 /// at polar angle 180° − b and azimuth c.
@@ -172,6 +189,43 @@ fn xyzbc_trt_matches_linuxcnc() {
         };
         check("xyzbc-trt.ini", g, lcnc_xyzbc, None);
     }
+}
+
+/// LinuxCNC's own sim configuration of this module sets its offsets with
+/// `sets` on signals netted to the pins; the fixture does the same.
+#[test]
+fn xyzab_tdr_matches_linuxcnc() {
+    let g = Geometry {
+        r: [15.5, -6.25, 30.0],
+        d: [-20.0, 0.0, -10.25],
+        t: 48.5,
+        con: 1.0,
+        pivot: 0.0,
+    };
+    check("xyzab-tdr.ini", g, lcnc_xyzab_tdr, None);
+    check(
+        "xyzab-tdr.ini",
+        Geometry { t: 3.5, ..g },
+        lcnc_xyzab_tdr,
+        Some(3.5),
+    );
+    // x-offset moves no pose; z-offset does.
+    let tip_at = |ini_edit: &dyn Fn(&str) -> String| {
+        let dir = tempfile::tempdir().unwrap();
+        let path = config(dir.path(), "xyzab-tdr.ini", 1);
+        let text = std::fs::read_to_string(&path).unwrap();
+        std::fs::write(&path, ini_edit(&text)).unwrap();
+        let v = machine_from_linuxcnc(&path, None).unwrap();
+        let m = Machine::from_json_str(&v.to_string(), "g.json").unwrap();
+        m.chain
+            .pose(&m.to_internal(&[10.0, 20.0, 30.0, 25.0, -40.0]), &NoErrors)
+            .tip
+    };
+    let base = tip_at(&|t| t.to_string());
+    let dx = tip_at(&|t| t.replace("sets :x-offset -20", "sets :x-offset 75"));
+    let dz = tip_at(&|t| t.replace("sets :z-offset -10.25", "sets :z-offset 5"));
+    assert!((base - dx).norm() < 1e-12, "{base} {dx}");
+    assert!((base - dz).norm() > 1.0, "{base} {dz}");
 }
 
 #[test]
