@@ -87,7 +87,7 @@ pub fn joint_trajectory<R: BufRead>(
                 pose: Some(ev.pose),
                 feed_mm_min: ev.feed_mm_min,
                 rapid: ev.rapid,
-                restart: false,
+                restart: ev.restart,
             };
             previous = Some(q);
             f(block)

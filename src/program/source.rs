@@ -24,6 +24,9 @@ pub struct PoseEvent {
     pub feed_mm_min: Option<f64>,
     /// Rapid move (G0 / RAPID).
     pub rapid: bool,
+    /// A move in machine coordinates came between the pose before and this
+    /// one (pose mode off): the path between them is not known.
+    pub restart: bool,
 }
 
 /// Reads the poses of a G-code pose program.
@@ -36,6 +39,10 @@ pub fn gcode_poses<R: BufRead>(
     let mut modal = ModalState::new(start);
     let mut switch = super::block_delete_switch::BlockDeleteSwitch::default();
     let mut lines = LineReader::new(input);
+    // The line of a move in machine coordinates since the last pose: the
+    // poses here are not converted, so where it leaves the tool is not
+    // followed (`post` follows it).
+    let mut machine_move: Option<usize> = None;
     while let Some(line) = lines.next_line() {
         let line = line.map_err(|e| Error::io(file, e))?;
         let mut words = Vec::new();
@@ -96,21 +103,66 @@ pub fn gcode_poses<R: BufRead>(
                 line.text_lossy(),
             ));
         }
-        if let Some((tip, axis)) = meaning.pose {
-            let feed_mm_min = match meaning.feed_mode {
-                super::FeedMode::PerMinute => meaning.feed.map(|f| f * meaning.units.mm_per_unit()),
-                _ => None,
-            };
-            f(PoseEvent {
-                line: line.number,
-                n,
-                pose: Pose::new(tip, axis),
-                feed_mm_min,
-                rapid: meaning.motion == Motion::Rapid,
-            })?;
+        let Some((tip, axis)) = meaning.pose else {
+            if !modal.pose_mode && moves_in_machine_coordinates(&words, &meaning) {
+                machine_move = Some(line.number);
+            }
+            continue;
+        };
+        let restart = machine_move.is_some();
+        if let Some(at) = machine_move.take()
+            && !(meaning.absolute
+                && ["X", "Y", "Z"]
+                    .iter()
+                    .all(|a| words.iter().any(|w| w.address == *a)))
+        {
+            let col = meaning
+                .pose_items
+                .first()
+                .map(|&i| line.items[i].start + 1)
+                .unwrap_or(0);
+            return Err(Error::input_with(
+                Location::new(file, line.number, col),
+                format!(
+                    "this pose takes the coordinates it does not give from where the move in machine coordinates at line {at} left the tool, which analyze and simulate do not follow (post does): give X, Y and Z (G90) in the first pose after it"
+                ),
+                line.text_lossy(),
+            ));
         }
+        let feed_mm_min = match meaning.feed_mode {
+            super::FeedMode::PerMinute => meaning.feed.map(|f| f * meaning.units.mm_per_unit()),
+            _ => None,
+        };
+        f(PoseEvent {
+            line: line.number,
+            n,
+            pose: Pose::new(tip, axis),
+            feed_mm_min,
+            rapid: meaning.motion == Motion::Rapid,
+            restart,
+        })?;
     }
     Ok(())
+}
+
+/// Whether a block outside pose mode moves the machine: an axis word in a
+/// motion, or a move home or in machine coordinates (`G28`, `G30`, `G53`),
+/// or a new origin (`G92`, `G52`, `G10`) that moves where the tool is in
+/// program coordinates.
+fn moves_in_machine_coordinates(words: &[WordRef<'_>], meaning: &super::BlockMeaning) -> bool {
+    let axis = words.iter().any(|w| {
+        matches!(
+            w.address,
+            "X" | "Y" | "Z" | "A" | "B" | "C" | "U" | "V" | "W"
+        )
+    });
+    axis || (meaning.non_modal
+        && words.iter().any(|w| {
+            w.address == "G"
+                && [28.0, 30.0, 53.0]
+                    .iter()
+                    .any(|g| (w.value - g).abs() < 1e-9)
+        }))
 }
 
 /// Reads the poses of a program whose start is `head`: APT CL data or
@@ -200,6 +252,7 @@ pub fn cl_poses<R: BufRead>(
                     pose: Pose::new(Vector3::from(tip) * units.mm_per_unit(), axis / norm),
                     feed_mm_min: feed,
                     rapid,
+                    restart: false,
                 })?;
                 rapid = false;
             }

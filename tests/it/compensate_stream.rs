@@ -260,6 +260,88 @@ fn the_largest_errors_as_written_do_not_depend_on_the_report() {
     }
 }
 
+/// `pad` comment lines, `count` poses of the zhao2022-xzbc fixture, then a
+/// move in machine coordinates (`G49`, `G91 G1 Z5`) and back to pose mode,
+/// where the first pose gives X alone (and `first_yz`, say ` Y0 Z-5`).
+fn machine_move_program(pad: usize, count: usize, first_yz: &str) -> String {
+    let fixture =
+        std::fs::read_to_string(repo_file("fixtures/programs/zhao2022-xzbc.ngc")).unwrap();
+    let poses: Vec<&str> = fixture
+        .lines()
+        .filter(|l| l.starts_with("G1 X"))
+        .map(|l| l.trim_end_matches(" F200.0"))
+        .take(150)
+        .collect();
+    let first = format!("G1 X30{first_yz} I0 J0 K1 F200");
+    let mut lines = vec!["(pad)"; pad];
+    lines.extend(["G21 G90 G94", "G43.5 H1"]);
+    lines.extend(poses.iter().cycle().take(count));
+    lines.extend([
+        "G49",
+        "G91 G1 Z5. F100",
+        "G90",
+        "G43.5 H1",
+        &first,
+        "G1 X31 I0 J0 K1",
+        "G49",
+        "M30",
+    ]);
+    lines.join("\n") + "\n"
+}
+
+/// `analyze` and `simulate` read the poses without converting them, so they
+/// do not follow a move in machine coordinates: a pose after one that gives
+/// only X took Y and Z from the pose before the move (5 mm below where
+/// `post` puts it), exit 0. Now such a pose is refused at its line; with X,
+/// Y and Z given it is read, and `analyze --nonlinear` measures no segment
+/// across the move.
+#[test]
+fn analyze_and_simulate_refuse_a_pose_that_continues_from_a_machine_move() {
+    let dir = tempfile::tempdir().unwrap();
+    let partial = dir.path().join("partial.nc");
+    let whole = dir.path().join("whole.nc");
+    std::fs::write(&partial, machine_move_program(0, 300, "")).unwrap();
+    std::fs::write(&whole, machine_move_program(0, 300, " Y0 Z-5")).unwrap();
+    let run = |args: &[&str]| {
+        let out = Command::new(crate::util::BIN).args(args).output().unwrap();
+        (
+            out.status.code().unwrap(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (p, w) = (partial.to_str().unwrap(), whole.to_str().unwrap());
+    let sim = dir.path().join("sim.csv");
+    let sim = sim.to_str().unwrap();
+    let table = repo_file("fixtures/errors/zhao2022-xzbc.csv");
+    for args in [
+        vec!["analyze", "-m", "zhao2022-xzbc", "-e", &table, p],
+        vec!["analyze", "-m", "zhao2022-xzbc", "--nonlinear", p],
+        vec!["simulate", "-m", "zhao2022-xzbc", "--program", p, "-o", sim],
+    ] {
+        let (code, _, err) = run(&args);
+        assert_eq!(code, 1, "{args:?}: {err}");
+        assert!(
+            err.contains("partial.nc:307:4:") && err.contains("line 304"),
+            "{args:?}: {err}"
+        );
+    }
+    let (code, out, err) = run(&["analyze", "-m", "zhao2022-xzbc", "--nonlinear", "--json", w]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let lines: Vec<u64> = v["nonlinear"]["blocks"]
+        .as_array()
+        .expect("nonlinear blocks")
+        .iter()
+        .map(|b| b["line"].as_u64().unwrap())
+        .collect();
+    // A segment for every pose after the first but the one after the move.
+    assert!(lines.contains(&302) && lines.contains(&308), "{lines:?}");
+    assert!(!lines.contains(&307), "{lines:?}");
+    let (code, _, err) = run(&["simulate", "-m", "zhao2022-xzbc", "--program", w, "-o", sim]);
+    assert_eq!(code, 0, "{err}");
+}
+
 /// A block in machine coordinates after the poses (`G49`, then `G91 G1
 /// Z5`) moves on from the machine's position at the last pose, and a pose
 /// after it that gives only X continues from the tip there. Under
@@ -271,35 +353,13 @@ fn the_largest_errors_as_written_do_not_depend_on_the_report() {
 /// reference, within the compensation (micrometres).
 #[test]
 fn a_machine_move_after_the_poses_continues_from_the_last_pose() {
-    let fixture =
-        std::fs::read_to_string(repo_file("fixtures/programs/zhao2022-xzbc.ngc")).unwrap();
-    let poses: Vec<&str> = fixture
-        .lines()
-        .filter(|l| l.starts_with("G1 X"))
-        .map(|l| l.trim_end_matches(" F200.0"))
-        .take(150)
-        .collect();
-    let tail = [
-        "G49",
-        "G91 G1 Z5. F100",
-        "G90",
-        "G43.5 H1",
-        "G1 X30 I0 J0 K1 F200",
-        "G1 X31 I0 J0 K1",
-        "G49",
-        "M30",
-    ];
     // The last pose before the machine move in the first chunk, at the end
     // of the first chunk (512 lines) and in the middle of the second.
     let dir = tempfile::tempdir().unwrap();
     let mut results = Vec::new();
     for (pad, count) in [(0, 300), (0, 508), (100, 508)] {
-        let mut lines = vec!["(pad)"; pad];
-        lines.extend(["G21 G90 G94", "G43.5 H1"]);
-        lines.extend(poses.iter().cycle().take(count));
-        lines.extend(tail);
         let prog = dir.path().join(format!("p{pad}-{count}.nc"));
-        std::fs::write(&prog, lines.join("\n") + "\n").unwrap();
+        std::fs::write(&prog, machine_move_program(pad, count, "")).unwrap();
         let run = |args: &[&str]| {
             let out = Command::new(crate::util::BIN)
                 .args(args)
