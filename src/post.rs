@@ -20,7 +20,7 @@ mod cl;
 mod cl_motion;
 mod gcode;
 pub use cl::{convert_cl, post_cl};
-pub use gcode::{BlockReader, BlockWriter, Converted, GcodeConverter, PendingPose};
+pub use gcode::{BlockReader, BlockWriter, Converted, GcodeConverter, PendingPose, Start};
 
 /// Turns a tool pose into joint values (chain order, internal units).
 ///

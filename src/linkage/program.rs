@@ -22,7 +22,7 @@ use crate::error::{Error, Location, Result};
 use crate::gcode::{ItemKind, Line, LineReader, parse_line};
 use crate::machine::rotary::{unwind_near, unwind_near_degrees, wrap_degrees};
 use crate::machine::{IkSolver, JointKind, Machine, NoErrors, RotaryMode};
-use crate::post::{GcodeConverter, PostOptions, rewrite};
+use crate::post::{GcodeConverter, PostOptions, Start, rewrite};
 use crate::program::format::push_fixed;
 use crate::program::source::MachineAxisTracker;
 use crate::program::{FeedMode, Motion, PoseStart, Units};
@@ -360,6 +360,9 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
     let mut prev: Option<Vec<f64>> = None;
     // Whether the block that gave `prev` may be skipped (block delete).
     let mut prev_skippable = false;
+    // A pose program: a move home or a new origin since the last pose, so
+    // where the next one starts is not known.
+    let mut start_unknown = false;
     let mut buf = Vec::with_capacity(256);
     let mut text = Vec::with_capacity(256);
     for line in LineReader::new(input) {
@@ -387,11 +390,21 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                         },
                         feed_item,
                         axis_items: items,
-                        measurable: true,
+                        measurable: !std::mem::take(&mut start_unknown),
                     };
                     (ml, Some(b))
                 }
                 None => {
+                    // A block in machine coordinates (pose mode off) moves
+                    // where the next pose's segment starts.
+                    match c.reader.start() {
+                        Start::Followed => {
+                            prev = c.reader.previous().map(<[f64]>::to_vec);
+                            start_unknown = false;
+                        }
+                        Start::Unknown => start_unknown = true,
+                        Start::AtPose => {}
+                    }
                     out.write_all(&buf).map_err(io)?;
                     continue;
                 }

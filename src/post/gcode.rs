@@ -65,11 +65,27 @@ pub struct BlockReader<'a> {
     /// The allocation of the vector of a block's words, kept from block to
     /// block (empty between blocks).
     words: Vec<WordRef<'static>>,
+    /// Where the machine is since the last pose.
+    start: Start,
     /// Lines read.
     lines: usize,
     /// Largest deviation of a tool vector's length from 1.
     max_vector_deviation: f64,
     warnings: Warnings,
+}
+
+/// Where the machine is before the next pose, as far as the program says
+/// ([`BlockReader::start`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Start {
+    /// At the last pose.
+    AtPose,
+    /// Where blocks in machine coordinates (pose mode off) moved it since
+    /// the last pose: [`BlockReader::previous`].
+    Followed,
+    /// Not known: a move home or in machine coordinates (`G28`, `G30`,
+    /// `G53`) or a new origin (`G92`) came since the last pose.
+    Unknown,
 }
 
 /// The second half of the [`GcodeConverter`]: the axis words and feed
@@ -111,6 +127,7 @@ impl<'a> GcodeConverter<'a> {
                 machine_ext: vec![0.0; machine.axes.len()],
                 machine_ext_stale: false,
                 words: Vec::with_capacity(16),
+                start: Start::AtPose,
                 lines: 0,
                 max_vector_deviation: 0.0,
                 warnings: Vec::new(),
@@ -506,6 +523,13 @@ impl BlockReader<'_> {
         self.previous = Some(q.iter().copied().collect());
         // `machine_ext` follows from `previous` when next needed.
         self.machine_ext_stale = true;
+        self.start = Start::AtPose;
+    }
+
+    /// Where the machine is before the next pose: at the last pose, where
+    /// blocks in machine coordinates since moved it, or not known.
+    pub fn start(&self) -> Start {
+        self.start
     }
 
     /// A block in machine coordinates (pose mode off): follow its axis words
@@ -523,8 +547,12 @@ impl BlockReader<'_> {
                 // is in program coordinates is no longer known, so the
                 // next pose must give X, Y and Z.
                 self.modal.tip = [None; 3];
+                self.start = Start::Unknown;
             }
-            if !g(92.0) {
+            if g(92.0) {
+                // A new origin: the machine stays, its words change.
+                self.start = Start::Unknown;
+            } else {
                 // `G10 L2 P1 X100`, `G52 X5`, `G68 X10 Y10 R30`, `G111 X0
                 // Y0`: data, not a position. `G92 X100` says where the tool
                 // is now, and is followed.
@@ -563,6 +591,11 @@ impl BlockReader<'_> {
                 .iter()
                 .position(|i| matches!(i.kind, ItemKind::BlockDelete));
             let whole = meaning.absolute && given.count_ones() as usize == self.machine.axes.len();
+            // A move (not a new origin) to a position of every axis, or from
+            // a known one, is known.
+            if !meaning.non_modal && (whole || self.start != Start::Unknown) {
+                self.start = Start::Followed;
+            }
             self.switch.followed_move(&self.modal, line, slash, whole);
             let q = self.machine.to_internal(&self.machine_ext);
             let pose = machine_at(self.machine, self.opts, line.number)

@@ -61,6 +61,7 @@ mod kinematics_wang;
 mod linkage_fixtures;
 mod linkage_words;
 mod linuxcnc_import;
+mod machine_moves;
 mod model_file_strict;
 mod not_tool_vectors;
 mod output_safety;

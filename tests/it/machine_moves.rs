@@ -1,0 +1,235 @@
+//! Moves in machine coordinates between poses: a program leaves pose mode
+//! (`G49`), moves the machine (`G91 G1 Z5`) and comes back (`G43.5`) with
+//! a pose that gives only X. `post` follows the move; `compensate` must do
+//! the same wherever its chunks end, `linkage` must divide the next
+//! segment from where the move left the machine, and `analyze` and
+//! `simulate`, which do not follow it, must refuse the pose
+//! (`docs/robustness.md`).
+
+use std::process::Command;
+
+use crate::util::repo_file;
+
+/// `pad` comment lines, `count` poses of the zhao2022-xzbc fixture, then a
+/// move in machine coordinates (`G49`, `G91 G1 Z5`) and back to pose mode,
+/// where the first pose gives X alone (and `first_yz`, say ` Y0 Z-5`).
+fn machine_move_program(pad: usize, count: usize, first_yz: &str) -> String {
+    let fixture =
+        std::fs::read_to_string(repo_file("fixtures/programs/zhao2022-xzbc.ngc")).unwrap();
+    let poses: Vec<&str> = fixture
+        .lines()
+        .filter(|l| l.starts_with("G1 X"))
+        .map(|l| l.trim_end_matches(" F200.0"))
+        .take(150)
+        .collect();
+    let first = format!("G1 X30{first_yz} I0 J0 K1 F200");
+    let mut lines = vec!["(pad)"; pad];
+    lines.extend(["G21 G90 G94", "G43.5 H1"]);
+    lines.extend(poses.iter().cycle().take(count));
+    lines.extend([
+        "G49",
+        "G91 G1 Z5. F100",
+        "G90",
+        "G43.5 H1",
+        &first,
+        "G1 X31 I0 J0 K1",
+        "G49",
+        "M30",
+    ]);
+    lines.join("\n") + "\n"
+}
+
+/// `analyze` and `simulate` read the poses without converting them, so they
+/// do not follow a move in machine coordinates: a pose after one that gives
+/// only X took Y and Z from the pose before the move (5 mm below where
+/// `post` puts it), exit 0. Now such a pose is refused at its line; with X,
+/// Y and Z given it is read, and `analyze --nonlinear` measures no segment
+/// across the move.
+#[test]
+fn analyze_and_simulate_refuse_a_pose_that_continues_from_a_machine_move() {
+    let dir = tempfile::tempdir().unwrap();
+    let partial = dir.path().join("partial.nc");
+    let whole = dir.path().join("whole.nc");
+    std::fs::write(&partial, machine_move_program(0, 300, "")).unwrap();
+    std::fs::write(&whole, machine_move_program(0, 300, " Y0 Z-5")).unwrap();
+    let run = |args: &[&str]| {
+        let out = Command::new(crate::util::BIN).args(args).output().unwrap();
+        (
+            out.status.code().unwrap(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    let (p, w) = (partial.to_str().unwrap(), whole.to_str().unwrap());
+    let sim = dir.path().join("sim.csv");
+    let sim = sim.to_str().unwrap();
+    let table = repo_file("fixtures/errors/zhao2022-xzbc.csv");
+    for args in [
+        vec!["analyze", "-m", "zhao2022-xzbc", "-e", &table, p],
+        vec!["analyze", "-m", "zhao2022-xzbc", "--nonlinear", p],
+        vec!["simulate", "-m", "zhao2022-xzbc", "--program", p, "-o", sim],
+    ] {
+        let (code, _, err) = run(&args);
+        assert_eq!(code, 1, "{args:?}: {err}");
+        assert!(
+            err.contains("partial.nc:307:4:") && err.contains("line 304"),
+            "{args:?}: {err}"
+        );
+    }
+    let (code, out, err) = run(&["analyze", "-m", "zhao2022-xzbc", "--nonlinear", "--json", w]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let lines: Vec<u64> = v["nonlinear"]["blocks"]
+        .as_array()
+        .expect("nonlinear blocks")
+        .iter()
+        .map(|b| b["line"].as_u64().unwrap())
+        .collect();
+    // A segment for every pose after the first but the one after the move.
+    assert!(lines.contains(&302) && lines.contains(&308), "{lines:?}");
+    assert!(!lines.contains(&307), "{lines:?}");
+    let (code, _, err) = run(&["simulate", "-m", "zhao2022-xzbc", "--program", w, "-o", sim]);
+    assert_eq!(code, 0, "{err}");
+}
+
+/// A block in machine coordinates after the poses (`G49`, then `G91 G1
+/// Z5`) moves on from the machine's position at the last pose, and a pose
+/// after it that gives only X continues from the tip there. Under
+/// `compensate` the first pass of a chunk runs before the chunk before it
+/// is written: the position followed was that of the last pose *written*
+/// (none in the first chunk, the chunk before's otherwise), so the pose
+/// went to Z5 instead of Z17.5 (exit 0). Now it is that of the last pose
+/// begun, wherever the chunks end; `post` (no errors) is the independent
+/// reference, within the compensation (micrometres).
+#[test]
+fn a_machine_move_after_the_poses_continues_from_the_last_pose() {
+    // The last pose before the machine move in the first chunk, at the end
+    // of the first chunk (512 lines) and in the middle of the second.
+    let dir = tempfile::tempdir().unwrap();
+    let mut results = Vec::new();
+    for (pad, count) in [(0, 300), (0, 508), (100, 508)] {
+        let prog = dir.path().join(format!("p{pad}-{count}.nc"));
+        std::fs::write(&prog, machine_move_program(pad, count, "")).unwrap();
+        let run = |args: &[&str]| {
+            let out = Command::new(crate::util::BIN)
+                .args(args)
+                .arg(&prog)
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            let text = String::from_utf8(out.stdout).unwrap();
+            // The two poses after the machine move: X Z B C.
+            text.lines()
+                .rev()
+                .skip(2)
+                .take(2)
+                .map(|l| {
+                    ["X", "Z", "B", "C"].map(|a| {
+                        l.split(' ')
+                            .find_map(|w| w.strip_prefix(a))
+                            .unwrap_or_else(|| panic!("{a} in {l}"))
+                            .parse::<f64>()
+                            .unwrap()
+                    })
+                })
+                .collect::<Vec<_>>()
+        };
+        let table = repo_file("fixtures/errors/zhao2022-xzbc.csv");
+        let compensated = run(&[
+            "compensate",
+            "-q",
+            "--machine",
+            "zhao2022-xzbc",
+            "--errors",
+            &table,
+        ]);
+        let nominal = run(&["post", "-q", "--machine", "zhao2022-xzbc"]);
+        for (c, n) in compensated.iter().zip(&nominal) {
+            for k in 0..4 {
+                assert!(
+                    (c[k] - n[k]).abs() < 0.01,
+                    "pad {pad}, {count} poses: compensate {c:?}, post {n:?}"
+                );
+            }
+        }
+        // The retract from the last pose: Z 5 mm above it, not at 5.
+        assert!(nominal[1][1] > 15.0, "{nominal:?}");
+        results.push(compensated);
+    }
+    assert_eq!(
+        results[1], results[2],
+        "the chunk boundaries change nothing"
+    );
+}
+
+/// `linkage` divided the first pose block after the move from the last
+/// pose *before* the move (Z 11.57, where the machine was before the 5 mm
+/// retract): its first inserted point took the machine back down, a path
+/// the program never asked for, exit 0. Now the segment starts where the
+/// move left the machine; after `G28`, where it starts is not known and a
+/// block that must be divided is refused.
+#[test]
+fn linkage_divides_from_where_a_machine_move_left_the_machine() {
+    let dir = tempfile::tempdir().unwrap();
+    let prog = dir.path().join("p.nc");
+    let text = machine_move_program(0, 40, " Y0 Z-5");
+    std::fs::write(&prog, &text).unwrap();
+    let run = |p: &std::path::Path| {
+        Command::new(crate::util::BIN)
+            .args(["linkage", "-m", "zhao2022-xzbc"])
+            .arg(p)
+            .output()
+            .unwrap()
+    };
+    let out = run(&prog);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let linked = String::from_utf8(out.stdout).unwrap();
+    let z = |l: &str| -> f64 {
+        l.split(' ')
+            .find_map(|w| w.strip_prefix('Z'))
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let lines: Vec<&str> = linked.lines().collect();
+    let retract = lines
+        .iter()
+        .position(|l| l.starts_with("G91 G1 Z5"))
+        .unwrap();
+    // The last pose before the retract, and the first block after it.
+    let before = lines[..retract]
+        .iter()
+        .rev()
+        .find(|l| l.starts_with("G1 X"))
+        .unwrap();
+    let first = lines[retract..]
+        .iter()
+        .find(|l| l.starts_with("G1 X"))
+        .unwrap();
+    assert!(first.contains("(kinpost linkage 1/"), "{first}");
+    let (z_before, z_first) = (z(before), z(first));
+    // The target is below the pose before: the first inserted point lies
+    // between the retracted Z (5 mm up) and the target, above the pose
+    // before.
+    assert!(
+        z_first > z_before + 2.0 && z_first < z_before + 5.0,
+        "{before} → retract → {first}"
+    );
+    let homed = dir.path().join("homed.nc");
+    std::fs::write(&homed, text.replace("G91 G1 Z5. F100", "G28 Z0")).unwrap();
+    let out = run(&homed);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("homed.nc:47:") && err.contains("not known"),
+        "{err}"
+    );
+}
