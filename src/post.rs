@@ -153,6 +153,27 @@ pub struct PostStats {
     pub warnings: Vec<String>,
 }
 
+/// The statistics of a format whose two halves count apart: the front's
+/// lines read and largest tool-vector deviation, the back's poses written
+/// and largest tool-axis miss, and the warnings of both, each with its
+/// place in the program, in program order (stable: at one place the
+/// front's come first, each half's in its own order).
+fn stats_of_halves<K: Ord>(
+    (lines, max_vector_deviation, front): (usize, f64, Vec<(K, String)>),
+    (poses, max_axis_miss_rad, back): (usize, f64, Vec<(K, String)>),
+) -> PostStats {
+    let mut warnings = front;
+    warnings.extend(back);
+    warnings.sort_by(|a, b| a.0.cmp(&b.0));
+    PostStats {
+        lines,
+        poses,
+        max_axis_miss_rad,
+        max_vector_deviation,
+        warnings: warnings.into_iter().map(|w| w.1).collect(),
+    }
+}
+
 /// Emits the machine's axis words for one converted block.
 struct AxisWriter<'m> {
     machine: &'m Machine,

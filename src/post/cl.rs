@@ -581,17 +581,10 @@ impl<'a> Format for ClFormat<'a> {
     }
     fn stats(self) -> PostStats {
         let (f, b) = (self.front, self.back);
-        let mut warnings = f.warnings;
-        warnings.extend(b.warnings);
-        // Stable: the warnings of one statement and half keep their order.
-        warnings.sort_by_key(|w| w.0);
-        PostStats {
-            lines: f.lines,
-            poses: b.poses,
-            max_axis_miss_rad: b.max_axis_miss_rad,
-            max_vector_deviation: f.max_vector_deviation,
-            warnings: warnings.into_iter().map(|w| w.1).collect(),
-        }
+        super::stats_of_halves(
+            (f.lines, f.max_vector_deviation, f.warnings),
+            (b.poses, b.max_axis_miss_rad, b.warnings),
+        )
     }
 }
 

@@ -190,17 +190,10 @@ impl<'a> GcodeConverter<'a> {
     /// What was done, the warnings in program order.
     pub fn stats(self) -> PostStats {
         let (r, w) = (self.reader, self.writer);
-        let mut warnings = r.warnings;
-        warnings.extend(w.warnings);
-        // Stable: the warnings of one line and half keep their order.
-        warnings.sort_by_key(|w| w.0);
-        PostStats {
-            lines: r.lines,
-            poses: w.poses,
-            max_axis_miss_rad: w.max_axis_miss_rad,
-            max_vector_deviation: r.max_vector_deviation,
-            warnings: warnings.into_iter().map(|w| w.1).collect(),
-        }
+        super::stats_of_halves(
+            (r.lines, r.max_vector_deviation, r.warnings),
+            (w.poses, w.max_axis_miss_rad, w.warnings),
+        )
     }
 }
 
@@ -226,26 +219,7 @@ impl BlockReader<'_> {
         crate::program::integrity::check_line(line, &opts.file_name, self.modal.pose_mode)?;
         let mut words = recycle(std::mem::take(&mut self.words));
         let mut keywords = Vec::new();
-        for (i, item) in line.items.iter().enumerate() {
-            match &item.kind {
-                ItemKind::Word(w) => words.push(WordRef {
-                    address: w.address.as_str(),
-                    value: w.value,
-                    item: i,
-                }),
-                ItemKind::Keyword(k) => keywords.push((i, k.as_str())),
-                // Block delete reaches the modal state as a pseudo-keyword.
-                ItemKind::BlockDelete => keywords.push((i, "/")),
-                ItemKind::Opaque => {
-                    if let Some(k) = crate::program::opaque::known_call(&String::from_utf8_lossy(
-                        line.item_bytes(item),
-                    )) {
-                        keywords.push((i, k));
-                    }
-                }
-                _ => {}
-            }
-        }
+        crate::program::block_words::block_words(line, &mut words, &mut keywords);
         let opaque_error = |i: usize| {
             Error::input_with(
                 loc(Some(i)),

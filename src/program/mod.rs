@@ -2,6 +2,7 @@
 
 mod block_delete;
 pub mod block_delete_switch;
+pub mod block_words;
 pub mod format;
 pub mod heidenhain;
 pub mod ijk;

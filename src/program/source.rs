@@ -47,32 +47,12 @@ pub fn gcode_poses<R: BufRead>(
         let line = line.map_err(|e| Error::io(file, e))?;
         let mut words = Vec::new();
         let mut keywords = Vec::new();
-        let mut n = None;
-        for (i, item) in line.items.iter().enumerate() {
-            match &item.kind {
-                ItemKind::Word(w) => {
-                    if w.address == "N" {
-                        n = Some(w.value);
-                    }
-                    words.push(WordRef {
-                        address: w.address.as_str(),
-                        value: w.value,
-                        item: i,
-                    })
-                }
-                ItemKind::Keyword(k) => keywords.push((i, k.as_str())),
-                // Block delete reaches the modal state as a pseudo-keyword.
-                ItemKind::BlockDelete => keywords.push((i, "/")),
-                ItemKind::Opaque => {
-                    if let Some(k) = crate::program::opaque::known_call(&String::from_utf8_lossy(
-                        line.item_bytes(item),
-                    )) {
-                        keywords.push((i, k));
-                    }
-                }
-                _ => {}
-            }
-        }
+        super::block_words::block_words(line, &mut words, &mut keywords);
+        let n = words
+            .iter()
+            .rev()
+            .find(|w| w.address == "N")
+            .map(|w| w.value);
         let meaning = switch
             .apply(&mut modal, &words, &keywords, line)
             .map_err(|e| match e {
