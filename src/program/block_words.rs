@@ -7,6 +7,7 @@ use crate::gcode::{ItemKind, Line};
 /// (with their item indices): a block delete `/` as the pseudo-keyword
 /// `/`, and a Sinumerik call kinpost knows in text it does not parse
 /// (`TRAORI`, `CYCLE800(…)`) as its name.
+#[inline]
 pub fn block_words<'l>(
     line: &'l Line,
     words: &mut Vec<WordRef<'l>>,
