@@ -375,8 +375,8 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
         let mut out_result: Result<()> = Ok(());
         buf.clear();
         rayon::in_place_scope(|scope| {
-            // The in-order tasks first: they are the pipeline's critical
-            // path, and the pool's other threads take the oldest task first.
+            // The in-order tasks first: they cannot be divided, and the
+            // pool's other threads take the oldest task first.
             let (front, back) = format.halves();
             let (stage_front, stage_back) = stage.halves();
             let (previous, prepared) = (&mut previous, &mut prepared);
