@@ -11,7 +11,7 @@ use crate::error::{Error, Location, Result};
 use crate::machine::chain::JointValues;
 use crate::machine::{IkSolver, Machine, Pose};
 use crate::program::PoseStart;
-use crate::program::source::{looks_like_poses, machine_axis_blocks, program_poses};
+use crate::program::source::{cl_poses, looks_like_poses, machine_axis_blocks};
 
 /// One motion block of a program as joint values.
 #[derive(Debug, Clone)]
@@ -69,10 +69,10 @@ pub fn joint_trajectory<R: BufRead>(
     axis_tolerance_rad: f64,
     mut f: impl FnMut(TrajectoryBlock) -> Result<()>,
 ) -> Result<()> {
-    if looks_like_poses(head) {
+    if crate::cl::looks_like_cl(head) {
         let ik = IkSolver::new(machine);
         let mut previous: Option<JointValues> = None;
-        program_poses(input, head, file, start, |ev| {
+        cl_poses(input, file, |ev| {
             let q = reachable(
                 &ik,
                 machine,
@@ -87,11 +87,13 @@ pub fn joint_trajectory<R: BufRead>(
                 pose: Some(ev.pose),
                 feed_mm_min: ev.feed_mm_min,
                 rapid: ev.rapid,
-                restart: ev.restart,
+                restart: false,
             };
             previous = Some(q);
             f(block)
         })
+    } else if looks_like_poses(head) {
+        gcode_trajectory(machine, input, file, start, axis_tolerance_rad, f)
     } else {
         machine_axis_blocks(machine, input, file, |ev| {
             f(TrajectoryBlock {
@@ -104,6 +106,96 @@ pub fn joint_trajectory<R: BufRead>(
             })
         })
     }
+}
+
+/// [`joint_trajectory`] of a G-code pose program, read as `post` reads it
+/// (its [`crate::post::BlockReader`]): each pose solved in order, and the
+/// blocks in machine coordinates between poses (pose mode off) followed as
+/// `post` follows them, each straight move (`G0`, `G1`) a block of its own
+/// (no pose). After an arc or a cycle there, or a block that leaves the
+/// machine where the program does not say (`G28`, `G53`, `G92`), the next
+/// block restarts.
+fn gcode_trajectory<R: BufRead>(
+    machine: &Machine,
+    input: R,
+    file: &str,
+    start: PoseStart,
+    axis_tolerance_rad: f64,
+    mut f: impl FnMut(TrajectoryBlock) -> Result<()>,
+) -> Result<()> {
+    use crate::post::{GcodeConverter, PostOptions, Start};
+    use crate::program::{FeedMode, modal::Motion};
+    let opts = PostOptions {
+        pose_start: start,
+        axis_tolerance_rad,
+        file_name: file.to_string(),
+        ..PostOptions::default()
+    };
+    let mut conv = GcodeConverter::new(machine, &opts);
+    let reader = &mut conv.reader;
+    let ik = IkSolver::new(machine);
+    // The joint values of the last block given to `f`.
+    let mut last: Option<Vec<f64>> = None;
+    let mut restart = false;
+    let mut scratch = Vec::new();
+    let feed_of = |m: &crate::program::ModalState| match m.feed_mode {
+        FeedMode::PerMinute => m.feed.map(|v| v * m.units.mm_per_unit()),
+        _ => None,
+    };
+    for line in crate::gcode::LineReader::new(input) {
+        let line = line.map_err(|e| Error::io(file, e))?;
+        scratch.clear();
+        let Some(pending) = reader.begin(None, &line, &mut scratch)? else {
+            match reader.start() {
+                Start::Followed => {
+                    let q = reader.previous().map(<[f64]>::to_vec);
+                    if q.is_some() && q != last {
+                        let q = q.unwrap_or_default();
+                        last = Some(q.clone());
+                        let modal = reader.modal();
+                        if !matches!(modal.motion, Motion::Rapid | Motion::Linear) {
+                            // An arc or a cycle: not a straight move of the
+                            // joints; the next block starts afresh from
+                            // its end.
+                            restart = true;
+                            continue;
+                        }
+                        f(TrajectoryBlock {
+                            line: line.number,
+                            q,
+                            pose: None,
+                            feed_mm_min: feed_of(modal),
+                            rapid: modal.motion == Motion::Rapid,
+                            restart: std::mem::take(&mut restart),
+                        })?;
+                    }
+                }
+                Start::Unknown => restart = true,
+                Start::AtPose => {}
+            }
+            continue;
+        };
+        let q = reachable(
+            &ik,
+            machine,
+            &pending.pose,
+            reader.previous(),
+            axis_tolerance_rad,
+        )
+        .map_err(|m| reader.solve_error(&line, &pending, m))?;
+        reader.begun(&q);
+        last = Some(q.to_vec());
+        let modal = reader.modal();
+        f(TrajectoryBlock {
+            line: line.number,
+            q: q.to_vec(),
+            pose: Some(pending.pose),
+            feed_mm_min: feed_of(modal),
+            rapid: pending.meaning.motion == Motion::Rapid,
+            restart: std::mem::take(&mut restart),
+        })?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -348,6 +348,11 @@ impl BlockReader<'_> {
         self.opts.inverse_time
     }
 
+    /// The modal state after the last line begun.
+    pub fn modal(&self) -> &ModalState {
+        &self.modal
+    }
+
     /// The joint values the program continues from.
     pub fn previous(&self) -> Option<&[f64]> {
         self.previous.as_deref()

@@ -1,6 +1,7 @@
-//! The tool poses of a program, whatever its format (G-code poses or APT CL),
-//! as one stream of events, for the commands that read poses without
-//! rewriting the program (analyze, linkage planning, simulation).
+//! The tool poses of APT CL data as one stream of events, and the blocks of
+//! a program written in machine axes, for the commands that read a program
+//! without rewriting it (analyze, simulate). (A G-code pose program is read
+//! with `post`'s own reader: `crate::trajectory`.)
 
 use super::modal::{Motion, PoseStart, TOOL_VECTOR_TOLERANCE, WordRef};
 use super::{ModalState, Units};
@@ -24,141 +25,6 @@ pub struct PoseEvent {
     pub feed_mm_min: Option<f64>,
     /// Rapid move (G0 / RAPID).
     pub rapid: bool,
-    /// A move in machine coordinates came between the pose before and this
-    /// one (pose mode off): the path between them is not known.
-    pub restart: bool,
-}
-
-/// Reads the poses of a G-code pose program.
-pub fn gcode_poses<R: BufRead>(
-    input: R,
-    file: &str,
-    start: PoseStart,
-    mut f: impl FnMut(PoseEvent) -> Result<()>,
-) -> Result<()> {
-    let mut modal = ModalState::new(start);
-    let mut switch = super::block_delete_switch::BlockDeleteSwitch::default();
-    let mut lines = LineReader::new(input);
-    // The line of a move in machine coordinates since the last pose: the
-    // poses here are not converted, so where it leaves the tool is not
-    // followed (`post` follows it).
-    let mut machine_move: Option<usize> = None;
-    while let Some(line) = lines.next_line() {
-        let line = line.map_err(|e| Error::io(file, e))?;
-        let mut words = Vec::new();
-        let mut keywords = Vec::new();
-        super::block_words::block_words(line, &mut words, &mut keywords);
-        let n = words
-            .iter()
-            .rev()
-            .find(|w| w.address == "N")
-            .map(|w| w.value);
-        let meaning = switch
-            .apply(&mut modal, &words, &keywords, line)
-            .map_err(|e| match e {
-                super::block_delete_switch::Refused::Slash { at, message } => {
-                    Error::input_with(Location::new(file, at.line, at.col), message, at.text)
-                }
-                super::block_delete_switch::Refused::Block(e) => {
-                    let col = e.item.map(|i| line.items[i].start + 1).unwrap_or(0);
-                    Error::input_with(
-                        Location::new(file, line.number, col),
-                        e.message,
-                        line.text_lossy(),
-                    )
-                }
-            })?;
-        // A pose block with text kinpost does not read (`X1.2.3`) is an
-        // error, as in `post`: skipping it would drop a pose silently.
-        let straight = matches!(meaning.motion, Motion::Rapid | Motion::Linear);
-        if let Some(i) = super::opaque::opaque_in_pose_block(
-            line,
-            modal.pose_mode,
-            meaning.pose.is_some(),
-            straight,
-        ) {
-            return Err(Error::input_with(
-                Location::new(file, line.number, line.items[i].start + 1),
-                super::opaque::describe_opaque(line.item_bytes(&line.items[i])),
-                line.text_lossy(),
-            ));
-        }
-        let Some((tip, axis)) = meaning.pose else {
-            if !modal.pose_mode && moves_in_machine_coordinates(&words, &meaning) {
-                machine_move = Some(line.number);
-            }
-            continue;
-        };
-        let restart = machine_move.is_some();
-        if let Some(at) = machine_move.take()
-            && !(meaning.absolute
-                && ["X", "Y", "Z"]
-                    .iter()
-                    .all(|a| words.iter().any(|w| w.address == *a)))
-        {
-            let col = meaning
-                .pose_items
-                .first()
-                .map(|&i| line.items[i].start + 1)
-                .unwrap_or(0);
-            return Err(Error::input_with(
-                Location::new(file, line.number, col),
-                format!(
-                    "this pose takes the coordinates it does not give from where the move in machine coordinates at line {at} left the tool, which analyze and simulate do not follow (post does): give X, Y and Z (G90) in the first pose after it"
-                ),
-                line.text_lossy(),
-            ));
-        }
-        let feed_mm_min = match meaning.feed_mode {
-            super::FeedMode::PerMinute => meaning.feed.map(|f| f * meaning.units.mm_per_unit()),
-            _ => None,
-        };
-        f(PoseEvent {
-            line: line.number,
-            n,
-            pose: Pose::new(tip, axis),
-            feed_mm_min,
-            rapid: meaning.motion == Motion::Rapid,
-            restart,
-        })?;
-    }
-    Ok(())
-}
-
-/// Whether a block outside pose mode moves the machine: an axis word in a
-/// motion, or a move home or in machine coordinates (`G28`, `G30`, `G53`),
-/// or a new origin (`G92`, `G52`, `G10`) that moves where the tool is in
-/// program coordinates.
-fn moves_in_machine_coordinates(words: &[WordRef<'_>], meaning: &super::BlockMeaning) -> bool {
-    let axis = words.iter().any(|w| {
-        matches!(
-            w.address,
-            "X" | "Y" | "Z" | "A" | "B" | "C" | "U" | "V" | "W"
-        )
-    });
-    axis || (meaning.non_modal
-        && words.iter().any(|w| {
-            w.address == "G"
-                && [28.0, 30.0, 53.0]
-                    .iter()
-                    .any(|g| (w.value - g).abs() < 1e-9)
-        }))
-}
-
-/// Reads the poses of a program whose start is `head`: APT CL data or
-/// G-code poses.
-pub fn program_poses<R: BufRead>(
-    input: R,
-    head: &[u8],
-    file: &str,
-    start: PoseStart,
-    f: impl FnMut(PoseEvent) -> Result<()>,
-) -> Result<()> {
-    if crate::cl::looks_like_cl(head) {
-        cl_poses(input, file, f)
-    } else {
-        gcode_poses(input, file, start, f)
-    }
 }
 
 /// Reads the poses of APT CL data, lowered as `post` lowers them
@@ -232,7 +98,6 @@ pub fn cl_poses<R: BufRead>(
                     pose: Pose::new(Vector3::from(tip) * units.mm_per_unit(), axis / norm),
                     feed_mm_min: feed,
                     rapid,
-                    restart: false,
                 })?;
                 rapid = false;
             }
