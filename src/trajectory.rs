@@ -148,27 +148,30 @@ fn gcode_trajectory<R: BufRead>(
         let Some(pending) = reader.begin(None, &line, &mut scratch)? else {
             match reader.start() {
                 Start::Followed => {
-                    let q = reader.previous().map(<[f64]>::to_vec);
-                    if q.is_some() && q != last {
-                        let q = q.unwrap_or_default();
-                        last = Some(q.clone());
-                        let modal = reader.modal();
-                        if !matches!(modal.motion, Motion::Rapid | Motion::Linear) {
-                            // An arc or a cycle: not a straight move of the
-                            // joints; the next block starts afresh from
-                            // its end.
-                            restart = true;
-                            continue;
-                        }
-                        f(TrajectoryBlock {
-                            line: line.number,
-                            q,
-                            pose: None,
-                            feed_mm_min: feed_of(modal),
-                            rapid: modal.motion == Motion::Rapid,
-                            restart: std::mem::take(&mut restart),
-                        })?;
+                    // Only a line that moved the machine is a block.
+                    let Some(q) = reader
+                        .previous()
+                        .filter(|q| last.as_deref() != Some(*q))
+                        .map(<[f64]>::to_vec)
+                    else {
+                        continue;
+                    };
+                    last = Some(q.clone());
+                    let modal = reader.modal();
+                    if !matches!(modal.motion, Motion::Rapid | Motion::Linear) {
+                        // An arc or a cycle: not a straight move of the
+                        // joints; the next block starts afresh from its end.
+                        restart = true;
+                        continue;
                     }
+                    f(TrajectoryBlock {
+                        line: line.number,
+                        q,
+                        pose: None,
+                        feed_mm_min: feed_of(modal),
+                        rapid: modal.motion == Motion::Rapid,
+                        restart: std::mem::take(&mut restart),
+                    })?;
                 }
                 Start::Unknown => restart = true,
                 Start::AtPose => {}

@@ -105,8 +105,8 @@ pub struct BlockWriter<'a> {
 
 impl<'a> GcodeConverter<'a> {
     /// A converter for `machine`. It does not solve poses: a driver solves
-    /// each pose [`GcodeConverter::begin`] gives and hands the joint values
-    /// to [`GcodeConverter::finish`] ([`GcodeConverter::convert`] does both
+    /// each pose [`BlockReader::begin`] gives and hands the joint values
+    /// to [`BlockWriter::finish`] ([`GcodeConverter::convert`] does both
     /// with a [`PoseSolver`]).
     pub fn new(machine: &'a Machine, opts: &'a PostOptions) -> Self {
         GcodeConverter {
@@ -152,34 +152,18 @@ impl<'a> GcodeConverter<'a> {
         solver: &mut dyn PoseSolver,
         out: &mut Vec<u8>,
     ) -> Result<Option<Converted>> {
-        let Some(pending) = self.begin(line, out)? else {
+        let Some(pending) = self.reader.begin(Some(&mut self.writer), line, out)? else {
             return Ok(None);
         };
         let solved = solver
             .solve(&pending.pose, self.reader.previous(), line.number)
-            .map_err(|m| solve_error(&self.reader.opts.file_name, line, &pending, m))?;
+            .map_err(|m| self.reader.solve_error(line, &pending, m))?;
         self.reader.begun(&solved.q);
-        self.finish(line, &pending, &solved, out)?;
+        self.writer.finish(line, &pending, &solved, out)?;
         Ok(Some(Converted {
             q: solved.q,
             meaning: pending.meaning,
         }))
-    }
-
-    /// First half of [`GcodeConverter::convert`]: [`BlockReader::begin`].
-    pub fn begin(&mut self, line: &Line, out: &mut Vec<u8>) -> Result<Option<PendingPose>> {
-        self.reader.begin(Some(&mut self.writer), line, out)
-    }
-
-    /// Second half of [`GcodeConverter::convert`]: [`BlockWriter::finish`].
-    pub fn finish(
-        &mut self,
-        line: &Line,
-        pending: &PendingPose,
-        solved: &SolvedPose,
-        out: &mut Vec<u8>,
-    ) -> Result<()> {
-        self.writer.finish(line, pending, solved, out)
     }
 
     /// What ends the program: a last `G94` when the output is in `G93`.
@@ -595,8 +579,8 @@ fn machine_at<'m>(machine: &'m Machine, opts: &'m PostOptions, line: usize) -> &
     }
 }
 
-/// A pose block between [`GcodeConverter::begin`] and
-/// [`GcodeConverter::finish`].
+/// A pose block between [`BlockReader::begin`] and
+/// [`BlockWriter::finish`].
 #[derive(Debug, Clone)]
 pub struct PendingPose {
     /// The tool pose to solve.
