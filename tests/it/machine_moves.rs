@@ -5,9 +5,19 @@
 //! segment from where the move left the machine, and `analyze` and
 //! `simulate` must read it as `post` does (`docs/robustness.md`).
 
-use std::process::Command;
-
+use crate::cl_support::kinpost;
 use crate::util::repo_file;
+
+/// The standard output of `kinpost args`, which must succeed.
+fn kinpost_ok(args: &[&str]) -> String {
+    let out = kinpost(args);
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
 
 /// `pad` comment lines, `count` poses of the zhao2022-xzbc fixture, then a
 /// move in machine coordinates (`G49`, `G91 G1 Z5`) and back to pose mode,
@@ -50,19 +60,10 @@ fn analyze_and_simulate_follow_a_machine_move_as_post_does() {
     let dir = tempfile::tempdir().unwrap();
     let partial = dir.path().join("partial.nc");
     std::fs::write(&partial, machine_move_program(0, 300, "")).unwrap();
-    let run = |args: &[&str]| {
-        let out = Command::new(crate::util::BIN).args(args).output().unwrap();
-        assert!(
-            out.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8(out.stdout).unwrap()
-    };
     let p = partial.to_str().unwrap();
     let table = repo_file("fixtures/errors/zhao2022-xzbc.csv");
     // post's axes of the pose after the move (line 307): X Z B C.
-    let posted = run(&["post", "-q", "-m", "zhao2022-xzbc", "--decimals", "6", p]);
+    let posted = kinpost_ok(&["post", "-q", "-m", "zhao2022-xzbc", "--decimals", "6", p]);
     let line307 = posted.lines().nth(306).unwrap();
     let want: Vec<f64> = ["X", "Z", "B", "C"]
         .iter()
@@ -76,7 +77,7 @@ fn analyze_and_simulate_follow_a_machine_move_as_post_does() {
         })
         .collect();
     assert!(want[1] > 15.0, "{line307}");
-    let analysed: serde_json::Value = serde_json::from_str(&run(&[
+    let analysed: serde_json::Value = serde_json::from_str(&kinpost_ok(&[
         "analyze",
         "-m",
         "zhao2022-xzbc",
@@ -96,7 +97,7 @@ fn analyze_and_simulate_follow_a_machine_move_as_post_does() {
         let got = block["axes"][k].as_f64().unwrap();
         assert!((got - w).abs() < 1e-5, "axis {k}: {got} vs post's {w}");
     }
-    let nonlinear: serde_json::Value = serde_json::from_str(&run(&[
+    let nonlinear: serde_json::Value = serde_json::from_str(&kinpost_ok(&[
         "analyze",
         "-m",
         "zhao2022-xzbc",
@@ -114,7 +115,7 @@ fn analyze_and_simulate_follow_a_machine_move_as_post_does() {
     // The retract (line 304) and the pose after it are measured.
     assert!(lines.contains(&304) && lines.contains(&307), "{lines:?}");
     let sim = dir.path().join("sim.csv");
-    run(&[
+    kinpost_ok(&[
         "simulate",
         "-m",
         "zhao2022-xzbc",
@@ -143,18 +144,9 @@ fn a_machine_move_after_the_poses_continues_from_the_last_pose() {
     for (pad, count) in [(0, 300), (0, 508), (100, 508)] {
         let prog = dir.path().join(format!("p{pad}-{count}.nc"));
         std::fs::write(&prog, machine_move_program(pad, count, "")).unwrap();
+        let prog = prog.to_str().unwrap();
         let run = |args: &[&str]| {
-            let out = Command::new(crate::util::BIN)
-                .args(args)
-                .arg(&prog)
-                .output()
-                .unwrap();
-            assert!(
-                out.status.success(),
-                "{}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-            let text = String::from_utf8(out.stdout).unwrap();
+            let text = kinpost_ok(&[args, &[prog]].concat());
             // The two poses after the machine move: X Z B C.
             text.lines()
                 .rev()
@@ -211,20 +203,7 @@ fn linkage_divides_from_where_a_machine_move_left_the_machine() {
     let prog = dir.path().join("p.nc");
     let text = machine_move_program(0, 40, " Y0 Z-5");
     std::fs::write(&prog, &text).unwrap();
-    let run = |p: &std::path::Path| {
-        Command::new(crate::util::BIN)
-            .args(["linkage", "-m", "zhao2022-xzbc"])
-            .arg(p)
-            .output()
-            .unwrap()
-    };
-    let out = run(&prog);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let linked = String::from_utf8(out.stdout).unwrap();
+    let linked = kinpost_ok(&["linkage", "-m", "zhao2022-xzbc", prog.to_str().unwrap()]);
     let z = |l: &str| -> f64 {
         l.split(' ')
             .find_map(|w| w.strip_prefix('Z'))
@@ -258,7 +237,7 @@ fn linkage_divides_from_where_a_machine_move_left_the_machine() {
     );
     let homed = dir.path().join("homed.nc");
     std::fs::write(&homed, text.replace("G91 G1 Z5. F100", "G28 Z0")).unwrap();
-    let out = run(&homed);
+    let out = kinpost(&["linkage", "-m", "zhao2022-xzbc", homed.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
