@@ -11,7 +11,8 @@ use crate::error::{Error, Location, Result};
 use crate::machine::chain::JointValues;
 use crate::machine::{IkSolver, Machine, Pose};
 use crate::program::PoseStart;
-use crate::program::source::{cl_poses, looks_like_poses, machine_axis_blocks};
+use crate::program::arc::ArcModes;
+use crate::program::source::{arc_joint_path, cl_poses, looks_like_poses, machine_axis_blocks};
 
 /// One motion block of a program as joint values.
 #[derive(Debug, Clone)]
@@ -32,6 +33,14 @@ pub struct TrajectoryBlock {
     /// `G28`, `G30`, whose end the program does not give): the segment
     /// between them is not known.
     pub restart: bool,
+    /// A circular move in machine axes (`G2`, `G3`): not a straight move
+    /// of the joints.
+    pub arc: bool,
+    /// The joint values (chain order, mm / rad) a circular move in
+    /// machine axes passes through between the previous block and `q`
+    /// (both excluded), in order ([`arc_joint_path`]), where asked for;
+    /// empty otherwise.
+    pub via: Vec<Vec<f64>>,
 }
 
 /// The theoretical joint values of `pose` (continuing from `previous`), or
@@ -55,20 +64,36 @@ pub fn reachable(
     Ok(s.q)
 }
 
+/// How [`joint_trajectory`] reads a program.
+#[derive(Debug, Clone, Copy)]
+pub struct TrajectoryOptions {
+    /// When pose mode starts (G-code pose programs).
+    pub start: PoseStart,
+    /// A tool axis missed by more than this (rad) is an error naming the
+    /// line.
+    pub axis_tolerance_rad: f64,
+    /// Give each circular move in machine axes the points it passes
+    /// through ([`TrajectoryBlock::via`]); an arc that cannot be followed
+    /// is then refused at its line.
+    pub arc_points: bool,
+}
+
 /// Calls `f` with every motion block of the program read from `input`
 /// (`head`: its first bytes, which tell tool poses from machine axes; `file`
-/// names it in messages), in order. Pose mode starts as `start` says; a
-/// tool axis missed by more than `axis_tolerance_rad` (rad) is an error
-/// naming the line.
+/// names it in messages), in order, read as `opts` says.
 pub fn joint_trajectory<R: BufRead>(
     machine: &Machine,
     input: R,
     head: &[u8],
     file: &str,
-    start: PoseStart,
-    axis_tolerance_rad: f64,
+    opts: TrajectoryOptions,
     mut f: impl FnMut(TrajectoryBlock) -> Result<()>,
 ) -> Result<()> {
+    let TrajectoryOptions {
+        axis_tolerance_rad,
+        arc_points,
+        ..
+    } = opts;
     if crate::cl::looks_like_cl(head) {
         let ik = IkSolver::new(machine);
         let mut previous: Option<JointValues> = None;
@@ -88,14 +113,16 @@ pub fn joint_trajectory<R: BufRead>(
                 feed_mm_min: ev.feed_mm_min,
                 rapid: ev.rapid,
                 restart: false,
+                arc: false,
+                via: Vec::new(),
             };
             previous = Some(q);
             f(block)
         })
     } else if looks_like_poses(head) {
-        gcode_trajectory(machine, input, file, start, axis_tolerance_rad, f)
+        gcode_trajectory(machine, input, file, opts, f)
     } else {
-        machine_axis_blocks(machine, input, file, |ev| {
+        machine_axis_blocks(machine, input, file, arc_points, |ev| {
             f(TrajectoryBlock {
                 line: ev.line,
                 q: ev.q,
@@ -103,6 +130,8 @@ pub fn joint_trajectory<R: BufRead>(
                 feed_mm_min: ev.feed_mm_min,
                 rapid: ev.rapid,
                 restart: ev.restart,
+                arc: ev.arc,
+                via: ev.via,
             })
         })
     }
@@ -111,18 +140,23 @@ pub fn joint_trajectory<R: BufRead>(
 /// [`joint_trajectory`] of a G-code pose program, read as `post` reads it
 /// (its [`crate::post::BlockReader`]): each pose solved in order, and the
 /// blocks in machine coordinates between poses (pose mode off) followed as
-/// `post` follows them, each straight move (`G0`, `G1`) a block of its own
-/// (no pose). After an arc or a cycle there, or a block that leaves the
-/// machine where the program does not say (`G28`, `G53`, `G92`), the next
-/// block restarts.
+/// `post` follows them, each straight move (`G0`, `G1`) and each circular
+/// move (`G2`, `G3`, with the points it passes through) a block of its own
+/// (no pose). After a cycle there, or a block that leaves the machine
+/// where the program does not say (`G28`, `G53`, `G92`), the next block
+/// restarts.
 fn gcode_trajectory<R: BufRead>(
     machine: &Machine,
     input: R,
     file: &str,
-    start: PoseStart,
-    axis_tolerance_rad: f64,
+    opts: TrajectoryOptions,
     mut f: impl FnMut(TrajectoryBlock) -> Result<()>,
 ) -> Result<()> {
+    let TrajectoryOptions {
+        start,
+        axis_tolerance_rad,
+        arc_points,
+    } = opts;
     use crate::post::{GcodeConverter, PostOptions, Start};
     use crate::program::{FeedMode, modal::Motion};
     let opts = PostOptions {
@@ -137,6 +171,7 @@ fn gcode_trajectory<R: BufRead>(
     // The joint values of the last block given to `f`.
     let mut last: Option<Vec<f64>> = None;
     let mut restart = false;
+    let mut arcs = ArcModes::default();
     let mut scratch = Vec::new();
     let feed_of = |m: &crate::program::ModalState| match m.feed_mode {
         FeedMode::PerMinute => m.feed.map(|v| v * m.units.mm_per_unit()),
@@ -145,25 +180,53 @@ fn gcode_trajectory<R: BufRead>(
     for line in crate::gcode::LineReader::new(input) {
         let line = line.map_err(|e| Error::io(file, e))?;
         scratch.clear();
+        arcs.apply(&line);
         let Some(pending) = reader.begin(None, &line, &mut scratch)? else {
             match reader.start() {
                 Start::Followed => {
-                    // Only a line that moved the machine is a block.
+                    // Only a line that moved the machine is a block (a
+                    // full circle ends where it starts: an arc is a line
+                    // with axis or centre words).
+                    let modal = reader.modal();
+                    let arc = modal.motion == Motion::Arc
+                        && line.words().any(|w| {
+                            ["I", "J", "K", "R", "CR"].iter().any(|a| w.is(a))
+                                || machine.axes.iter().any(|a| w.is(&a.name))
+                        });
                     let Some(q) = reader
                         .previous()
-                        .filter(|q| last.as_deref() != Some(*q))
+                        .filter(|q| arc || last.as_deref() != Some(*q))
                         .map(<[f64]>::to_vec)
                     else {
                         continue;
                     };
-                    last = Some(q.clone());
-                    let modal = reader.modal();
-                    if !matches!(modal.motion, Motion::Rapid | Motion::Linear) {
-                        // An arc or a cycle: not a straight move of the
-                        // joints; the next block starts afresh from its end.
-                        restart = true;
-                        continue;
-                    }
+                    let from = last.replace(q.clone());
+                    let via = match (modal.motion, from) {
+                        (Motion::Rapid | Motion::Linear, _) => Vec::new(),
+                        (Motion::Arc, Some(_)) if !arc_points && !restart => Vec::new(),
+                        (Motion::Arc, Some(from)) if !restart => arc_joint_path(
+                            machine,
+                            &arcs,
+                            &line,
+                            &from,
+                            &q,
+                            modal.units.mm_per_unit(),
+                        )
+                        .map_err(|(col, message)| {
+                            Error::input_with(
+                                Location::new(file, line.number, col),
+                                message,
+                                line.text_lossy(),
+                            )
+                        })?,
+                        _ => {
+                            // A cycle, or an arc from where the program
+                            // does not say: the next block starts afresh
+                            // from its end.
+                            restart = true;
+                            continue;
+                        }
+                    };
                     f(TrajectoryBlock {
                         line: line.number,
                         q,
@@ -171,6 +234,8 @@ fn gcode_trajectory<R: BufRead>(
                         feed_mm_min: feed_of(modal),
                         rapid: modal.motion == Motion::Rapid,
                         restart: std::mem::take(&mut restart),
+                        arc: modal.motion == Motion::Arc,
+                        via,
                     })?;
                 }
                 Start::Unknown => restart = true,
@@ -196,6 +261,8 @@ fn gcode_trajectory<R: BufRead>(
             feed_mm_min: feed_of(modal),
             rapid: pending.meaning.motion == Motion::Rapid,
             restart: std::mem::take(&mut restart),
+            arc: false,
+            via: Vec::new(),
         })?;
     }
     Ok(())
@@ -213,8 +280,11 @@ mod tests {
             text.as_bytes(),
             text.as_bytes(),
             "p.nc",
-            PoseStart::Off,
-            1e-4,
+            TrajectoryOptions {
+                start: PoseStart::Off,
+                axis_tolerance_rad: 1e-4,
+                arc_points: true,
+            },
             |b| {
                 out.push(b);
                 Ok(())

@@ -481,9 +481,13 @@ impl<R: BufRead> Lowered<R> {
             .map(|(m, n)| format!("{m} {n}"))
             .collect();
         let w = format!(
-            "{}: {total} CL statement{} that do not move the tool kept as comments ({})",
+            "{}: {total} CL {} not move the tool kept as comments ({})",
             self.file,
-            if total == 1 { "" } else { "s" },
+            if total == 1 {
+                "statement that does"
+            } else {
+                "statements that do"
+            },
             list.join(", ")
         );
         self.out.push_back(ClRecord {

@@ -3,15 +3,15 @@
 
 use super::{MachineChoice, PoseStartArg};
 use crate::diagnose::{
-    DiagOptions, Recording, SimOptions, Waypoint, diagnose as run_diagnose, parse_effect_spec,
-    simulate as run_simulate,
+    DiagOptions, Recording, SimOptions, Waypoint, WaypointPath, diagnose as run_diagnose,
+    parse_effect_spec, simulate as run_simulate,
 };
 use crate::error::{Error, Location, Result};
 use crate::input;
 use crate::machine::{JointKind, Machine};
 use crate::output::write_atomically;
 use crate::program::PoseStart;
-use crate::trajectory::joint_trajectory;
+use crate::trajectory::{TrajectoryOptions, joint_trajectory};
 use clap::Args;
 use std::io::Write;
 use std::path::PathBuf;
@@ -115,32 +115,50 @@ pub fn program_waypoints(
             .collect()
     };
     let mut wps = Vec::new();
-    joint_trajectory(
-        machine,
-        &mut inp.reader,
-        &head,
-        &name,
+    let mut unknown = Vec::new();
+    let opts = TrajectoryOptions {
         start,
         axis_tolerance_rad,
-        |b| {
-            let feed = if b.rapid {
-                rapid_feed
-            } else {
-                b.feed_mm_min.unwrap_or(rapid_feed)
-            };
-            wps.push(Waypoint {
-                q: ext(&b.q),
-                feed,
-                block: b.line as u64,
-            });
-            Ok(())
-        },
-    )?;
+        arc_points: true,
+    };
+    joint_trajectory(machine, &mut inp.reader, &head, &name, opts, |b| {
+        let feed = if b.rapid {
+            rapid_feed
+        } else {
+            b.feed_mm_min.unwrap_or(rapid_feed)
+        };
+        // After a move whose path is not known the recording goes on
+        // from the next block's end (said on standard error).
+        let path = if b.restart && !wps.is_empty() {
+            unknown.push(b.line);
+            WaypointPath::Unknown
+        } else if b.via.is_empty() {
+            WaypointPath::Straight
+        } else {
+            WaypointPath::Through(b.via.iter().map(|q| ext(q)).collect())
+        };
+        wps.push(Waypoint {
+            q: ext(&b.q),
+            feed,
+            block: b.line as u64,
+            path,
+        });
+        Ok(())
+    })?;
     if wps.len() < 2 {
         return Err(Error::input(
             Location::new(&name, 0, 0),
             "the program has fewer than two positions to move between",
         ));
+    }
+    if !unknown.is_empty() {
+        let shown: Vec<String> = unknown.iter().take(5).map(|l| l.to_string()).collect();
+        let more = if unknown.len() > 5 { ", …" } else { "" };
+        eprintln!(
+            "warning: {name}: {} block(s) start where the program does not say (after G28, G30, G53, G92 or a canned cycle; line {}{more}): the recording leaves out the move before each and goes on from the block's end",
+            unknown.len(),
+            shown.join(", ")
+        );
     }
     Ok(wps)
 }

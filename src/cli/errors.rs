@@ -19,7 +19,7 @@ use crate::program::PoseStart;
 use crate::program::source::looks_like_poses;
 use crate::progress::RunProgress;
 use crate::report::svg::{Panel, write_panels};
-use crate::trajectory::joint_trajectory;
+use crate::trajectory::{TrajectoryOptions, joint_trajectory};
 use clap::{Args, ValueEnum};
 use std::io::Write;
 use std::path::PathBuf;
@@ -234,22 +234,22 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
             "analyze --errors needs a program of tool poses; this one is in machine axes (use --nonlinear alone)".into(),
         ));
     }
-    joint_trajectory(
-        &machine,
-        &mut inp.reader,
-        &head,
-        &name,
+    let opts = TrajectoryOptions {
         start,
-        axis_tolerance,
-        |b| {
-            if let (Some(an), Some(pose)) = (analyzer.as_mut(), &b.pose) {
-                an.add(b.line, pose)
-                    .map_err(|m| Error::input(crate::error::Location::new(&name, b.line, 0), m))?;
-            }
-            step(b.line, b.q, b.restart);
-            Ok(())
-        },
-    )?;
+        axis_tolerance_rad: axis_tolerance,
+        // Circular moves are not measured: their points are not needed.
+        arc_points: false,
+    };
+    joint_trajectory(&machine, &mut inp.reader, &head, &name, opts, |b| {
+        if let (Some(an), Some(pose)) = (analyzer.as_mut(), &b.pose) {
+            an.add(b.line, pose)
+                .map_err(|m| Error::input(crate::error::Location::new(&name, b.line, 0), m))?;
+        }
+        // A circular move is not a straight move of the joints: not
+        // measured; the next block starts at its end.
+        step(b.line, b.q, b.restart || b.arc);
+        Ok(())
+    })?;
     let analysis = analyzer.map(|an| an.finish());
 
     if let Some(svg) = &a.svg {

@@ -39,8 +39,8 @@ pub use crate::geometric::effects::{self, Effect, EffectKind, EffectSpec};
 pub use recording::{Recording, RecordingReader, Sample};
 pub use report::{Finding, Report, RunnerUp, Where};
 pub use simulate::{
-    SimOptions, TrajPoint, Waypoint, central_velocities, evaluate_trajectory, sample_waypoints,
-    simulate,
+    SimOptions, TrajPoint, Waypoint, WaypointPath, central_velocities, evaluate_trajectory,
+    sample_waypoints, simulate,
 };
 
 use crate::geometric::effects::BoundEffect;

@@ -4,7 +4,7 @@
 //! effects can be told apart.
 
 use super::rng::Rng;
-use super::simulate::Waypoint;
+use super::simulate::{Waypoint, WaypointPath};
 
 /// Travel of one axis for [`random_moves`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -32,6 +32,7 @@ pub fn random_moves(
         q: q.clone(),
         feed: feed.1,
         block: 1,
+        path: WaypointPath::Straight,
     }];
     for b in 0..blocks {
         let mut moved = false;
@@ -51,6 +52,7 @@ pub fn random_moves(
             q: q.clone(),
             feed: f,
             block: b as u64 + 2,
+            path: WaypointPath::Straight,
         });
     }
     out

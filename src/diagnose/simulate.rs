@@ -3,7 +3,8 @@
 //! measured with Gaussian noise. Deterministic for a seed.
 //!
 //! Time comes from the feeds: each segment between two waypoints is one
-//! block, run at its feed F (mm/min) along its path length
+//! block, run at its feed F (mm/min) along its path length (a circular
+//! move along the straight pieces that stand for it, [`WaypointPath`])
 //!
 //! ```text
 //! L = sqrt( Σ Δ(linear axis, mm)² + Σ Δ(rotary axis, deg)² )
@@ -38,6 +39,23 @@ pub struct Waypoint {
     pub feed: f64,
     /// NC block number of the move that ends here.
     pub block: u64,
+    /// How the block gets here from the waypoint before.
+    pub path: WaypointPath,
+}
+
+/// How a block reaches its waypoint from the one before.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub enum WaypointPath {
+    /// A straight move of the axes.
+    #[default]
+    Straight,
+    /// Through these axis positions (mm, deg; joint order), in order, and
+    /// straight between them: a circular move as the points it passes.
+    Through(Vec<Vec<f64>>),
+    /// A move whose path the program does not give (to the reference
+    /// point, a canned cycle): the recording leaves it out, and the next
+    /// block starts at this waypoint at the time the block before ended.
+    Unknown,
 }
 
 /// Options of [`simulate`].
@@ -89,12 +107,41 @@ struct Segment {
     length: f64,
     v_max: f64,
     accel: Option<f64>,
-    from: Vec<f64>,
-    delta: Vec<f64>,
+    /// The path's corners, from the block's start to its end (two for a
+    /// straight move).
+    corners: Vec<Vec<f64>>,
+    /// The path length at each corner (0 at the first).
+    at: Vec<f64>,
     block: u64,
 }
 
 impl Segment {
+    /// The position and the velocity along the path (per unit of path
+    /// speed) `p` along it.
+    fn position(&self, p: f64, q: &mut [f64], dir: &mut [f64]) {
+        let last = self.corners.len() - 1;
+        let i = self
+            .at
+            .partition_point(|&a| a <= p)
+            .saturating_sub(1)
+            .min(last - 1);
+        let (a, b) = (&self.corners[i], &self.corners[i + 1]);
+        let piece = self.at[i + 1] - self.at[i];
+        let f = if piece > 0.0 {
+            ((p - self.at[i]) / piece).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        for j in 0..q.len() {
+            q[j] = a[j] + f * (b[j] - a[j]);
+            dir[j] = if piece > 0.0 {
+                (b[j] - a[j]) / piece
+            } else {
+                0.0
+            };
+        }
+    }
+
     /// Path position and speed `duration` seconds… at local time `tau`.
     fn s_and_v(&self, tau: f64) -> (f64, f64) {
         let tau = tau.clamp(0.0, self.duration);
@@ -158,7 +205,34 @@ fn timeline(chain: &Chain, wps: &[Waypoint], accel: Option<f64>) -> Result<Vec<S
             continue;
         }
         let from = &wps[k - 1].q;
-        let length = path_length(chain, from, &w.q);
+        let mut corners = vec![from.clone()];
+        match &w.path {
+            WaypointPath::Straight => {}
+            WaypointPath::Through(points) => {
+                if let Some(p) = points
+                    .iter()
+                    .find(|p| p.len() != chain.dof() || p.iter().any(|v| !v.is_finite()))
+                {
+                    return Err(Error::input(
+                        loc(),
+                        format!(
+                            "waypoint {k} (block {}) passes a point of {} values, not {} finite axis values",
+                            w.block,
+                            p.len(),
+                            chain.dof()
+                        ),
+                    ));
+                }
+                corners.extend(points.iter().cloned());
+            }
+            WaypointPath::Unknown => continue,
+        }
+        corners.push(w.q.clone());
+        let mut at = vec![0.0];
+        for pair in corners.windows(2) {
+            at.push(at[at.len() - 1] + path_length(chain, &pair[0], &pair[1]));
+        }
+        let length = at[at.len() - 1];
         if length == 0.0 {
             continue;
         }
@@ -188,8 +262,8 @@ fn timeline(chain: &Chain, wps: &[Waypoint], accel: Option<f64>) -> Result<Vec<S
             length,
             v_max: v,
             accel,
-            from: from.clone(),
-            delta: w.q.iter().zip(from).map(|(b, a)| b - a).collect(),
+            corners,
+            at,
             block: w.block,
         });
         t += duration;
@@ -433,11 +507,9 @@ fn points_at(
         let block = match segs.get(seg) {
             Some(s) => {
                 let (p, sp) = s.s_and_v(t - s.t_start);
-                let f = p / s.length;
-                let fv = sp / s.length;
-                for j in 0..n {
-                    q[j] = s.from[j] + f * s.delta[j];
-                    v[j] = fv * s.delta[j];
+                s.position(p, &mut q, &mut v);
+                for x in v.iter_mut() {
+                    *x *= sp;
                 }
                 s.block
             }

@@ -1,5 +1,6 @@
 //! NC programs as sequences of blocks: modal state, poses, output formatting.
 
+pub mod arc;
 mod block_delete;
 pub mod block_delete_switch;
 pub mod block_words;

@@ -3,6 +3,7 @@
 //! without rewriting it (analyze, simulate). (A G-code pose program is read
 //! with `post`'s own reader: `crate::trajectory`.)
 
+use super::arc::ArcModes;
 use super::modal::{Motion, PoseStart, TOOL_VECTOR_TOLERANCE, WordRef};
 use super::{ModalState, Units};
 use crate::cl::{ClReader, ClStatement, FeedUnit};
@@ -140,8 +141,78 @@ pub struct AxisEvent {
     pub rapid: bool,
     /// The block does not start where the previous event ended: it follows
     /// a move whose end the program's coordinates do not give (G28, G30,
-    /// G53), so the segment between the two is not known.
+    /// G53), or a move that is not followed (a canned cycle), so the
+    /// segment between the two is not known.
     pub restart: bool,
+    /// A circular move (`G2`, `G3`): not a straight move of the joints.
+    pub arc: bool,
+    /// The joint values a circular move passes through between the
+    /// previous event and `q` (both excluded), in order
+    /// ([`arc_joint_path`]), where asked for; empty otherwise.
+    pub via: Vec<Vec<f64>>,
+}
+
+/// Largest distance of the straight pieces that stand for a circular move
+/// ([`arc_joint_path`]) from the arc, mm.
+pub const ARC_TOLERANCE_MM: f64 = 1e-4;
+
+/// The joint values (chain order, mm / rad) a circular move (`G2`/`G3`)
+/// of `line` passes through from `from` to `to`, both excluded: the
+/// machine's X, Y and Z along the arc ([`ArcModes::points`], no piece more
+/// than [`ARC_TOLERANCE_MM`] from it), its other joints evenly with the
+/// arc's angle. `mm_per_unit` converts the line's `I J K R` to mm. Refused
+/// (the column of the word to blame, and why) where the arc is not one
+/// [`ArcModes::points`] follows, or the machine lacks an axis of its plane.
+pub fn arc_joint_path(
+    machine: &crate::machine::Machine,
+    modes: &ArcModes,
+    line: &crate::gcode::Line,
+    from: &[f64],
+    to: &[f64],
+    mm_per_unit: f64,
+) -> std::result::Result<Vec<Vec<f64>>, super::arc::ArcError> {
+    let joint_of = |name: &str| {
+        machine
+            .axes
+            .iter()
+            .find(|a| {
+                a.kind == crate::machine::JointKind::Prismatic && a.name.eq_ignore_ascii_case(name)
+            })
+            .map(|a| a.joint)
+    };
+    let joints = [joint_of("X"), joint_of("Y"), joint_of("Z")];
+    let names = ["X", "Y", "Z"];
+    let [a, b, _] = modes.plane().axes();
+    for k in [a, b] {
+        if joints[k].is_none() {
+            return Err((
+                0,
+                format!(
+                    "the arc in {} moves {} and {}, and machine {} has no {} axis",
+                    modes.plane().code(),
+                    names[a],
+                    names[b],
+                    machine.name,
+                    names[k]
+                ),
+            ));
+        }
+    }
+    let at = |q: &[f64]| joints.map(|j| j.map_or(0.0, |j| q[j]));
+    let points = modes.points(line, at(from), at(to), mm_per_unit, ARC_TOLERANCE_MM)?;
+    let inner = &points[..points.len().saturating_sub(1)];
+    Ok(inner
+        .iter()
+        .map(|(f, p)| {
+            let mut q: Vec<f64> = from.iter().zip(to).map(|(a, b)| a + f * (b - a)).collect();
+            for (k, j) in joints.iter().enumerate() {
+                if let Some(j) = j {
+                    q[*j] = p[k];
+                }
+            }
+            q
+        })
+        .collect())
 }
 
 /// A motion block of a program in machine axes.
@@ -310,7 +381,13 @@ impl MachineAxisTracker {
             }
             return Ok(None);
         }
-        if axis_items.is_empty() {
+        // A full circle may give its centre alone (`G2 I-10`): it ends
+        // where it starts.
+        let full_circle = meaning.motion == Motion::Arc
+            && line
+                .words()
+                .any(|w| ["I", "J", "K"].iter().any(|a| w.is(a)));
+        if axis_items.is_empty() && !full_circle {
             return Ok(None);
         }
         let start_known = !self.unknown.contains(&true);
@@ -378,32 +455,56 @@ impl MachineAxisTracker {
 }
 
 /// Reads the axis positions of a program in machine axes; blocks that carry
-/// none of the machine's axis words, and moves other than G0/G1, are skipped.
+/// none of the machine's axis words, and moves other than G0, G1, G2 and
+/// G3, are skipped (the block after a skipped move restarts). With
+/// `arc_points` each circular move comes with the points it passes
+/// through ([`arc_joint_path`]; an arc it cannot follow is refused at its
+/// line).
 pub fn machine_axis_blocks<R: BufRead>(
     machine: &crate::machine::Machine,
     input: R,
     file: &str,
+    arc_points: bool,
     mut f: impl FnMut(AxisEvent) -> Result<()>,
 ) -> Result<()> {
     let mut tracker = MachineAxisTracker::new(machine);
     let mut lines = LineReader::new(input);
-    // A block was left out since the last event because its end is not known.
+    let mut arcs = ArcModes::default();
+    // A block was left out since the last event because its end is not
+    // known, or its path is not followed (a canned cycle).
     let mut gap = false;
+    // Where the last event ended.
+    let mut last: Option<Vec<f64>> = None;
     while let Some(line) = lines.next_line() {
         let line = line.map_err(|e| Error::io(file, e))?;
+        arcs.apply(line);
         let Some(b) = tracker.line(machine, line, file)? else {
             continue;
         };
         let m = &b.meaning;
-        if !matches!(m.motion, Motion::Rapid | Motion::Linear) {
-            continue;
-        }
-        if !b.end_known {
+        if !b.end_known || !matches!(m.motion, Motion::Rapid | Motion::Linear | Motion::Arc) {
             gap = true;
             continue;
         }
         let restart = std::mem::take(&mut gap) || !b.start_known;
+        let via = match (&last, m.motion) {
+            (Some(from), Motion::Arc) if arc_points && !restart => {
+                arc_joint_path(machine, &arcs, line, from, &b.q, m.units.mm_per_unit()).map_err(
+                    |(col, message)| {
+                        Error::input_with(
+                            Location::new(file, line.number, col),
+                            message,
+                            line.text_lossy(),
+                        )
+                    },
+                )?
+            }
+            _ => Vec::new(),
+        };
+        last = Some(b.q.clone());
         f(AxisEvent {
+            arc: m.motion == Motion::Arc,
+            via,
             restart,
             line: line.number,
             feed_mm_min: match m.feed_mode {

@@ -376,3 +376,15 @@ fn compensate_keeps_arcs_and_holes_as_moves() {
         "{moves} moves: {err}"
     );
 }
+
+/// One statement kept as a comment is counted in the singular ("1 CL
+/// statement that does not move the tool", not "… that do not").
+#[test]
+fn one_statement_kept_as_a_comment_is_said_in_the_singular() {
+    let (code, _, stderr) = post_stdin(TRT, &[], "UNITS/MM\nMULTAX/ON\nGOTO/10,5,20,0,0,1\n");
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        stderr.contains("1 CL statement that does not move the tool kept as comments (MULTAX 1)"),
+        "{stderr}"
+    );
+}

@@ -72,4 +72,5 @@ mod robustness_parse;
 mod scenarios;
 mod seed000;
 mod seed003;
+mod simulate_arcs;
 mod valid_jobs;
