@@ -13,7 +13,7 @@ use crate::machine::{IkSolver, Machine, Pose};
 use crate::program::format::{push_fixed, push_scaled, scaled_integer};
 pub use crate::program::rewrite::rewrite;
 use crate::program::{PoseStart, Units};
-use pipeline::{Format, Stage, Whole};
+use pipeline::{Format, SolveFirst, Stage, Whole};
 use std::io::{BufRead, Write};
 
 mod cl;
@@ -317,7 +317,10 @@ fn push_fixed_bytes(out: &mut Vec<u8>, scratch: &mut String, value: f64, decimal
 
 /// Converts a G-code pose program, writing the machine program to `out`,
 /// with `solver` solving each pose in order (a pool task), the lines
-/// parsed on the pool ([`pipeline::drive`]).
+/// parsed on the pool and each chunk's poses written while the next
+/// chunk's are solved ([`pipeline::SolveFirst`]; with inverse-time feeds,
+/// which tie a line to what was written before it, as they are solved:
+/// [`pipeline::Whole`]) ([`pipeline::drive`]).
 pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
     solver: &mut (dyn PoseSolver + Send),
@@ -326,16 +329,32 @@ pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
     opts: &PostOptions,
     progress: impl FnMut(u64),
 ) -> Result<PostStats> {
-    convert_gcode(
-        machine,
-        &mut Whole::new(solver),
-        &|_, j| match *j {},
-        |_| Ok(()),
-        input,
-        out,
-        opts,
-        progress,
-    )
+    // Under inverse time a line that is not a pose may go back to G94,
+    // which depends on what is written before it: each pose is then
+    // written as it is solved ([`Whole`]).
+    if opts.inverse_time {
+        convert_gcode(
+            machine,
+            &mut Whole::new(solver),
+            &|_, j| match *j {},
+            |_| Ok(()),
+            input,
+            out,
+            opts,
+            progress,
+        )
+    } else {
+        convert_gcode(
+            machine,
+            &mut SolveFirst::new(solver),
+            &|_, _| {},
+            |_| Ok(()),
+            input,
+            out,
+            opts,
+            progress,
+        )
+    }
 }
 
 /// Converts a G-code pose program with `stage` doing each pose, `work` on

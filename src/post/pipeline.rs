@@ -8,7 +8,8 @@
 //! APT CL: the CL format of `post/cl.rs`, its statements read and lowered
 //! on the calling thread); what is done with each pose is a [`Stage`]
 //! (`post`: the whole solve in order, [`Whole`], whose solver the format
-//! may plan with, [`Stage::planner`]; `compensate`: the analytic IK in
+//! may plan with, [`Stage::planner`], or on G-code [`SolveFirst`], which
+//! leaves the writing to the last pass; `compensate`: the analytic IK in
 //! order, the Newton refinement in parallel, the failure policy and records
 //! in order).
 
@@ -192,6 +193,9 @@ pub trait Stage: Send {
         let _ = front;
         None
     }
+    /// Whether the stage's jobs have work between the passes (the
+    /// driver's `work`); without, no task is started for it.
+    const WORKS: bool = true;
 }
 
 /// The stage of `post`: a [`PoseSolver`] solves each pose in order, so
@@ -238,6 +242,53 @@ impl<'s> Stage for Whole<'s> {
     }
     fn planner(solver: &mut Self::Front) -> Option<&mut dyn PoseSolver> {
         Some(&mut **solver)
+    }
+}
+
+/// The stage of `post` on G-code: a [`PoseSolver`] solves each pose in
+/// order in the first pass, as [`Whole`] does, and the pose is written in
+/// the last pass, so the writing of one chunk and the solving of the next
+/// run at the same time. No format planning (`Whole` is for APT CL, whose
+/// arcs are planned with the solver).
+pub struct SolveFirst<'s> {
+    solver: &'s mut (dyn PoseSolver + Send),
+    /// The back half: nothing (the solved pose travels as the job).
+    back: (),
+}
+
+impl<'s> SolveFirst<'s> {
+    /// The stage of `solver`.
+    pub fn new(solver: &'s mut (dyn PoseSolver + Send)) -> Self {
+        SolveFirst { solver, back: () }
+    }
+}
+
+impl<'s> Stage for SolveFirst<'s> {
+    type Job = SolvedPose;
+    type Front = &'s mut (dyn PoseSolver + Send);
+    type Back = ();
+    const WORKS: bool = false;
+    fn halves(&mut self) -> (&mut Self::Front, &mut ()) {
+        (&mut self.solver, &mut self.back)
+    }
+    fn first(
+        solver: &mut Self::Front,
+        pose: &Pose,
+        previous: Option<&[f64]>,
+        line: usize,
+    ) -> std::result::Result<Step<Self::Job>, String> {
+        solver.solve(pose, previous, line).map(Step::Later)
+    }
+    fn commit(
+        _: &mut (),
+        _: &Pose,
+        job: &Self::Job,
+        _: usize,
+    ) -> std::result::Result<SolvedPose, String> {
+        Ok(job.clone())
+    }
+    fn joints(job: &Self::Job) -> &[f64] {
+        &job.q
     }
 }
 
@@ -409,6 +460,7 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
                 });
             }
             if let Some(c) = current.as_mut()
+                && S::WORKS
                 && !c.jobs.is_empty()
             {
                 let jobs = &mut c.jobs;
