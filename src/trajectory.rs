@@ -26,6 +26,9 @@ pub struct TrajectoryBlock {
     pub pose: Option<Pose>,
     /// Feed in force, mm/min (None in G93/G95 or when none was given).
     pub feed_mm_min: Option<f64>,
+    /// Inverse-time feed in force (G93), 1/min: the block takes 1/F
+    /// minutes, whatever its length.
+    pub inverse_time: Option<f64>,
     /// Rapid move (G0 / RAPID).
     pub rapid: bool,
     /// The block does not start where the previous one ended (it follows a
@@ -111,6 +114,7 @@ pub fn joint_trajectory<R: BufRead>(
                 q: q.to_vec(),
                 pose: Some(ev.pose),
                 feed_mm_min: ev.feed_mm_min,
+                inverse_time: None,
                 rapid: ev.rapid,
                 restart: false,
                 arc: false,
@@ -128,6 +132,7 @@ pub fn joint_trajectory<R: BufRead>(
                 q: ev.q,
                 pose: None,
                 feed_mm_min: ev.feed_mm_min,
+                inverse_time: ev.inverse_time,
                 rapid: ev.rapid,
                 restart: ev.restart,
                 arc: ev.arc,
@@ -175,6 +180,10 @@ fn gcode_trajectory<R: BufRead>(
     let mut scratch = Vec::new();
     let feed_of = |m: &crate::program::ModalState| match m.feed_mode {
         FeedMode::PerMinute => m.feed.map(|v| v * m.units.mm_per_unit()),
+        _ => None,
+    };
+    let inverse_of = |m: &crate::program::ModalState| match m.feed_mode {
+        FeedMode::InverseTime => m.feed,
         _ => None,
     };
     for line in crate::gcode::LineReader::new(input) {
@@ -232,6 +241,7 @@ fn gcode_trajectory<R: BufRead>(
                         q,
                         pose: None,
                         feed_mm_min: feed_of(modal),
+                        inverse_time: inverse_of(modal),
                         rapid: modal.motion == Motion::Rapid,
                         restart: std::mem::take(&mut restart),
                         arc: modal.motion == Motion::Arc,
@@ -259,6 +269,7 @@ fn gcode_trajectory<R: BufRead>(
             q: q.to_vec(),
             pose: Some(pending.pose),
             feed_mm_min: feed_of(modal),
+            inverse_time: inverse_of(modal),
             rapid: pending.meaning.motion == Motion::Rapid,
             restart: std::mem::take(&mut restart),
             arc: false,

@@ -2,6 +2,7 @@
 //! physics found in them.
 
 use super::{MachineChoice, PoseStartArg};
+use crate::diagnose::simulate::path_length;
 use crate::diagnose::{
     DiagOptions, Recording, SimOptions, Waypoint, WaypointPath, diagnose as run_diagnose,
     parse_effect_spec, simulate as run_simulate,
@@ -114,7 +115,7 @@ pub fn program_waypoints(
             })
             .collect()
     };
-    let mut wps = Vec::new();
+    let mut wps: Vec<Waypoint> = Vec::new();
     let mut unknown = Vec::new();
     let opts = TrajectoryOptions {
         start,
@@ -122,11 +123,6 @@ pub fn program_waypoints(
         arc_points: true,
     };
     joint_trajectory(machine, &mut inp.reader, &head, &name, opts, |b| {
-        let feed = if b.rapid {
-            rapid_feed
-        } else {
-            b.feed_mm_min.unwrap_or(rapid_feed)
-        };
         // After a move whose path is not known the recording goes on
         // from the next block's end (said on standard error).
         let path = if b.restart && !wps.is_empty() {
@@ -137,8 +133,35 @@ pub fn program_waypoints(
         } else {
             WaypointPath::Through(b.via.iter().map(|q| ext(q)).collect())
         };
+        let q = ext(&b.q);
+        let feed = match (b.rapid, b.inverse_time, wps.last()) {
+            (true, _, _) => rapid_feed,
+            // G93: the block takes 1/F minutes, so it runs at the feed
+            // that covers its path (1° counted as 1 mm) in that time.
+            (false, Some(f), Some(before)) => {
+                if !(f.is_finite() && f > 0.0) {
+                    return Err(Error::input(
+                        Location::new(&name, b.line, 0),
+                        format!(
+                            "inverse-time feed F{f} (G93): expected a positive number of moves per minute"
+                        ),
+                    ));
+                }
+                let mut corners = vec![&before.q];
+                if let WaypointPath::Through(points) = &path {
+                    corners.extend(points);
+                }
+                corners.push(&q);
+                let length: f64 = corners
+                    .windows(2)
+                    .map(|w| path_length(&machine.chain, w[0], w[1]))
+                    .sum();
+                if length > 0.0 { length * f } else { rapid_feed }
+            }
+            _ => b.feed_mm_min.unwrap_or(rapid_feed),
+        };
         wps.push(Waypoint {
-            q: ext(&b.q),
+            q,
             feed,
             block: b.line as u64,
             path,

@@ -284,3 +284,57 @@ G93 X20 Y0 Z10 I0 J0 K1 F12\nG94 X30 Y0 Z10 I0 J0.6 K0.8 F400\nG49\nM30\n",
     assert!(lines[5].ends_with(" G93 F40"), "{out}");
     assert!(!lines[5].contains("G94"), "{out}");
 }
+
+/// `simulate` runs a block under inverse time (`G93`) in 1/F minutes,
+/// whatever its length, in a program in machine axes and in a pose
+/// program alike. Before, G93 blocks had no feed for it and ran at the
+/// rapid feed (a 10 s block in 0.3 s), exit 0.
+#[test]
+fn simulate_runs_inverse_time_blocks_in_their_time() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, machine, program, blocks) in [
+        (
+            "axes.ngc",
+            "xyzac-trt",
+            "G21 G90 G94\nG1 X0 Y0 Z0 A0 C0 F600\nG93 G1 X10 A10 F6\nG1 X20 A20 F12\nG94 G1 X30 F600\nM2\n",
+            [3u64, 4],
+        ),
+        (
+            "poses.ngc",
+            "xyzac-trt",
+            "G21 G90 G94\nG43.4 H1\nG1 X10 Y0 Z20 I0 J0 K1 F600\nG93 G1 X12 Y3 Z20 I0 J0.1 K0.99498744 F6\nG1 X14 Y5 Z20 I0 J0.2 K0.9797959 F12\nG94 G1 X20 F600\nM2\n",
+            [4, 5],
+        ),
+    ] {
+        let prog = dir.path().join(name);
+        std::fs::write(&prog, program).unwrap();
+        let rec = dir.path().join("rec.csv");
+        let out = Command::new(BIN)
+            .args(["simulate", "-m", machine, "--noise", "0", "--accel", "0"])
+            .args(["--sample-interval", "0.01", "--program"])
+            .arg(&prog)
+            .arg("-o")
+            .arg(&rec)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = std::fs::read_to_string(&rec).unwrap();
+        // Samples every 0.01 s: a block of 1/F minutes holds 60/F s of them.
+        for (block, seconds) in blocks.iter().zip([10.0, 5.0]) {
+            let count = text
+                .lines()
+                .skip(1)
+                .filter(|l| l.split(',').nth(1) == Some(&block.to_string()))
+                .count();
+            let expected = seconds / 0.01;
+            assert!(
+                (count as f64 - expected).abs() <= 1.0,
+                "{name}: block {block} has {count} samples, {expected} expected"
+            );
+        }
+    }
+}
