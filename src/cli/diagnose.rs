@@ -117,6 +117,7 @@ pub fn program_waypoints(
     };
     let mut wps: Vec<Waypoint> = Vec::new();
     let mut unknown = Vec::new();
+    let mut no_feed = Vec::new();
     let opts = TrajectoryOptions {
         start,
         axis_tolerance_rad,
@@ -158,7 +159,14 @@ pub fn program_waypoints(
                     .sum();
                 if length > 0.0 { length * f } else { rapid_feed }
             }
-            _ => b.feed_mm_min.unwrap_or(rapid_feed),
+            (false, _, before) => b.feed_mm_min.unwrap_or_else(|| {
+                // No feed per minute (none given, or per revolution):
+                // said on standard error.
+                if before.is_some() {
+                    no_feed.push(b.line);
+                }
+                rapid_feed
+            }),
         };
         wps.push(Waypoint {
             q,
@@ -173,6 +181,15 @@ pub fn program_waypoints(
             Location::new(&name, 0, 0),
             "the program has fewer than two positions to move between",
         ));
+    }
+    if !no_feed.is_empty() {
+        let shown: Vec<String> = no_feed.iter().take(5).map(|l| l.to_string()).collect();
+        let more = if no_feed.len() > 5 { ", …" } else { "" };
+        eprintln!(
+            "warning: {name}: {} block(s) move without a feed per minute (no F, or F per revolution: line {}{more}): they run at --rapid-feed {rapid_feed} mm/min",
+            no_feed.len(),
+            shown.join(", ")
+        );
     }
     if !unknown.is_empty() {
         let shown: Vec<String> = unknown.iter().take(5).map(|l| l.to_string()).collect();

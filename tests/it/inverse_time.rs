@@ -338,3 +338,30 @@ fn simulate_runs_inverse_time_blocks_in_their_time() {
         }
     }
 }
+
+/// A cutting block without a feed per minute (F per revolution under
+/// `G95`, or no F at all) runs at `--rapid-feed`, and `simulate` says so,
+/// naming the line; before, it ran so without a word.
+#[test]
+fn simulate_names_the_blocks_without_a_feed_per_minute() {
+    let dir = tempfile::tempdir().unwrap();
+    let prog = dir.path().join("g95.ngc");
+    std::fs::write(
+        &prog,
+        "G21 G90 G95\nG1 X0 Y0 Z0 F0.1\nG1 X10 F0.1\nG94 G1 X20 F600\nG1 X30\nM2\n",
+    )
+    .unwrap();
+    let out = Command::new(BIN)
+        .args(["simulate", "-m", "xyz-3axis", "--program"])
+        .arg(&prog)
+        .arg("-o")
+        .arg(dir.path().join("rec.csv"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("1 block(s) move without a feed per minute") && stderr.contains("line 3)"),
+        "{stderr}"
+    );
+}
