@@ -183,24 +183,27 @@ pub fn program_waypoints(
         ));
     }
     if !no_feed.is_empty() {
-        let shown: Vec<String> = no_feed.iter().take(5).map(|l| l.to_string()).collect();
-        let more = if no_feed.len() > 5 { ", …" } else { "" };
         eprintln!(
-            "warning: {name}: {} block(s) move without a feed per minute (no F, or F per revolution: line {}{more}): they run at --rapid-feed {rapid_feed} mm/min",
+            "warning: {name}: {} block(s) move without a feed per minute (no F, or F per revolution: line {}): they run at --rapid-feed {rapid_feed} mm/min",
             no_feed.len(),
-            shown.join(", ")
+            first_lines(&no_feed)
         );
     }
     if !unknown.is_empty() {
-        let shown: Vec<String> = unknown.iter().take(5).map(|l| l.to_string()).collect();
-        let more = if unknown.len() > 5 { ", …" } else { "" };
         eprintln!(
-            "warning: {name}: {} block(s) start where the program does not say (after G28, G30, G53, G92 or a canned cycle; line {}{more}): the recording leaves out the move before each and goes on from the block's end",
+            "warning: {name}: {} block(s) start where the program does not say (after G28, G30, G53, G92 or a canned cycle; line {}): the recording leaves out the move before each and goes on from the block's end",
             unknown.len(),
-            shown.join(", ")
+            first_lines(&unknown)
         );
     }
     Ok(wps)
+}
+
+/// The first five of `lines`, and an ellipsis for more: "3, 8, …".
+fn first_lines(lines: &[usize]) -> String {
+    let shown: Vec<String> = lines.iter().take(5).map(|l| l.to_string()).collect();
+    let more = if lines.len() > 5 { ", …" } else { "" };
+    format!("{}{more}", shown.join(", "))
 }
 
 /// A number as a person would type it: plain where that is short,

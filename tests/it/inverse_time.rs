@@ -7,6 +7,7 @@
 use std::collections::HashMap;
 use std::process::Command;
 
+use crate::simulate_arcs::simulate_with;
 use crate::util::BIN;
 
 fn words(block: &str) -> HashMap<String, f64> {
@@ -291,7 +292,6 @@ G93 X20 Y0 Z10 I0 J0 K1 F12\nG94 X30 Y0 Z10 I0 J0.6 K0.8 F400\nG49\nM30\n",
 /// rapid feed (a 10 s block in 0.3 s), exit 0.
 #[test]
 fn simulate_runs_inverse_time_blocks_in_their_time() {
-    let dir = tempfile::tempdir().unwrap();
     for (name, machine, program, blocks) in [
         (
             "axes.ngc",
@@ -306,23 +306,7 @@ fn simulate_runs_inverse_time_blocks_in_their_time() {
             [4, 5],
         ),
     ] {
-        let prog = dir.path().join(name);
-        std::fs::write(&prog, program).unwrap();
-        let rec = dir.path().join("rec.csv");
-        let out = Command::new(BIN)
-            .args(["simulate", "-m", machine, "--noise", "0", "--accel", "0"])
-            .args(["--sample-interval", "0.01", "--program"])
-            .arg(&prog)
-            .arg("-o")
-            .arg(&rec)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let text = std::fs::read_to_string(&rec).unwrap();
+        let (text, _) = simulate_with(machine, program, &["--accel", "0"]);
         // Samples every 0.01 s: a block of 1/F minutes holds 60/F s of them.
         for (block, seconds) in blocks.iter().zip([10.0, 5.0]) {
             let count = text
@@ -344,22 +328,11 @@ fn simulate_runs_inverse_time_blocks_in_their_time() {
 /// naming the line; before, it ran so without a word.
 #[test]
 fn simulate_names_the_blocks_without_a_feed_per_minute() {
-    let dir = tempfile::tempdir().unwrap();
-    let prog = dir.path().join("g95.ngc");
-    std::fs::write(
-        &prog,
+    let (_, stderr) = simulate_with(
+        "xyz-3axis",
         "G21 G90 G95\nG1 X0 Y0 Z0 F0.1\nG1 X10 F0.1\nG94 G1 X20 F600\nG1 X30\nM2\n",
-    )
-    .unwrap();
-    let out = Command::new(BIN)
-        .args(["simulate", "-m", "xyz-3axis", "--program"])
-        .arg(&prog)
-        .arg("-o")
-        .arg(dir.path().join("rec.csv"))
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
+        &[],
+    );
     assert!(
         stderr.contains("1 block(s) move without a feed per minute") && stderr.contains("line 3)"),
         "{stderr}"

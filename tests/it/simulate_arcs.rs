@@ -7,15 +7,15 @@
 
 use crate::cl_support::kinpost;
 
-/// Runs `kinpost simulate --noise 0` on `program` (text) for `machine`
-/// and returns the recording's rows as (block, commanded X, Y, Z) and
-/// standard error.
-fn simulate(machine: &str, program: &str) -> (Vec<(u64, [f64; 3])>, String) {
+/// Runs `kinpost simulate --noise 0 --sample-interval 0.01 extra…` on
+/// `program` (text) for `machine`, which must succeed; returns the
+/// recording (CSV text) and standard error.
+pub fn simulate_with(machine: &str, program: &str, extra: &[&str]) -> (String, String) {
     let dir = tempfile::tempdir().unwrap();
     let prog = dir.path().join("p.ngc");
     std::fs::write(&prog, program).unwrap();
     let rec = dir.path().join("rec.csv");
-    let out = kinpost(&[
+    let mut args = vec![
         "simulate",
         "-m",
         machine,
@@ -23,14 +23,24 @@ fn simulate(machine: &str, program: &str) -> (Vec<(u64, [f64; 3])>, String) {
         "0",
         "--sample-interval",
         "0.01",
+    ];
+    args.extend_from_slice(extra);
+    args.extend_from_slice(&[
         "--program",
         prog.to_str().unwrap(),
         "-o",
         rec.to_str().unwrap(),
     ]);
+    let out = kinpost(&args);
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
     assert!(out.status.success(), "{stderr}");
-    let text = std::fs::read_to_string(&rec).unwrap();
+    (std::fs::read_to_string(&rec).unwrap(), stderr)
+}
+
+/// [`simulate_with`] with no extra options: the recording's rows as
+/// (block, commanded X, Y, Z), and standard error.
+fn simulate(machine: &str, program: &str) -> (Vec<(u64, [f64; 3])>, String) {
+    let (text, stderr) = simulate_with(machine, program, &[]);
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
