@@ -213,21 +213,10 @@ fn gcode_trajectory<R: BufRead>(
                     let via = match (modal.motion, from) {
                         (Motion::Rapid | Motion::Linear, _) => Vec::new(),
                         (Motion::Arc, Some(_)) if !arc_points && !restart => Vec::new(),
-                        (Motion::Arc, Some(from)) if !restart => arc_joint_path(
-                            machine,
-                            &arcs,
-                            &line,
-                            &from,
-                            &q,
-                            modal.units.mm_per_unit(),
-                        )
-                        .map_err(|(col, message)| {
-                            Error::input_with(
-                                Location::new(file, line.number, col),
-                                message,
-                                line.text_lossy(),
-                            )
-                        })?,
+                        (Motion::Arc, Some(from)) if !restart => {
+                            let units = modal.units.mm_per_unit();
+                            arc_joint_path(machine, &arcs, &line, file, &from, &q, units)?
+                        }
                         _ => {
                             // A cycle, or an arc from where the program
                             // does not say: the next block starts afresh

@@ -32,9 +32,8 @@ const STILL: f64 = 1e-9;
 fn xyz_joints(machine: &Machine) -> Option<[usize; 3]> {
     let find = |n: &str| {
         machine
-            .axes
-            .iter()
-            .find(|a| a.name.eq_ignore_ascii_case(n) && a.kind == JointKind::Prismatic)
+            .axis(n)
+            .filter(|a| a.kind == JointKind::Prismatic)
             .map(|a| a.joint)
     };
     Some([find("X")?, find("Y")?, find("Z")?])

@@ -161,23 +161,28 @@ pub const ARC_TOLERANCE_MM: f64 = 1e-4;
 /// machine's X, Y and Z along the arc ([`ArcModes::points`], no piece more
 /// than [`ARC_TOLERANCE_MM`] from it), its other joints evenly with the
 /// arc's angle. `mm_per_unit` converts the line's `I J K R` to mm. Refused
-/// (the column of the word to blame, and why) where the arc is not one
+/// at the line of `file` and the word to blame where the arc is not one
 /// [`ArcModes::points`] follows, or the machine lacks an axis of its plane.
 pub fn arc_joint_path(
     machine: &crate::machine::Machine,
     modes: &ArcModes,
     line: &crate::gcode::Line,
+    file: &str,
     from: &[f64],
     to: &[f64],
     mm_per_unit: f64,
-) -> std::result::Result<Vec<Vec<f64>>, super::arc::ArcError> {
+) -> Result<Vec<Vec<f64>>> {
+    let refused = |(col, message): super::arc::ArcError| {
+        Error::input_with(
+            Location::new(file, line.number, col),
+            message,
+            line.text_lossy(),
+        )
+    };
     let joint_of = |name: &str| {
         machine
-            .axes
-            .iter()
-            .find(|a| {
-                a.kind == crate::machine::JointKind::Prismatic && a.name.eq_ignore_ascii_case(name)
-            })
+            .axis(name)
+            .filter(|a| a.kind == crate::machine::JointKind::Prismatic)
             .map(|a| a.joint)
     };
     let joints = [joint_of("X"), joint_of("Y"), joint_of("Z")];
@@ -185,7 +190,7 @@ pub fn arc_joint_path(
     let [a, b, _] = modes.plane().axes();
     for k in [a, b] {
         if joints[k].is_none() {
-            return Err((
+            return Err(refused((
                 0,
                 format!(
                     "the arc in {} moves {} and {}, and machine {} has no {} axis",
@@ -195,11 +200,13 @@ pub fn arc_joint_path(
                     machine.name,
                     names[k]
                 ),
-            ));
+            )));
         }
     }
     let at = |q: &[f64]| joints.map(|j| j.map_or(0.0, |j| q[j]));
-    let points = modes.points(line, at(from), at(to), mm_per_unit, ARC_TOLERANCE_MM)?;
+    let points = modes
+        .points(line, at(from), at(to), mm_per_unit, ARC_TOLERANCE_MM)
+        .map_err(refused)?;
     let inner = &points[..points.len().saturating_sub(1)];
     Ok(inner
         .iter()
@@ -489,15 +496,8 @@ pub fn machine_axis_blocks<R: BufRead>(
         let restart = std::mem::take(&mut gap) || !b.start_known;
         let via = match (&last, m.motion) {
             (Some(from), Motion::Arc) if arc_points && !restart => {
-                arc_joint_path(machine, &arcs, line, from, &b.q, m.units.mm_per_unit()).map_err(
-                    |(col, message)| {
-                        Error::input_with(
-                            Location::new(file, line.number, col),
-                            message,
-                            line.text_lossy(),
-                        )
-                    },
-                )?
+                let units = m.units.mm_per_unit();
+                arc_joint_path(machine, &arcs, line, file, from, &b.q, units)?
             }
             _ => Vec::new(),
         };
