@@ -190,8 +190,9 @@ pub fn arc_joint_path(
     let [a, b, _] = modes.plane().axes();
     for k in [a, b] {
         if joints[k].is_none() {
+            // The block as a whole: the plane may be set lines before.
             return Err(refused((
-                0,
+                1,
                 format!(
                     "the arc in {} moves {} and {}, and machine {} has no {} axis",
                     modes.plane().code(),

@@ -230,3 +230,28 @@ fn analyze_measures_the_block_after_an_arc_from_its_end() {
         .clone();
     assert_eq!(after, &want);
 }
+
+/// An arc in a plane whose axes the machine lacks (`G17` on the X Z B C
+/// lens machine) is refused with file:line:col, the column of the block.
+/// Before, the message named no column.
+#[test]
+fn an_arc_in_a_plane_the_machine_lacks_is_refused_at_its_block() {
+    let dir = tempfile::tempdir().unwrap();
+    let prog = dir.path().join("xy.ngc");
+    std::fs::write(&prog, "G21 G90 G17\nG1 X10 Z0 F600\nG2 X20 Y10 I0 J10\n").unwrap();
+    let out = kinpost(&[
+        "simulate",
+        "-m",
+        "zhao2022-xzbc",
+        "--program",
+        prog.to_str().unwrap(),
+        "-o",
+        dir.path().join("r.csv").to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("xy.ngc:3:1: the arc in G17 moves X and Y"),
+        "{stderr}"
+    );
+}
