@@ -135,31 +135,26 @@ impl ArcModes {
         mm_per_unit: f64,
         tolerance_mm: f64,
     ) -> Result<Vec<(f64, [f64; 3])>, ArcError> {
-        let find = |address: &str| {
-            line.items
-                .iter()
-                .find(|it| matches!(&it.kind, ItemKind::Word(w) if w.is(address)))
-                .map(|it| it.col())
+        // The column of the first item `is` picks, if any.
+        let col_of = |is: &dyn Fn(&ItemKind) -> bool| {
+            line.items.iter().find(|it| is(&it.kind)).map(|it| it.col())
         };
+        let find = |address: &str| col_of(&|k| matches!(k, ItemKind::Word(w) if w.is(address)));
         let word_col = |address: &str| find(address).unwrap_or(1);
+        let radius_col = || word_col("R").max(word_col("CR"));
+        let [a, b, n] = self.plane.axes();
+        let letters = ["I", "J", "K"];
         // The first centre word of the plane, where a wrong centre is blamed.
-        let centre_col = || {
-            let [a, b, _] = self.plane.axes();
-            let letters = ["I", "J", "K"];
-            match (find(letters[a]), find(letters[b])) {
-                (Some(x), Some(y)) => x.min(y),
-                (x, y) => x.or(y).unwrap_or(1),
-            }
+        let centre_col = || match (find(letters[a]), find(letters[b])) {
+            (Some(x), Some(y)) => x.min(y),
+            (x, y) => x.or(y).unwrap_or(1),
         };
         let clockwise = match self.kind {
             ArcKind::Clockwise => true,
             ArcKind::CounterClockwise => false,
             ArcKind::Other(k) => {
-                let col = line
-                    .items
-                    .iter()
-                    .find(|it| matches!(&it.kind, ItemKind::Keyword(kw) if kw == k))
-                    .map_or(1, |it| it.col());
+                let col =
+                    col_of(&|kind| matches!(kind, ItemKind::Keyword(kw) if kw == k)).unwrap_or(1);
                 return Err((
                     col,
                     format!(
@@ -176,8 +171,6 @@ impl ArcModes {
                 ));
             }
         }
-        let [a, b, n] = self.plane.axes();
-        let letters = ["I", "J", "K"];
         let offset = |axis: usize| line.word(letters[axis]).map(|w| w.value * mm_per_unit);
         let radius = line
             .word("R")
@@ -215,8 +208,7 @@ impl ArcModes {
         let (s, e) = ([start[a], start[b]], [end[a], end[b]]);
         let (centre, radius_given) = match (offset(a), offset(b), radius) {
             (None, None, Some(r)) => (
-                centre_from_radius(s, e, r, clockwise)
-                    .map_err(|m| (word_col("R").max(word_col("CR")), m))?,
+                centre_from_radius(s, e, r, clockwise).map_err(|m| (radius_col(), m))?,
                 true,
             ),
             (None, None, None) => {
@@ -279,7 +271,7 @@ impl ArcModes {
         if closed {
             if radius_given {
                 return Err((
-                    word_col("R").max(word_col("CR")),
+                    radius_col(),
                     "a full circle cannot be given by its radius (R)".into(),
                 ));
             }
