@@ -2,7 +2,7 @@
 //! physics found in them.
 
 use super::{MachineChoice, PoseStartArg};
-use crate::diagnose::simulate::path_length;
+use crate::diagnose::simulate::path_corners;
 use crate::diagnose::{
     DiagOptions, Recording, SimOptions, Waypoint, WaypointPath, diagnose as run_diagnose,
     parse_effect_spec, simulate as run_simulate,
@@ -148,15 +148,8 @@ pub fn program_waypoints(
                         ),
                     ));
                 }
-                let mut corners = vec![&before.q];
-                if let WaypointPath::Through(points) = &path {
-                    corners.extend(points);
-                }
-                corners.push(&q);
-                let length: f64 = corners
-                    .windows(2)
-                    .map(|w| path_length(&machine.chain, w[0], w[1]))
-                    .sum();
+                let (_, at) = path_corners(&machine.chain, &before.q, &path, &q);
+                let length = at[at.len() - 1];
                 if length > 0.0 { length * f } else { rapid_feed }
             }
             (false, _, before) => b.feed_mm_min.unwrap_or_else(|| {

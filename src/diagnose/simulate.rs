@@ -165,6 +165,27 @@ impl Segment {
     }
 }
 
+/// The corners of a block's path, from `from` through the points of
+/// `path` ([`WaypointPath::Through`]; none for the others) to `to`, and the
+/// path length at each ([`path_length`] summed; 0 at the first).
+pub fn path_corners(
+    chain: &Chain,
+    from: &[f64],
+    path: &WaypointPath,
+    to: &[f64],
+) -> (Vec<Vec<f64>>, Vec<f64>) {
+    let mut corners = vec![from.to_vec()];
+    if let WaypointPath::Through(points) = path {
+        corners.extend(points.iter().cloned());
+    }
+    corners.push(to.to_vec());
+    let mut at = vec![0.0];
+    for pair in corners.windows(2) {
+        at.push(at[at.len() - 1] + path_length(chain, &pair[0], &pair[1]));
+    }
+    (corners, at)
+}
+
 /// Path length of a move (mm, with 1° counted as 1 mm).
 pub fn path_length(chain: &Chain, from: &[f64], to: &[f64]) -> f64 {
     chain
@@ -205,7 +226,6 @@ fn timeline(chain: &Chain, wps: &[Waypoint], accel: Option<f64>) -> Result<Vec<S
             continue;
         }
         let from = &wps[k - 1].q;
-        let mut corners = vec![from.clone()];
         match &w.path {
             WaypointPath::Straight => {}
             WaypointPath::Through(points) => {
@@ -223,15 +243,10 @@ fn timeline(chain: &Chain, wps: &[Waypoint], accel: Option<f64>) -> Result<Vec<S
                         ),
                     ));
                 }
-                corners.extend(points.iter().cloned());
             }
             WaypointPath::Unknown => continue,
         }
-        corners.push(w.q.clone());
-        let mut at = vec![0.0];
-        for pair in corners.windows(2) {
-            at.push(at[at.len() - 1] + path_length(chain, &pair[0], &pair[1]));
-        }
+        let (corners, at) = path_corners(chain, from, &w.path, &w.q);
         let length = at[at.len() - 1];
         if length == 0.0 {
             continue;
