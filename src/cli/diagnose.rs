@@ -2,10 +2,14 @@
 //! physics found in them.
 
 use super::{MachineChoice, PoseStartArg};
+use crate::diagnose::feedback::recording::{write_feedback_header, write_feedback_row};
+use crate::diagnose::feedback::{FeedbackRow, FeedbackSimulator};
+use crate::diagnose::recording::RecordingCsv;
+use crate::diagnose::simulate::TipSimulator;
 use crate::diagnose::simulate::path_corners;
 use crate::diagnose::{
-    DiagOptions, Recording, SimOptions, Waypoint, WaypointPath, diagnose as run_diagnose,
-    parse_effect_spec, simulate as run_simulate,
+    DiagOptions, Recording, Sample, SimOptions, Waypoint, WaypointPath, diagnose as run_diagnose,
+    parse_effect_spec,
 };
 use crate::error::{Error, Location, Result};
 use crate::input;
@@ -99,7 +103,8 @@ pub fn program_waypoints(
     start: PoseStart,
     rapid_feed: f64,
     axis_tolerance_rad: f64,
-) -> Result<Vec<Waypoint>> {
+    mut each: impl FnMut(&Waypoint) -> Result<()>,
+) -> Result<usize> {
     let mut inp = input::open(Some(path))?;
     let head = input::peek(&mut *inp.reader)?;
     let name = inp.name.clone();
@@ -115,9 +120,12 @@ pub fn program_waypoints(
             })
             .collect()
     };
-    let mut wps: Vec<Waypoint> = Vec::new();
-    let mut unknown = Vec::new();
-    let mut no_feed = Vec::new();
+    // The last waypoint (a G93 block's feed needs the path from it), and
+    // how many there were.
+    let mut last: Option<Waypoint> = None;
+    let mut count = 0usize;
+    let mut unknown = LineList::default();
+    let mut no_feed = LineList::default();
     let opts = TrajectoryOptions {
         start,
         axis_tolerance_rad,
@@ -126,7 +134,7 @@ pub fn program_waypoints(
     joint_trajectory(machine, &mut inp.reader, &head, &name, opts, |b| {
         // After a move whose path is not known the recording goes on
         // from the next block's end (said on standard error).
-        let path = if b.restart && !wps.is_empty() {
+        let path = if b.restart && last.is_some() {
             unknown.push(b.line);
             WaypointPath::Unknown
         } else if b.via.is_empty() {
@@ -135,7 +143,7 @@ pub fn program_waypoints(
             WaypointPath::Through(b.via.iter().map(|q| ext(q)).collect())
         };
         let q = ext(&b.q);
-        let feed = match (b.rapid, b.inverse_time, wps.last()) {
+        let feed = match (b.rapid, b.inverse_time, last.as_ref()) {
             (true, _, _) => rapid_feed,
             // G93: the block takes 1/F minutes, so it runs at the feed
             // that covers its path (1° counted as 1 mm) in that time.
@@ -161,15 +169,18 @@ pub fn program_waypoints(
                 rapid_feed
             }),
         };
-        wps.push(Waypoint {
+        let w = Waypoint {
             q,
             feed,
             block: b.line as u64,
             path,
-        });
+        };
+        each(&w)?;
+        count += 1;
+        last = Some(w);
         Ok(())
     })?;
-    if wps.len() < 2 {
+    if count < 2 {
         return Err(Error::input(
             Location::new(&name, 0, 0),
             "the program has fewer than two positions to move between",
@@ -178,25 +189,46 @@ pub fn program_waypoints(
     if !no_feed.is_empty() {
         eprintln!(
             "warning: {name}: {} block(s) move without a feed per minute (no F, or F per revolution: line {}): they run at --rapid-feed {rapid_feed} mm/min",
-            no_feed.len(),
-            first_lines(&no_feed)
+            no_feed.count, no_feed
         );
     }
     if !unknown.is_empty() {
         eprintln!(
             "warning: {name}: {} block(s) start where the program does not say (after G28, G30, G53, G92 or a canned cycle; line {}): the recording leaves out the move before each and goes on from the block's end",
-            unknown.len(),
-            first_lines(&unknown)
+            unknown.count, unknown
         );
     }
-    Ok(wps)
+    Ok(count)
 }
 
-/// The first five of `lines`, and an ellipsis for more: "3, 8, …".
-fn first_lines(lines: &[usize]) -> String {
-    let shown: Vec<String> = lines.iter().take(5).map(|l| l.to_string()).collect();
-    let more = if lines.len() > 5 { ", …" } else { "" };
-    format!("{}{more}", shown.join(", "))
+/// Lines a warning names: how many, and the first five (a program's
+/// length of them is not kept).
+#[derive(Default)]
+struct LineList {
+    count: usize,
+    first: Vec<usize>,
+}
+
+impl LineList {
+    fn push(&mut self, line: usize) {
+        self.count += 1;
+        if self.first.len() < 5 {
+            self.first.push(line);
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+}
+
+/// The first five lines, and an ellipsis for more: "3, 8, …".
+impl std::fmt::Display for LineList {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let shown: Vec<String> = self.first.iter().map(|l| l.to_string()).collect();
+        let more = if self.count > 5 { ", …" } else { "" };
+        write!(f, "{}{more}", shown.join(", "))
+    }
 }
 
 /// A number as a person would type it: plain where that is short,
@@ -302,13 +334,52 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         PoseStartArg::On => PoseStart::On,
         PoseStartArg::Tcp => PoseStart::Off,
     };
-    let wps = program_waypoints(
-        &machine,
-        &a.program,
-        start,
-        a.rapid_feed,
-        a.axis_tolerance.rad()?,
-    )?;
+    let read_program = |each: &mut dyn FnMut(&Waypoint) -> Result<()>| {
+        program_waypoints(
+            &machine,
+            &a.program,
+            start,
+            a.rapid_feed,
+            a.axis_tolerance.rad()?,
+            each,
+        )
+    };
+    let axes: Vec<String> = machine
+        .chain
+        .joints()
+        .iter()
+        .map(|j| j.name.clone())
+        .collect();
+    let io = |e| Error::io("<output>", e);
+    // The recording is written as the program is read: memory holds a
+    // few blocks, not the program.
+    if a.feedback {
+        let fopts = crate::diagnose::feedback::FeedbackSimOptions {
+            noise: a.noise,
+            seed: a.seed,
+            sample_interval_s: a.sample_interval,
+            accel_mm_s2: (a.accel > 0.0).then_some(a.accel),
+            time_offset_s: a.time_offset,
+            outlier_fraction: a.outliers,
+            quantum: a.round,
+        };
+        let mut sim = FeedbackSimulator::new(&machine.chain, &effects, &fopts)?;
+        let (n, blocks) = write_atomically(a.output.as_deref(), |w| {
+            write_feedback_header(w, &axes).map_err(io)?;
+            let mut sink = |r: FeedbackRow| {
+                write_feedback_row(&mut *w, r.t, r.block, &r.cmd, &r.fb).map_err(io)
+            };
+            let blocks = read_program(&mut |wp| sim.push(wp, &mut sink))?;
+            Ok((sim.finish(&mut sink)?, blocks))
+        })?;
+        eprintln!(
+            "kinpost simulate: joint-feedback trace of {n} samples from {blocks} blocks of {}, noise σ = {} (mm or deg), {} effect(s) injected",
+            a.program.display(),
+            a.noise,
+            effects.len()
+        );
+        return Ok(());
+    }
     let opts = SimOptions {
         noise_mm: a.noise,
         seed: a.seed,
@@ -318,40 +389,21 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         outlier_fraction: a.outliers,
         quantum: a.round,
     };
-    if a.feedback {
-        let fopts = crate::diagnose::feedback::FeedbackSimOptions {
-            noise: a.noise,
-            seed: a.seed,
-            sample_interval_s: a.sample_interval,
-            accel_mm_s2: opts.accel_mm_s2,
-            time_offset_s: a.time_offset,
-            outlier_fraction: a.outliers,
-            quantum: a.round,
+    let mut sim = TipSimulator::new(&machine.chain, model.as_ref(), &effects, &opts)?;
+    let (n, last_t, blocks) = write_atomically(a.output.as_deref(), |w| {
+        let csv = RecordingCsv::tool_tip(&axes);
+        csv.write_header(&mut *w).map_err(io)?;
+        let mut last_t = 0.0;
+        let mut sink = |s: Sample| {
+            last_t = s.t;
+            csv.write_sample(&mut *w, &s).map_err(io)
         };
-        let rec =
-            crate::diagnose::feedback::simulate_feedback(&machine.chain, &wps, &effects, &fopts)?;
-        let n = rec.len();
-        write_atomically(a.output.as_deref(), |w| {
-            rec.write_csv(&mut *w).map_err(|e| Error::io("<output>", e))
-        })?;
-        eprintln!(
-            "kinpost simulate: joint-feedback trace of {n} samples from {} blocks of {}, noise σ = {} (mm or deg), {} effect(s) injected",
-            wps.len(),
-            a.program.display(),
-            a.noise,
-            effects.len()
-        );
-        return Ok(());
-    }
-    let rec = run_simulate(&machine.chain, model.as_ref(), &wps, &effects, &opts)?;
-    let n = rec.samples.len();
-    write_atomically(a.output.as_deref(), |w| {
-        rec.write_csv(&mut *w).map_err(|e| Error::io("<output>", e))
+        let blocks = read_program(&mut |wp| sim.push(wp, &mut sink))?;
+        let n = sim.finish(&mut sink)?;
+        Ok((n, last_t, blocks))
     })?;
     eprintln!(
-        "kinpost simulate: {n} samples over {:.1} s from {} blocks of {}, noise σ = {} µm, {} effect(s) injected",
-        rec.samples.last().map(|s| s.t).unwrap_or(0.0),
-        wps.len(),
+        "kinpost simulate: {n} samples over {last_t:.1} s from {blocks} blocks of {}, noise σ = {} µm, {} effect(s) injected",
         a.program.display(),
         a.noise * 1e3,
         effects.len()

@@ -5,7 +5,9 @@
 //! * [`recording`]: the recording CSV of `formats.md` §2 (reader, writer).
 //! * the catalogue of `formats.md` §4 lives in [`crate::geometric::effects`]
 //!   (re-exported here as [`effects`]).
-//! * [`simulate`](mod@simulate): simulated recordings ([`simulate()`]).
+//! * [`simulate`](mod@simulate): simulated recordings ([`simulate()`]),
+//!   streamed ([`simulate::TipSimulator`]) along [`timeline`], the
+//!   commanded trajectory.
 //! * [`untidy`]: what is not machine physics (resolution, outliers, clock
 //!   offset), found and removed first.
 //! * [`feedback`]: joint-feedback recordings (`formats.md` §2b), diagnosed
@@ -29,6 +31,7 @@ pub mod recording;
 pub mod report;
 pub mod rng;
 pub mod simulate;
+pub mod timeline;
 pub mod unexplained;
 pub mod untidy;
 

@@ -417,56 +417,15 @@ impl Recording {
     /// axes with 7, measured positions with 8 (0.01 nm), so a written and
     /// re-read recording diagnoses the same.
     pub fn write_csv<W: Write>(&self, mut w: W) -> std::io::Result<()> {
-        let has_block = self.samples.iter().any(|s| s.block.is_some());
-        let has_axis = self.samples.iter().any(|s| s.meas_axis.is_some());
-        let mut header = String::from("t");
-        if has_block {
-            header.push_str(",block");
-        }
-        for a in &self.axes {
-            header.push(',');
-            header.push_str(a);
-        }
-        header.push_str(",meas_x,meas_y,meas_z");
-        if has_axis {
-            header.push_str(",meas_i,meas_j,meas_k");
-        }
-        for t in &self.temp_names {
-            header.push(',');
-            header.push_str(t);
-        }
-        writeln!(w, "{header}")?;
-        let fx = crate::program::format::fixed;
-        let mut line = String::new();
+        let csv = RecordingCsv {
+            axes: &self.axes,
+            has_block: self.samples.iter().any(|s| s.block.is_some()),
+            has_axis: self.samples.iter().any(|s| s.meas_axis.is_some()),
+            temp_names: &self.temp_names,
+        };
+        csv.write_header(&mut w)?;
         for s in &self.samples {
-            line.clear();
-            line.push_str(&fx(s.t, 6));
-            if has_block {
-                line.push(',');
-                if let Some(b) = s.block {
-                    line.push_str(&b.to_string());
-                }
-            }
-            for v in &s.q {
-                line.push(',');
-                line.push_str(&fx(*v, 7));
-            }
-            for v in s.meas {
-                line.push(',');
-                line.push_str(&fx(v, 8));
-            }
-            if has_axis {
-                let a = s.meas_axis.unwrap_or([0.0; 3]);
-                for v in a {
-                    line.push(',');
-                    line.push_str(&fx(v, 10));
-                }
-            }
-            for v in &s.temps {
-                line.push(',');
-                line.push_str(&fx(*v, 4));
-            }
-            writeln!(w, "{line}")?;
+            csv.write_sample(&mut w, s)?;
         }
         Ok(())
     }
@@ -477,6 +436,86 @@ impl Recording {
         // Writing to a Vec cannot fail.
         let _ = self.write_csv(&mut v);
         String::from_utf8(v).unwrap_or_default()
+    }
+}
+
+/// The columns of a recording's CSV (`formats.md` §2), for writing it a
+/// sample at a time.
+pub struct RecordingCsv<'a> {
+    /// Axis names, machine order.
+    pub axes: &'a [String],
+    /// Whether there is a `block` column.
+    pub has_block: bool,
+    /// Whether there are measured tool-axis columns.
+    pub has_axis: bool,
+    /// Temperature columns.
+    pub temp_names: &'a [String],
+}
+
+impl<'a> RecordingCsv<'a> {
+    /// The columns of a simulated tool-tip recording of `axes`: time,
+    /// block, the axes and the measured tip.
+    pub fn tool_tip(axes: &'a [String]) -> Self {
+        RecordingCsv {
+            axes,
+            has_block: true,
+            has_axis: false,
+            temp_names: &[],
+        }
+    }
+
+    /// The header line.
+    pub fn write_header<W: Write + ?Sized>(&self, w: &mut W) -> std::io::Result<()> {
+        let mut header = String::from("t");
+        if self.has_block {
+            header.push_str(",block");
+        }
+        for a in self.axes {
+            header.push(',');
+            header.push_str(a);
+        }
+        header.push_str(",meas_x,meas_y,meas_z");
+        if self.has_axis {
+            header.push_str(",meas_i,meas_j,meas_k");
+        }
+        for t in self.temp_names {
+            header.push(',');
+            header.push_str(t);
+        }
+        writeln!(w, "{header}")
+    }
+
+    /// The line of sample `s`.
+    pub fn write_sample<W: Write + ?Sized>(&self, w: &mut W, s: &Sample) -> std::io::Result<()> {
+        let fx = crate::program::format::fixed;
+        let mut line = String::new();
+        line.push_str(&fx(s.t, 6));
+        if self.has_block {
+            line.push(',');
+            if let Some(b) = s.block {
+                line.push_str(&b.to_string());
+            }
+        }
+        for v in &s.q {
+            line.push(',');
+            line.push_str(&fx(*v, 7));
+        }
+        for v in s.meas {
+            line.push(',');
+            line.push_str(&fx(v, 8));
+        }
+        if self.has_axis {
+            let a = s.meas_axis.unwrap_or([0.0; 3]);
+            for v in a {
+                line.push(',');
+                line.push_str(&fx(v, 10));
+            }
+        }
+        for v in &s.temps {
+            line.push(',');
+            line.push_str(&fx(*v, 4));
+        }
+        writeln!(w, "{line}")
     }
 }
 

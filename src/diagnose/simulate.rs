@@ -2,20 +2,9 @@
 //! on top, driven through a list of waypoints with a plain velocity profile,
 //! measured with Gaussian noise. Deterministic for a seed.
 //!
-//! Time comes from the feeds: each segment between two waypoints is one
-//! block, run at its feed F (mm/min) along its path length (a circular
-//! move along the straight pieces that stand for it, [`WaypointPath`])
-//!
-//! ```text
-//! L = sqrt( Σ Δ(linear axis, mm)² + Σ Δ(rotary axis, deg)² )
-//! ```
-//!
-//! i.e. one degree counts as one millimetre (the usual controller rule for
-//! mixed linear/rotary moves; a pure rotary move runs at F deg/min). The
-//! speed along the path follows a trapezoid with the acceleration limit
-//! [`SimOptions::accel_mm_s2`] (a triangle when the block is too short to
-//! reach F), starting and stopping in every block (exact stop). With no
-//! acceleration limit the speed is F throughout the block.
+//! The commanded trajectory (its timeline and velocity profile) is
+//! [`super::timeline`]'s; it streams, so a recording of any length is
+//! made in the memory of a few blocks ([`TipSimulator`]).
 
 use nalgebra::Vector3;
 
@@ -29,34 +18,8 @@ use crate::geometric::effects::{
 };
 use crate::machine::chain::{Chain, JointErrors, JointKind, NoErrors};
 
-/// A commanded machine position: the end point of a block.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Waypoint {
-    /// Axis positions in the machine's joint order (mm, deg).
-    pub q: Vec<f64>,
-    /// Feed of the block that ends here, mm/min (deg/min for pure rotary
-    /// moves). Ignored for the first waypoint, the start position.
-    pub feed: f64,
-    /// NC block number of the move that ends here.
-    pub block: u64,
-    /// How the block gets here from the waypoint before.
-    pub path: WaypointPath,
-}
-
-/// How a block reaches its waypoint from the one before.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub enum WaypointPath {
-    /// A straight move of the axes.
-    #[default]
-    Straight,
-    /// Through these axis positions (mm, deg; joint order), in order, and
-    /// straight between them: a circular move as the points it passes.
-    Through(Vec<Vec<f64>>),
-    /// A move whose path the program does not give (to the reference
-    /// point, a canned cycle): the recording leaves it out, and the next
-    /// block starts at this waypoint at the time the block before ended.
-    Unknown,
-}
+use super::timeline::{SegmentBuilder, Window};
+pub use super::timeline::{TrajPoint, Waypoint, WaypointPath, path_corners, path_length};
 
 /// Options of [`simulate`].
 #[derive(Debug, Clone, PartialEq)]
@@ -97,193 +60,6 @@ impl Default for SimOptions {
             quantum: 0.0,
         }
     }
-}
-
-/// One block of the timeline.
-#[derive(Debug, Clone)]
-struct Segment {
-    t_start: f64,
-    duration: f64,
-    length: f64,
-    v_max: f64,
-    accel: Option<f64>,
-    /// The path's corners, from the block's start to its end (two for a
-    /// straight move).
-    corners: Vec<Vec<f64>>,
-    /// The path length at each corner (0 at the first).
-    at: Vec<f64>,
-    block: u64,
-}
-
-impl Segment {
-    /// The position and the velocity along the path (per unit of path
-    /// speed) `p` along it.
-    fn position(&self, p: f64, q: &mut [f64], dir: &mut [f64]) {
-        let last = self.corners.len() - 1;
-        let i = self
-            .at
-            .partition_point(|&a| a <= p)
-            .saturating_sub(1)
-            .min(last - 1);
-        let (a, b) = (&self.corners[i], &self.corners[i + 1]);
-        let piece = self.at[i + 1] - self.at[i];
-        let f = if piece > 0.0 {
-            ((p - self.at[i]) / piece).clamp(0.0, 1.0)
-        } else {
-            1.0
-        };
-        for j in 0..q.len() {
-            q[j] = a[j] + f * (b[j] - a[j]);
-            dir[j] = if piece > 0.0 {
-                (b[j] - a[j]) / piece
-            } else {
-                0.0
-            };
-        }
-    }
-
-    /// Path position and speed `duration` seconds… at local time `tau`.
-    fn s_and_v(&self, tau: f64) -> (f64, f64) {
-        let tau = tau.clamp(0.0, self.duration);
-        match self.accel {
-            None => (self.v_max * tau, self.v_max),
-            Some(a) => {
-                let ta = self.v_max / a; // time to reach v_max (may be cut short)
-                let t_half = 0.5 * self.duration;
-                let t_acc = ta.min(t_half);
-                let v_top = a * t_acc;
-                if tau <= t_acc {
-                    (0.5 * a * tau * tau, a * tau)
-                } else if tau <= self.duration - t_acc {
-                    (0.5 * a * t_acc * t_acc + v_top * (tau - t_acc), v_top)
-                } else {
-                    let r = self.duration - tau;
-                    (self.length - 0.5 * a * r * r, a * r)
-                }
-            }
-        }
-    }
-}
-
-/// The corners of a block's path, from `from` through the points of
-/// `path` ([`WaypointPath::Through`]; none for the others) to `to`, and the
-/// path length at each ([`path_length`] summed; 0 at the first).
-pub fn path_corners(
-    chain: &Chain,
-    from: &[f64],
-    path: &WaypointPath,
-    to: &[f64],
-) -> (Vec<Vec<f64>>, Vec<f64>) {
-    let mut corners = vec![from.to_vec()];
-    if let WaypointPath::Through(points) = path {
-        corners.extend(points.iter().cloned());
-    }
-    corners.push(to.to_vec());
-    let mut at = vec![0.0];
-    for pair in corners.windows(2) {
-        at.push(at[at.len() - 1] + path_length(chain, &pair[0], &pair[1]));
-    }
-    (corners, at)
-}
-
-/// Path length of a move (mm, with 1° counted as 1 mm).
-pub fn path_length(chain: &Chain, from: &[f64], to: &[f64]) -> f64 {
-    chain
-        .joints()
-        .iter()
-        .zip(from.iter().zip(to))
-        .map(|(_, (a, b))| (b - a) * (b - a))
-        .sum::<f64>()
-        .sqrt()
-}
-
-fn timeline(chain: &Chain, wps: &[Waypoint], accel: Option<f64>) -> Result<Vec<Segment>> {
-    let loc = || Location::new("<waypoints>", 0, 0);
-    let mut segs = Vec::new();
-    let mut t = 0.0;
-    for (k, w) in wps.iter().enumerate() {
-        if w.q.len() != chain.dof() {
-            return Err(Error::input(
-                loc(),
-                format!(
-                    "waypoint {k} (block {}) has {} axis values; the machine has {} joints",
-                    w.block,
-                    w.q.len(),
-                    chain.dof()
-                ),
-            ));
-        }
-        if w.q.iter().any(|v| !v.is_finite()) {
-            return Err(Error::input(
-                loc(),
-                format!(
-                    "waypoint {k} (block {}) has a non-finite axis value",
-                    w.block
-                ),
-            ));
-        }
-        if k == 0 {
-            continue;
-        }
-        let from = &wps[k - 1].q;
-        match &w.path {
-            WaypointPath::Straight => {}
-            WaypointPath::Through(points) => {
-                if let Some(p) = points
-                    .iter()
-                    .find(|p| p.len() != chain.dof() || p.iter().any(|v| !v.is_finite()))
-                {
-                    return Err(Error::input(
-                        loc(),
-                        format!(
-                            "waypoint {k} (block {}) passes a point of {} values, not {} finite axis values",
-                            w.block,
-                            p.len(),
-                            chain.dof()
-                        ),
-                    ));
-                }
-            }
-            WaypointPath::Unknown => continue,
-        }
-        let (corners, at) = path_corners(chain, from, &w.path, &w.q);
-        let length = at[at.len() - 1];
-        if length == 0.0 {
-            continue;
-        }
-        if !(w.feed.is_finite() && w.feed > 0.0) {
-            return Err(Error::input(
-                loc(),
-                format!(
-                    "waypoint {k} (block {}): feed {} mm/min must be positive",
-                    w.block, w.feed
-                ),
-            ));
-        }
-        let v = w.feed / 60.0;
-        let duration = match accel {
-            None => length / v,
-            Some(a) => {
-                if length >= v * v / a {
-                    length / v + v / a
-                } else {
-                    2.0 * (length / a).sqrt()
-                }
-            }
-        };
-        segs.push(Segment {
-            t_start: t,
-            duration,
-            length,
-            v_max: v,
-            accel,
-            corners,
-            at,
-            block: w.block,
-        });
-        t += duration;
-    }
-    Ok(segs)
 }
 
 /// The machine as the model knows it plus what it does not: the chain with
@@ -444,121 +220,150 @@ impl JointErrors for WithMotions<'_> {
     }
 }
 
-/// One sample of a commanded trajectory.
-#[derive(Debug, Clone, PartialEq)]
-pub struct TrajPoint {
-    /// Time, s.
-    pub t: f64,
-    /// NC block.
-    pub block: u64,
-    /// Commanded positions (mm, deg), chain order.
-    pub q: Vec<f64>,
-    /// Commanded velocities (mm/s, deg/s).
-    pub v: Vec<f64>,
-}
-
 /// Most samples one simulated recording may hold.
 pub const MAX_SAMPLES: usize = 50_000_000;
 
 /// Samples the commanded trajectory through `waypoints` every
-/// `sample_interval_s` seconds, with the velocity profile described in the
-/// module documentation.
+/// `sample_interval_s` seconds, with the velocity profile described in
+/// [`super::timeline`]. (All at once; [`TipSimulator`] streams.)
 pub fn sample_waypoints(
     chain: &Chain,
     waypoints: &[Waypoint],
     sample_interval_s: f64,
     accel_mm_s2: Option<f64>,
 ) -> Result<Vec<TrajPoint>> {
-    let loc = || Location::new("<simulate>", 0, 0);
-    if !(sample_interval_s.is_finite() && sample_interval_s > 0.0) {
-        return Err(Error::input(loc(), "the sample interval must be positive"));
-    }
-    if let Some(a) = accel_mm_s2
-        && !(a.is_finite() && a > 0.0)
-    {
-        return Err(Error::input(
-            loc(),
-            "the acceleration limit must be positive",
-        ));
-    }
-    if waypoints.is_empty() {
-        return Err(Error::input(loc(), "no waypoints to simulate"));
-    }
-    let segs = timeline(chain, waypoints, accel_mm_s2)?;
+    let mut sampler = Sampler::new(chain, sample_interval_s, accel_mm_s2, 0.0, 0.0)?;
     let n = chain.dof();
-    let total = segs.last().map_or(0.0, |s| s.t_start + s.duration);
-    // Counted in floating point first: a tiny interval must not wrap the count.
-    let count = (total / sample_interval_s).floor() + 1.0;
-    if count.is_nan() || count > MAX_SAMPLES as f64 {
-        return Err(Error::input(
-            loc(),
-            format!(
-                "{count:.3e} samples ({total:.3} s every {sample_interval_s:e} s) are too many: at most {MAX_SAMPLES}"
-            ),
-        ));
-    }
-    let count = count as usize;
-    let times = (0..count).map(|i| (i as f64 * sample_interval_s * 1e9).round() / 1e9);
-    Ok(points_at(&segs, waypoints, n, times))
-}
-
-/// The commanded trajectory at increasing `times` (rounded to 1 ns by the
-/// caller where it wants clean numbers): before the start at the first
-/// waypoint, after the end at the last.
-fn points_at(
-    segs: &[Segment],
-    waypoints: &[Waypoint],
-    n: usize,
-    times: impl Iterator<Item = f64>,
-) -> Vec<TrajPoint> {
     let mut out = Vec::new();
-    let mut seg = 0usize;
-    for t in times {
-        while seg + 1 < segs.len() && t >= segs[seg + 1].t_start {
-            seg += 1;
-        }
-        let mut q = vec![0.0; n];
-        let mut v = vec![0.0; n];
-        let block = match segs.get(seg) {
-            Some(s) => {
-                let (p, sp) = s.s_and_v(t - s.t_start);
-                s.position(p, &mut q, &mut v);
-                for x in v.iter_mut() {
-                    *x *= sp;
-                }
-                s.block
-            }
-            None => {
-                q.copy_from_slice(&waypoints[0].q);
-                waypoints[0].block
-            }
-        };
-        out.push(TrajPoint { t, block, q, v });
+    let mut take = |w: &Window, t: f64| {
+        out.push(w.point_at(t, n));
+        Ok(())
+    };
+    for w in waypoints {
+        sampler.push(w, &mut take)?;
     }
-    out
+    sampler.finish(&mut take)?;
+    Ok(out)
 }
 
-/// The machine's own trajectory when the recording's clock is offset by
-/// `offset_s`: at each of `traj`'s stamps t, the command at t − offset.
-fn delayed(
-    chain: &Chain,
-    waypoints: &[Waypoint],
-    accel_mm_s2: Option<f64>,
-    traj: &[TrajPoint],
-    offset_s: f64,
-) -> Result<Vec<TrajPoint>> {
-    let segs = timeline(chain, waypoints, accel_mm_s2)?;
-    let mut out = points_at(
-        &segs,
-        waypoints,
-        chain.dof(),
-        traj.iter().map(|p| (p.t - offset_s).max(0.0)),
-    );
-    // The machine's own clock: effects that grow with time see it.
-    for (o, p) in out.iter_mut().zip(traj) {
-        o.t = p.t - offset_s;
+/// The commanded trajectory sampled as its waypoints stream in: sample
+/// `i` at `t = i × interval` (rounded to 1 ns), handed on as soon as every
+/// segment it may need is known, through the end of the last block.
+pub(crate) struct Sampler<'c> {
+    builder: SegmentBuilder<'c>,
+    window: Window,
+    interval: f64,
+    /// The next sample.
+    next: usize,
+    /// How far before and after a sample's time its consumer asks for
+    /// the commanded trajectory, s.
+    behind: f64,
+    ahead: f64,
+}
+
+impl<'c> Sampler<'c> {
+    /// Samples every `interval` s with the acceleration limit `accel`
+    /// (mm/s²; `None`: constant feed per block), for a consumer that asks
+    /// for the commanded trajectory from `behind` s before to `ahead` s
+    /// after each sample's time.
+    pub(crate) fn new(
+        chain: &'c Chain,
+        interval: f64,
+        accel: Option<f64>,
+        behind: f64,
+        ahead: f64,
+    ) -> Result<Self> {
+        let loc = || Location::new("<simulate>", 0, 0);
+        if !(interval.is_finite() && interval > 0.0) {
+            return Err(Error::input(loc(), "the sample interval must be positive"));
+        }
+        if let Some(a) = accel
+            && !(a.is_finite() && a > 0.0)
+        {
+            return Err(Error::input(
+                loc(),
+                "the acceleration limit must be positive",
+            ));
+        }
+        Ok(Sampler {
+            builder: SegmentBuilder::new(chain, accel),
+            window: Window::new(),
+            interval,
+            next: 0,
+            behind: behind.max(0.0),
+            ahead: ahead.max(0.0),
+        })
     }
-    Ok(out)
+
+    /// The time of sample `i`, s.
+    fn time(&self, i: usize) -> f64 {
+        (i as f64 * self.interval * 1e9).round() / 1e9
+    }
+
+    /// The next waypoint; `take` is given the window and the time of each
+    /// sample that is known now.
+    pub(crate) fn push(
+        &mut self,
+        w: &Waypoint,
+        take: &mut dyn FnMut(&Window, f64) -> Result<()>,
+    ) -> Result<()> {
+        self.window.start(w);
+        if let Some(seg) = self.builder.push(w)? {
+            self.window.push(seg);
+            self.emit(take)?;
+        }
+        Ok(())
+    }
+
+    /// After the last waypoint: the remaining samples, through the end of
+    /// the last block; returns how many samples there were.
+    pub(crate) fn finish(
+        mut self,
+        take: &mut dyn FnMut(&Window, f64) -> Result<()>,
+    ) -> Result<usize> {
+        if self.builder.count() == 0 {
+            return Err(Error::input(
+                Location::new("<simulate>", 0, 0),
+                "no waypoints to simulate",
+            ));
+        }
+        self.window.end();
+        self.emit(take)?;
+        Ok(self.next)
+    }
+
+    /// Hands on the samples that are known: all of them once the window
+    /// has ended.
+    fn emit(&mut self, take: &mut dyn FnMut(&Window, f64) -> Result<()>) -> Result<()> {
+        // Counted in floating point first: a tiny interval must not wrap
+        // the count. Before the end, a sample is known when it lies within
+        // the blocks pushed (as counted at the end) and no block still to
+        // come can start before the last time its consumer asks for.
+        let last = (self.window.end_time() / self.interval).floor();
+        loop {
+            let t = self.time(self.next);
+            let known = if self.window.ended() {
+                self.next as f64 <= last
+            } else {
+                self.next as f64 <= last && self.window.settled(t + self.ahead)
+            };
+            if !known {
+                return Ok(());
+            }
+            if self.next >= MAX_SAMPLES {
+                return Err(Error::input(
+                    Location::new("<simulate>", 0, 0),
+                    format!(
+                        "more than {MAX_SAMPLES} samples (every {:e} s, and the program runs on after {t:.3} s) are too many",
+                        self.interval
+                    ),
+                ));
+            }
+            take(&self.window, t)?;
+            self.next += 1;
+            self.window.trim(t - self.behind);
+        }
+    }
 }
 
 /// The two samples that the central difference at sample `i` of `n`
@@ -606,17 +411,23 @@ pub fn evaluate_trajectory(
 ) -> Result<Vec<Vector3<f64>>> {
     let mut machine = TrueMachine::new(chain, errors, effects)?;
     let mut walker = TrajectoryWalker::new(chain.dof(), machine.effects.len());
-    let mut out = Vec::with_capacity(traj.len());
-    for p in traj {
-        let (state, active) = walker.step(p, &mut machine.effects)?;
+    traj.iter()
+        .map(|p| machine.tip_along(&mut walker, p))
+        .collect()
+}
+
+impl TrueMachine<'_> {
+    /// The tool tip at the next point `p` of a trajectory that `walker`
+    /// follows (made for this machine's effects).
+    fn tip_along(&mut self, walker: &mut TrajectoryWalker, p: &TrajPoint) -> Result<Vector3<f64>> {
+        let (state, active) = walker.step(p, &mut self.effects)?;
         let mask = active
             .iter()
             .enumerate()
             .filter(|(_, a)| **a)
             .fold(0u64, |m, (k, _)| m | 1 << k);
-        out.push(machine.tip(&state, mask));
+        Ok(self.tip(&state, mask))
     }
-    Ok(out)
 }
 
 /// Walks a commanded trajectory for the effects: checks that every point
@@ -682,7 +493,7 @@ impl TrajectoryWalker {
 /// and the tool tip of the *true* machine (chain + `errors` + `effects`)
 /// plus N(0, σ²) noise on each coordinate. Effects with a `from_block`
 /// act from the first sample whose block is at least that number.
-/// Deterministic for a seed.
+/// Deterministic for a seed. (All at once; [`TipSimulator`] streams.)
 pub fn simulate(
     chain: &Chain,
     errors: Option<&ErrorModel>,
@@ -690,76 +501,188 @@ pub fn simulate(
     effects: &[EffectSpec],
     opts: &SimOptions,
 ) -> Result<Recording> {
-    if !(opts.noise_mm.is_finite() && opts.noise_mm >= 0.0) {
-        return Err(Error::input(
-            Location::new("<simulate>", 0, 0),
-            "the noise must be a non-negative number of mm",
-        ));
-    }
-    let faults_ok = opts.time_offset_s.is_finite()
-        && (0.0..=1.0).contains(&opts.outlier_fraction)
-        && opts.quantum.is_finite()
-        && opts.quantum >= 0.0;
-    if !faults_ok {
-        return Err(Error::input(
-            Location::new("<simulate>", 0, 0),
-            "the clock offset must be finite, the outlier fraction 0 … 1 and the quantum ≥ 0",
-        ));
-    }
-    let traj = sample_waypoints(chain, waypoints, opts.sample_interval_s, opts.accel_mm_s2)?;
-    let tips = if opts.time_offset_s != 0.0 {
-        let machine = delayed(
-            chain,
-            waypoints,
-            opts.accel_mm_s2,
-            &traj,
-            opts.time_offset_s,
-        )?;
-        evaluate_trajectory(chain, errors, effects, &machine)?
-    } else {
-        evaluate_trajectory(chain, errors, effects, &traj)?
+    let mut sim = TipSimulator::new(chain, errors, effects, opts)?;
+    let mut samples = Vec::new();
+    let mut keep = |s: Sample| {
+        samples.push(s);
+        Ok(())
     };
-    let mut rng = Rng::new(opts.seed);
-    // Faults draw from their own stream, so that a recording with faults
-    // has the same noise as the one without.
-    let mut faults = Rng::new(opts.seed ^ 0x5eed_fa17);
-    let round = |v: f64| {
-        if opts.quantum > 0.0 {
-            (v / opts.quantum).round() * opts.quantum
-        } else {
-            v
-        }
-    };
-    let samples = traj
-        .into_iter()
-        .zip(tips)
-        .map(|(p, tip)| {
-            let mut meas = [
-                tip.x + opts.noise_mm * rng.normal(),
-                tip.y + opts.noise_mm * rng.normal(),
-                tip.z + opts.noise_mm * rng.normal(),
-            ];
-            if opts.outlier_fraction > 0.0 && faults.uniform() < opts.outlier_fraction {
-                let d = [faults.normal(), faults.normal(), faults.normal()];
-                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-12);
-                let size = 0.1 + 0.9 * faults.uniform();
-                for c in 0..3 {
-                    meas[c] += size * d[c] / len;
-                }
-            }
-            Sample {
-                t: p.t,
-                block: Some(p.block),
-                q: p.q.into_iter().map(round).collect(),
-                meas: meas.map(round),
-                meas_axis: None,
-                temps: Vec::new(),
-            }
-        })
-        .collect();
+    for w in waypoints {
+        sim.push(w, &mut keep)?;
+    }
+    sim.finish(&mut keep)?;
     Ok(Recording {
         axes: chain.joints().iter().map(|j| j.name.clone()).collect(),
         temp_names: Vec::new(),
         samples,
     })
+}
+
+/// [`simulate`] as the waypoints stream in: each sample is handed on as
+/// soon as the blocks it depends on are known, so memory does not grow
+/// with the program.
+pub struct TipSimulator<'a> {
+    sampler: Sampler<'a>,
+    state: TipState<'a>,
+}
+
+/// What [`TipSimulator`] carries from sample to sample.
+struct TipState<'a> {
+    machine: TrueMachine<'a>,
+    walker: TrajectoryWalker,
+    rng: Rng,
+    faults: Rng,
+    opts: SimOptions,
+    n: usize,
+}
+
+impl<'a> TipSimulator<'a> {
+    /// A simulation of `chain` with `errors` and `effects` (see
+    /// [`simulate`]); checks the options.
+    pub fn new(
+        chain: &'a Chain,
+        errors: Option<&'a ErrorModel>,
+        effects: &[EffectSpec],
+        opts: &SimOptions,
+    ) -> Result<Self> {
+        if !(opts.noise_mm.is_finite() && opts.noise_mm >= 0.0) {
+            return Err(Error::input(
+                Location::new("<simulate>", 0, 0),
+                "the noise must be a non-negative number of mm",
+            ));
+        }
+        let faults_ok = opts.time_offset_s.is_finite()
+            && (0.0..=1.0).contains(&opts.outlier_fraction)
+            && opts.quantum.is_finite()
+            && opts.quantum >= 0.0;
+        if !faults_ok {
+            return Err(Error::input(
+                Location::new("<simulate>", 0, 0),
+                "the clock offset must be finite, the outlier fraction 0 … 1 and the quantum ≥ 0",
+            ));
+        }
+        // The machine runs `offset` behind the recording's clock.
+        let offset = opts.time_offset_s;
+        let sampler = Sampler::new(
+            chain,
+            opts.sample_interval_s,
+            opts.accel_mm_s2,
+            offset,
+            -offset,
+        )?;
+        let machine = TrueMachine::new(chain, errors, effects)?;
+        let walker = TrajectoryWalker::new(chain.dof(), machine.effects.len());
+        Ok(TipSimulator {
+            sampler,
+            state: TipState {
+                machine,
+                walker,
+                rng: Rng::new(opts.seed),
+                // Faults draw from their own stream, so that a recording
+                // with faults has the same noise as the one without.
+                faults: Rng::new(opts.seed ^ 0x5eed_fa17),
+                opts: opts.clone(),
+                n: chain.dof(),
+            },
+        })
+    }
+
+    /// The next waypoint; the samples known now go to `sink`.
+    pub fn push(&mut self, w: &Waypoint, sink: &mut dyn FnMut(Sample) -> Result<()>) -> Result<()> {
+        let state = &mut self.state;
+        self.sampler
+            .push(w, &mut |win: &Window, t| sink(state.sample(win, t)?))
+    }
+
+    /// After the last waypoint: the remaining samples go to `sink`;
+    /// returns how many samples the recording has.
+    pub fn finish(self, sink: &mut dyn FnMut(Sample) -> Result<()>) -> Result<usize> {
+        let mut state = self.state;
+        self.sampler
+            .finish(&mut |win: &Window, t| sink(state.sample(win, t)?))
+    }
+}
+
+impl TipState<'_> {
+    /// The sample at time `t`.
+    fn sample(&mut self, win: &Window, t: f64) -> Result<Sample> {
+        let opts = &self.opts;
+        let p = win.point_at(t, self.n);
+        let tip = if opts.time_offset_s != 0.0 {
+            // The machine's own trajectory: at the stamp t, the command at
+            // t − offset; effects that grow with time see its own clock.
+            let mut m = win.point_at((t - opts.time_offset_s).max(0.0), self.n);
+            m.t = t - opts.time_offset_s;
+            self.machine.tip_along(&mut self.walker, &m)?
+        } else {
+            self.machine.tip_along(&mut self.walker, &p)?
+        };
+        let round = |v: f64| {
+            if opts.quantum > 0.0 {
+                (v / opts.quantum).round() * opts.quantum
+            } else {
+                v
+            }
+        };
+        let (rng, faults) = (&mut self.rng, &mut self.faults);
+        let mut meas = [
+            tip.x + opts.noise_mm * rng.normal(),
+            tip.y + opts.noise_mm * rng.normal(),
+            tip.z + opts.noise_mm * rng.normal(),
+        ];
+        if opts.outlier_fraction > 0.0 && faults.uniform() < opts.outlier_fraction {
+            let d = [faults.normal(), faults.normal(), faults.normal()];
+            let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt().max(1e-12);
+            let size = 0.1 + 0.9 * faults.uniform();
+            for c in 0..3 {
+                meas[c] += size * d[c] / len;
+            }
+        }
+        Ok(Sample {
+            t: p.t,
+            block: Some(p.block),
+            q: p.q.into_iter().map(round).collect(),
+            meas: meas.map(round),
+            meas_axis: None,
+            temps: Vec::new(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Memory does not grow with the program: the window keeps the blocks
+    /// between the earliest time still asked for and the latest pushed.
+    #[test]
+    fn the_sampler_keeps_a_few_blocks_whatever_the_program_length() {
+        let m = crate::machine::Machine::embedded("xyz-3axis").unwrap();
+        // 1 s blocks of 10 mm at F600; the consumer asks up to 2.5 s back
+        // (a clock offset).
+        for (behind, ahead, most) in [(0.0, 0.0, 2), (2.5, 0.0, 5), (0.0, 2.5, 5)] {
+            let mut s = Sampler::new(&m.chain, 0.1, Some(200.0), behind, ahead).unwrap();
+            let mut taken = 0usize;
+            let mut take = |_: &Window, _: f64| {
+                taken += 1;
+                Ok(())
+            };
+            for k in 0..5000 {
+                let w = Waypoint {
+                    q: vec![10.0 * (k % 2) as f64, 0.0, 0.0],
+                    feed: 600.0,
+                    block: k + 1,
+                    path: WaypointPath::Straight,
+                };
+                s.push(&w, &mut take).unwrap();
+                assert!(
+                    s.window.kept() <= most,
+                    "behind {behind}, ahead {ahead}: {} blocks kept after {k}",
+                    s.window.kept()
+                );
+            }
+            let n = s.finish(&mut take).unwrap();
+            assert_eq!(n, taken);
+        }
+    }
 }

@@ -73,4 +73,5 @@ mod scenarios;
 mod seed000;
 mod seed003;
 mod simulate_arcs;
+mod simulate_stream;
 mod valid_jobs;

@@ -24,7 +24,7 @@ use nalgebra::{DMatrix, DVector};
 
 pub use recording::{FeedbackRecording, first_header, is_feedback_header};
 pub use report::{AxisSummary, FeedbackReport, JointFinding};
-pub use simulate::{FeedbackSimOptions, simulate_feedback};
+pub use simulate::{FeedbackRow, FeedbackSimOptions, FeedbackSimulator, simulate_feedback};
 
 use super::DiagOptions;
 use super::fit::pinv_sym;

@@ -244,23 +244,42 @@ impl FeedbackRecording {
 
     /// Writes the CSV of `formats.md` §2b: `t,block,<axes>,fb_<axes>`.
     pub fn write_csv<W: Write>(&self, mut w: W) -> std::io::Result<()> {
-        let mut head = vec!["t".to_string(), "block".to_string()];
-        head.extend(self.axes.iter().cloned());
-        head.extend(self.axes.iter().map(|a| format!("fb_{a}")));
-        writeln!(w, "{}", head.join(","))?;
+        write_feedback_header(&mut w, &self.axes)?;
         for i in 0..self.len() {
-            let mut line = format!("{:.6},", self.t[i]);
-            if let Some(b) = self.block[i] {
-                line.push_str(&b.to_string());
-            }
-            for k in 0..self.axes.len() {
-                line.push_str(&format!(",{:.7}", self.cmd[k][i]));
-            }
-            for k in 0..self.axes.len() {
-                line.push_str(&format!(",{:.7}", self.fb[k][i]));
-            }
-            writeln!(w, "{line}")?;
+            let cmd: Vec<f64> = self.cmd.iter().map(|c| c[i]).collect();
+            let fb: Vec<f64> = self.fb.iter().map(|f| f[i]).collect();
+            write_feedback_row(&mut w, self.t[i], self.block[i], &cmd, &fb)?;
         }
         Ok(())
     }
+}
+
+/// The header line of a joint-feedback CSV of the traced `axes`.
+pub fn write_feedback_header<W: Write + ?Sized>(w: &mut W, axes: &[String]) -> std::io::Result<()> {
+    let mut head = vec!["t".to_string(), "block".to_string()];
+    head.extend(axes.iter().cloned());
+    head.extend(axes.iter().map(|a| format!("fb_{a}")));
+    writeln!(w, "{}", head.join(","))
+}
+
+/// One sample's line of a joint-feedback CSV: time (s), block, then the
+/// command and the feedback of each axis (mm or deg).
+pub fn write_feedback_row<W: Write + ?Sized>(
+    w: &mut W,
+    t: f64,
+    block: Option<u64>,
+    cmd: &[f64],
+    fb: &[f64],
+) -> std::io::Result<()> {
+    let mut line = format!("{t:.6},");
+    if let Some(b) = block {
+        line.push_str(&b.to_string());
+    }
+    for v in cmd {
+        line.push_str(&format!(",{v:.7}"));
+    }
+    for v in fb {
+        line.push_str(&format!(",{v:.7}"));
+    }
+    writeln!(w, "{line}")
 }
