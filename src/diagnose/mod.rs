@@ -6,8 +6,7 @@
 //! * the catalogue of `formats.md` §4 lives in [`crate::geometric::effects`]
 //!   (re-exported here as [`effects`]).
 //! * [`simulate`](mod@simulate): simulated recordings ([`simulate()`]),
-//!   streamed ([`simulate::TipSimulator`]) along [`timeline`], the
-//!   commanded trajectory.
+//!   streamed along [`timeline`], the commanded trajectory.
 //! * [`untidy`]: what is not machine physics (resolution, outliers, clock
 //!   offset), found and removed first.
 //! * [`feedback`]: joint-feedback recordings (`formats.md` §2b), diagnosed
