@@ -23,7 +23,14 @@
 //! - `linkage`: no block moves more than four axes, and the tool tip sampled
 //!   on the chain along every written segment stays within the tolerance of
 //!   the straight line between the original tips;
-//! - `analyze --nonlinear` and `simulate` run on the posted program.
+//! - `analyze --nonlinear` on the posted program: each block's reported
+//!   largest deviation of the tip from its straight line is the one worked
+//!   out here on the chain at the reported place, and no sample of the
+//!   block exceeds it;
+//! - `simulate` on the posted program (no noise, no errors): samples every
+//!   0.5 s, each measured tip the forward kinematics of its commanded axes,
+//!   and each sample of a pose block on the straight move of the axes from
+//!   the block before to its own.
 
 use kinpost::geometric::synth::SplitMix64;
 use kinpost::linkage::point_segment_distance;
@@ -190,6 +197,145 @@ fn axis_rows(machine: &Machine, text: &str, from_line: usize) -> Vec<Vec<f64>> {
         }
     }
     rows
+}
+
+/// The axis values (output order) after each line of `text` (1-based
+/// line number) that has an axis word, with modal carry-over.
+fn axes_by_line(machine: &Machine, text: &str) -> std::collections::BTreeMap<usize, Vec<f64>> {
+    let mut current = vec![0.0; machine.axes.len()];
+    let mut out = std::collections::BTreeMap::new();
+    for (i, line) in text.lines().enumerate() {
+        let mut any = false;
+        for w in line.split_whitespace() {
+            let k = machine
+                .axes
+                .iter()
+                .position(|a| w.starts_with(a.name.as_str()) && w.len() > a.name.len());
+            if let (Some(k), Ok(v)) = (k, w.get(1..).unwrap_or("").parse::<f64>()) {
+                current[k] = v;
+                any = true;
+            }
+        }
+        if any {
+            out.insert(i + 1, current.clone());
+        }
+    }
+    out
+}
+
+/// Checks `analyze --nonlinear --json` on the posted program `posted`:
+/// every pose block is measured (the first from the arcs' end), and its largest distance of
+/// the tip from the straight line between its end tips (worked out here on
+/// the chain, the axes moving linearly, a modulo axis the short way) is
+/// the one reported at the reported place, and no sample exceeds it.
+fn check_nonlinear(machine: &Machine, posted: &str, json: &str, what: &str) {
+    let rows = axes_by_line(machine, posted);
+    let report: serde_json::Value = serde_json::from_str(json).unwrap();
+    let blocks = report["nonlinear"]["blocks"].as_array().unwrap();
+    let pose_lines = rows.range(8..).count();
+    assert_eq!(blocks.len(), pose_lines, "{what}: blocks measured");
+    let tip = |row: &[f64]| machine.chain.pose(&machine.to_internal(row), &NoErrors).tip;
+    for b in blocks {
+        let line = b["line"].as_u64().unwrap() as usize;
+        let (max_mm, t_max) = (
+            b["max_mm"].as_f64().unwrap(),
+            b["t_at_max"].as_f64().unwrap(),
+        );
+        let (_, from) = rows.range(..line).next_back().unwrap();
+        let mut to = rows[&line].clone();
+        for (k, ax) in machine.axes.iter().enumerate() {
+            if ax.rotary == kinpost::machine::RotaryMode::Modulo {
+                to[k] = from[k] + ((to[k] - from[k]) + 180.0).rem_euclid(360.0) - 180.0;
+            }
+        }
+        let at =
+            |t: f64| -> Vec<f64> { from.iter().zip(&to).map(|(a, b)| a + t * (b - a)).collect() };
+        let (a, z) = (tip(from), tip(&to));
+        let dist = |t: f64| point_segment_distance(&tip(&at(t)), &a, &z);
+        assert!(
+            (dist(t_max) - max_mm).abs() <= 1e-9 + 1e-9 * max_mm,
+            "{what}: line {line}: {max_mm} mm reported at t = {t_max}, {} there",
+            dist(t_max)
+        );
+        for i in 0..=64 {
+            let t = i as f64 / 64.0;
+            assert!(
+                dist(t) <= max_mm + 1e-9,
+                "{what}: line {line}: {} mm at t = {t} above the reported {max_mm}",
+                dist(t)
+            );
+        }
+    }
+}
+
+/// Checks a noise-free recording of the posted program `posted` on the
+/// error-free machine: samples every 0.5 s; each measured tip is the tip
+/// of its commanded axes (forward kinematics here); and each sample of a
+/// pose block lies on the straight move of the axes from the block
+/// before to its own (the arcs before pose mode are `simulate_arcs`'s).
+fn check_recording(machine: &Machine, posted: &str, rec: &str, what: &str) {
+    let rows = axes_by_line(machine, posted);
+    let first_pose_line = 8; // after the header, the arcs and G43.5
+    let n = machine.axes.len();
+    // The recording's axis columns are named; the rows here are in output order.
+    let header: Vec<&str> = rec.lines().next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let axis_columns: Vec<usize> = machine.axes.iter().map(|a| column(&a.name)).collect();
+    let meas_column = column("meas_x");
+    let mut count = 0;
+    for (i, line) in rec.lines().skip(1).enumerate() {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        let q: Vec<f64> = axis_columns.iter().map(|&c| v[c]).collect();
+        let (t, block, meas) = (v[0], v[1] as usize, &v[meas_column..meas_column + 3]);
+        assert!(
+            (t - 0.5 * i as f64).abs() < 1e-9,
+            "{what}: sample {i} at {t} s"
+        );
+        let tip = machine.chain.pose(&machine.to_internal(&q), &NoErrors).tip;
+        let miss = (0..3).map(|c| (tip[c] - meas[c]).abs()).fold(0.0, f64::max);
+        assert!(
+            miss < 1e-5,
+            "{what}: sample {i}: tip {miss:e} mm off its axes"
+        );
+        if block < first_pose_line {
+            continue;
+        }
+        let (_, from) = rows.range(..block).next_back().unwrap();
+        // A modulo axis (written in [0, 360)) goes the shortest way: its
+        // move and the sample's value are taken about where it comes from.
+        let modulo: Vec<bool> = machine
+            .axes
+            .iter()
+            .map(|a| a.rotary == kinpost::machine::RotaryMode::Modulo)
+            .collect();
+        let about = |j: usize, v: f64| {
+            if modulo[j] {
+                from[j] + (v - from[j] + 180.0).rem_euclid(360.0) - 180.0
+            } else {
+                v
+            }
+        };
+        let to: Vec<f64> = (0..n).map(|j| about(j, rows[&block][j])).collect();
+        let q: Vec<f64> = (0..n).map(|j| about(j, q[j])).collect();
+        // The distance of q from the straight move from `from` to `to`.
+        let d: Vec<f64> = (0..n).map(|j| to[j] - from[j]).collect();
+        let len2: f64 = d.iter().map(|x| x * x).sum();
+        let u = if len2 > 0.0 {
+            ((0..n).map(|j| (q[j] - from[j]) * d[j]).sum::<f64>() / len2).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let off = (0..n)
+            .map(|j| (q[j] - (from[j] + u * d[j])).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        assert!(
+            off < 1e-6,
+            "{what}: sample {i} (line {block}) {off:e} off its block's move"
+        );
+        count += 1;
+    }
+    assert!(count > 10, "{what}: only {count} samples of pose blocks");
 }
 
 /// A small error table for the machine's axes (µm and µrad level).
@@ -463,8 +609,8 @@ fn random_machines_and_programs_through_every_command() {
                 worst * 1e3
             );
 
-            // analyze and simulate run on the posted program.
-            let (code, _, err) = run(
+            // analyze and simulate on the posted program.
+            let (code, json, err) = run(
                 d,
                 &[
                     "analyze",
@@ -473,10 +619,12 @@ fn random_machines_and_programs_through_every_command() {
                     "--pose-start",
                     "tcp",
                     "--nonlinear",
+                    "--json",
                     "post.nc",
                 ],
             );
             assert_eq!(code, 0, "{name} seed {seed}: analyze failed: {err}");
+            check_nonlinear(&m, &posted, &json, &format!("{name} seed {seed}"));
             let (code, _, err) = run(
                 d,
                 &[
@@ -489,11 +637,15 @@ fn random_machines_and_programs_through_every_command() {
                     "post.nc",
                     "--sample-interval",
                     "0.5",
+                    "--noise",
+                    "0",
                     "-o",
                     "rec.csv",
                 ],
             );
             assert_eq!(code, 0, "{name} seed {seed}: simulate failed: {err}");
+            let rec = std::fs::read_to_string(d.join("rec.csv")).unwrap();
+            check_recording(&m, &posted, &rec, &format!("{name} seed {seed}"));
             checked += 1;
         }
     }
