@@ -24,6 +24,10 @@ use clap::{Args, ValueEnum};
 use std::io::Write;
 use std::path::PathBuf;
 
+/// Blocks whose nonlinear error `analyze --nonlinear` measures on every
+/// core at a time (memory: two joint vectors each).
+const NONLINEAR_BATCH: usize = 4096;
+
 /// Extrapolation outside the measured travel.
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum ExtrapolateArg {
@@ -196,25 +200,29 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
     let mut nonlinear: Vec<NonlinearBlock> = Vec::new();
     let mut prev_q: Option<Vec<f64>> = None;
     let axis_tolerance = a.axis_tolerance.rad()?;
-    let nl_errors: &dyn crate::machine::JointErrors = &NoErrors;
     // The text report needs only the largest and the count.
     let keep_nonlinear = a.json || a.svg.is_some();
     let mut nl_count = 0usize;
     let mut nl_max: Option<NonlinearBlock> = None;
-    // `restart`: where this block starts is not known (after a move in
-    // machine coordinates): no segment to measure.
-    let mut step = |line: usize, q: Vec<f64>, restart: bool| {
-        if restart {
-            prev_q = None;
-        }
-        if let (true, Some(p)) = (a.nonlinear, &prev_q) {
-            let e = nonlinear_error(&machine.chain, nl_errors, p, &q);
-            let b = NonlinearBlock {
-                line,
-                max_mm: e.max_mm,
-                t_at_max: e.t_at_max,
-                estimate_mm: e.estimate_mm,
-            };
+    // The blocks to measure are gathered (line, start, end) and measured
+    // on every core a batch at a time; the results are taken in order.
+    let mut batch: Vec<(usize, Vec<f64>, Vec<f64>)> = Vec::new();
+    let mut measure = |batch: &mut Vec<(usize, Vec<f64>, Vec<f64>)>| {
+        use rayon::prelude::*;
+        let measured: Vec<NonlinearBlock> = batch
+            .par_iter()
+            .map(|(line, from, to)| {
+                let e = nonlinear_error(&machine.chain, &NoErrors, from, to);
+                NonlinearBlock {
+                    line: *line,
+                    max_mm: e.max_mm,
+                    t_at_max: e.t_at_max,
+                    estimate_mm: e.estimate_mm,
+                }
+            })
+            .collect();
+        batch.clear();
+        for b in measured {
             nl_count += 1;
             // The last of equal largest, as `max_by` over the list gives.
             if nl_max
@@ -225,6 +233,19 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
             }
             if keep_nonlinear {
                 nonlinear.push(b);
+            }
+        }
+    };
+    // `restart`: where this block starts is not known (after a move in
+    // machine coordinates): no segment to measure.
+    let mut step = |line: usize, q: Vec<f64>, restart: bool| {
+        if restart {
+            prev_q = None;
+        }
+        if let (true, Some(p)) = (a.nonlinear, prev_q.take()) {
+            batch.push((line, p, q.clone()));
+            if batch.len() == NONLINEAR_BATCH {
+                measure(&mut batch);
             }
         }
         prev_q = Some(q);
@@ -250,6 +271,7 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         step(b.line, b.q, b.restart || b.arc);
         Ok(())
     })?;
+    measure(&mut batch);
     let analysis = analyzer.map(|an| an.finish());
 
     if let Some(svg) = &a.svg {
