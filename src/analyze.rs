@@ -186,8 +186,9 @@ impl<'a> Analyzer<'a> {
         self
     }
 
-    /// Analyses one programmed pose at `line`.
-    pub fn add(&mut self, line: usize, target: &Pose) -> std::result::Result<(), String> {
+    /// Analyses one programmed pose at `line`; returns its result (kept
+    /// too when [`Analyzer::keep_blocks`]).
+    pub fn add(&mut self, line: usize, target: &Pose) -> std::result::Result<BlockResult, String> {
         let sol = self
             .solver
             .solve(target, self.previous.as_deref())
@@ -221,7 +222,7 @@ impl<'a> Analyzer<'a> {
             s.orientation_error_max_line = b.line;
         }
         if self.keep_blocks {
-            self.blocks.push(b);
+            self.blocks.push(b.clone());
         }
         for (k, (_, _, joint, component)) in self.terms.iter().enumerate() {
             let only = OnlyTerm {
@@ -245,7 +246,7 @@ impl<'a> Analyzer<'a> {
             s.2 = s.2.max(p.axis_angle(&ideal) * 1e6);
         }
         self.previous = Some(q.to_vec());
-        Ok(())
+        Ok(b)
     }
 
     /// Finishes the analysis.

@@ -13,6 +13,7 @@ pub mod error;
 pub mod gcode;
 pub mod geometric;
 pub mod input;
+pub mod json_stream;
 pub mod linalg;
 pub mod linkage;
 pub mod machine;

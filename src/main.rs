@@ -8,8 +8,8 @@ use clap::Parser;
 // binary so that the command-line code reaches them as `crate::…` (new
 // ones are added here).
 use kinpost::{
-    analyze, cl, compensate, diagnose, error, gcode, geometric, input, linkage, machine, output,
-    post, program, progress, report, text, trajectory,
+    analyze, cl, compensate, diagnose, error, gcode, geometric, input, json_stream, linkage,
+    machine, output, post, program, progress, report, text, trajectory,
 };
 
 mod cli;

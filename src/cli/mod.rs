@@ -1,5 +1,6 @@
 //! The command line: clap definitions and dispatch into the library.
 
+pub mod analyze;
 pub mod diagnose;
 pub mod errors;
 pub mod linkage;
@@ -46,7 +47,7 @@ pub enum Command {
     /// How far the tool would miss each pose on the actual machine (tool-tip
     /// error in µm, orientation error in µrad and arcsec), and which error
     /// term is to blame; with --nonlinear, the exact nonlinear error per block.
-    Analyze(errors::AnalyzeArgs),
+    Analyze(analyze::AnalyzeArgs),
     /// Like post, but the axes put the actual machine's tool on the pose:
     /// Newton refinement on the error-aware chain (seed 000).
     Compensate(errors::CompensateArgs),
@@ -499,7 +500,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Parse(a) => parse(a),
         Command::Machine(a) => machine(a),
         Command::Fit(a) => errors::fit(a),
-        Command::Analyze(a) => errors::analyze(a),
+        Command::Analyze(a) => analyze::analyze(a),
         Command::Compensate(a) => errors::compensate(a),
         Command::Linkage(a) => linkage::linkage(a),
         Command::Simulate(a) => diagnose::simulate(a),
