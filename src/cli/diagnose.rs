@@ -344,12 +344,7 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
             each,
         )
     };
-    let axes: Vec<String> = machine
-        .chain
-        .joints()
-        .iter()
-        .map(|j| j.name.clone())
-        .collect();
+    let axes = machine.chain.names();
     let io = |e| Error::io("<output>", e);
     // The recording is written as the program is read: memory holds a
     // few blocks, not the program.
@@ -480,12 +475,7 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
     {
         return Err(Error::Usage("--noise-floor must be > 0 mm".into()));
     }
-    let axes: Vec<String> = machine
-        .chain
-        .joints()
-        .iter()
-        .map(|j| j.name.clone())
-        .collect();
+    let axes = machine.chain.names();
     if a.sample_rate
         .is_some_and(|r| !(r.is_finite() && r > 0.0 && r <= 1e7))
     {

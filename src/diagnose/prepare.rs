@@ -416,7 +416,7 @@ pub fn prepare(machine: &ModelMachine, rec: &Recording) -> Result<Prepared> {
     Ok(Prepared {
         n,
         dof,
-        names: chain.joints().iter().map(|j| j.name.clone()).collect(),
+        names: chain.names(),
         kinds,
         axis_coord,
         t,

@@ -512,7 +512,7 @@ pub fn simulate(
     }
     sim.finish(&mut keep)?;
     Ok(Recording {
-        axes: chain.joints().iter().map(|j| j.name.clone()).collect(),
+        axes: chain.names(),
         temp_names: Vec::new(),
         samples,
     })

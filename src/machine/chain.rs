@@ -355,6 +355,11 @@ impl Chain {
             .position(|j| j.name.eq_ignore_ascii_case(name))
     }
 
+    /// The joints' names, chain order.
+    pub fn names(&self) -> Vec<String> {
+        self.joints.iter().map(|j| j.name.clone()).collect()
+    }
+
     /// The joints' names, comma-separated (for messages).
     pub fn joint_names(&self) -> String {
         self.joints

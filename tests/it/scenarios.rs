@@ -178,25 +178,10 @@ fn pose_program(machine: &Machine, qs: &[Vec<f64>]) -> (String, Vec<kinpost::mac
 /// The axis values (output order) of every block of `text` with an axis
 /// word, with modal carry-over.
 fn axis_rows(machine: &Machine, text: &str, from_line: usize) -> Vec<Vec<f64>> {
-    let mut current = vec![0.0; machine.axes.len()];
-    let mut rows = Vec::new();
-    for line in text.lines().skip(from_line) {
-        let mut any = false;
-        for w in line.split_whitespace() {
-            let k = machine
-                .axes
-                .iter()
-                .position(|a| w.starts_with(a.name.as_str()) && w.len() > a.name.len());
-            if let (Some(k), Ok(v)) = (k, w.get(1..).unwrap_or("").parse::<f64>()) {
-                current[k] = v;
-                any = true;
-            }
-        }
-        if any {
-            rows.push(current.clone());
-        }
-    }
-    rows
+    axes_by_line(machine, text)
+        .range(from_line + 1..)
+        .map(|(_, row)| row.clone())
+        .collect()
 }
 
 /// The axis values (output order) after each line of `text` (1-based

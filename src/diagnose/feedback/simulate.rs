@@ -61,7 +61,7 @@ pub fn simulate_feedback(
 ) -> Result<FeedbackRecording> {
     let n = chain.dof();
     let mut rec = FeedbackRecording {
-        axes: chain.joints().iter().map(|j| j.name.clone()).collect(),
+        axes: chain.names(),
         rotary: chain
             .joints()
             .iter()
