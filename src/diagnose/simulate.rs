@@ -685,4 +685,38 @@ mod tests {
             assert_eq!(n, taken);
         }
     }
+
+    /// A run that would need more than [`MAX_SAMPLES`] samples is refused
+    /// when the first one too many is due (the disk, not the memory, is
+    /// what the limit now protects).
+    #[test]
+    fn more_samples_than_the_limit_are_refused() {
+        let m = crate::machine::Machine::embedded("xyz-3axis").unwrap();
+        // 60 s of moves every 1 µs: 60,000,001 samples.
+        let mut s = Sampler::new(&m.chain, 1e-6, None, 0.0, 0.0).unwrap();
+        let mut taken = 0usize;
+        let mut take = |_: &Window, _: f64| {
+            taken += 1;
+            Ok(())
+        };
+        let mut result = Ok(());
+        for k in 0..=6u64 {
+            let w = Waypoint {
+                q: vec![100.0 * k as f64, 0.0, 0.0],
+                feed: 600.0,
+                block: k + 1,
+                path: WaypointPath::Straight,
+            };
+            result = s.push(&w, &mut take);
+            if result.is_err() {
+                break;
+            }
+        }
+        let err = match result {
+            Err(e) => e.to_string(),
+            Ok(()) => s.finish(&mut take).unwrap_err().to_string(),
+        };
+        assert!(err.contains("more than 50000000 samples"), "{err}");
+        assert_eq!(taken, MAX_SAMPLES);
+    }
 }
