@@ -348,16 +348,17 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
     let io = |e| Error::io("<output>", e);
     // The recording is written as the program is read: memory holds a
     // few blocks, not the program.
+    let opts = SimOptions {
+        noise_mm: a.noise,
+        seed: a.seed,
+        sample_interval_s: a.sample_interval,
+        accel_mm_s2: (a.accel > 0.0).then_some(a.accel),
+        time_offset_s: a.time_offset,
+        outlier_fraction: a.outliers,
+        quantum: a.round,
+    };
     if a.feedback {
-        let fopts = crate::diagnose::feedback::FeedbackSimOptions {
-            noise: a.noise,
-            seed: a.seed,
-            sample_interval_s: a.sample_interval,
-            accel_mm_s2: (a.accel > 0.0).then_some(a.accel),
-            time_offset_s: a.time_offset,
-            outlier_fraction: a.outliers,
-            quantum: a.round,
-        };
+        let fopts = crate::diagnose::feedback::FeedbackSimOptions::from(&opts);
         let mut sim = FeedbackSimulator::new(&machine.chain, &effects, &fopts)?;
         let (n, blocks) = write_atomically(a.output.as_deref(), |w| {
             write_feedback_header(w, &axes).map_err(io)?;
@@ -375,15 +376,6 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         );
         return Ok(());
     }
-    let opts = SimOptions {
-        noise_mm: a.noise,
-        seed: a.seed,
-        sample_interval_s: a.sample_interval,
-        accel_mm_s2: (a.accel > 0.0).then_some(a.accel),
-        time_offset_s: a.time_offset,
-        outlier_fraction: a.outliers,
-        quantum: a.round,
-    };
     let mut sim = TipSimulator::new(&machine.chain, model.as_ref(), &effects, &opts)?;
     let (n, last_t, blocks) = write_atomically(a.output.as_deref(), |w| {
         let csv = RecordingCsv::tool_tip(&axes);

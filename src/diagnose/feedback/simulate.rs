@@ -6,7 +6,7 @@
 use super::super::rng::Rng;
 use std::collections::VecDeque;
 
-use super::super::simulate::{Sampler, TrajPoint, TrajectoryWalker, Waypoint};
+use super::super::simulate::{Sampler, SimOptions, TrajPoint, TrajectoryWalker, Waypoint};
 use super::super::timeline::Window;
 use super::FeedbackRecording;
 use crate::error::Result;
@@ -43,6 +43,22 @@ impl Default for FeedbackSimOptions {
             time_offset_s: 0.0,
             outlier_fraction: 0.0,
             quantum: 0.0,
+        }
+    }
+}
+
+impl From<&SimOptions> for FeedbackSimOptions {
+    /// The options of a tool-tip recording for a joint-feedback trace of
+    /// the same run: its noise as each axis's (mm or deg).
+    fn from(o: &SimOptions) -> Self {
+        FeedbackSimOptions {
+            noise: o.noise_mm,
+            seed: o.seed,
+            sample_interval_s: o.sample_interval_s,
+            accel_mm_s2: o.accel_mm_s2,
+            time_offset_s: o.time_offset_s,
+            outlier_fraction: o.outlier_fraction,
+            quantum: o.quantum,
         }
     }
 }
