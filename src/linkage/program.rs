@@ -283,6 +283,38 @@ struct FeedState {
 }
 
 /// One motion block as the linkage stage sees it.
+/// Lines converted, unwound and measured a batch at a time.
+const LINES_PER_BATCH: usize = 512;
+
+/// A line after the in-order conversion.
+enum Unit {
+    /// Converted text written as it is (a block outside pose mode).
+    Raw(Vec<u8>),
+    /// A line written as it is (no block).
+    Line(Line),
+    /// A block, measured and perhaps divided before it is written.
+    Block(Box<Pending>),
+}
+
+/// A block between the conversion and the writing.
+struct Pending {
+    mline: Line,
+    block: Block,
+    /// Where the block starts (none for the first block).
+    qa: Option<Vec<f64>>,
+    /// Whether the block before it may be skipped (block delete).
+    start_skippable: bool,
+}
+
+/// A block's exact nonlinear error, its division (the inserted points, or
+/// why it cannot be divided) and the largest error of its segments once
+/// divided.
+type Measured = (
+    super::nonlinear::NonlinearError,
+    std::result::Result<Option<Vec<Vec<f64>>>, String>,
+    Option<f64>,
+);
+
 struct Block {
     q: Vec<f64>,
     motion: Motion,
@@ -363,11 +395,14 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
     // A pose program: a move home or a new origin since the last pose, so
     // where the next one starts is not known.
     let mut start_unknown = false;
+    let mut lines_in = 0usize;
     let mut buf = Vec::with_capacity(256);
     let mut text = Vec::with_capacity(256);
-    for line in LineReader::new(input) {
-        let line = line.map_err(|e| Error::io(&opts.file_name, e))?;
-        report.lines_in += 1;
+    // In order: each line converted and its block unwound against the one
+    // before (stage 1); the blocks to measure measured on every core
+    // (stage 2, the bulk of the work); then in order again, the report
+    // and the output (stage 3), a batch of lines at a time.
+    let mut read = |line: Line| -> Result<Unit> {
         // The line in machine axes and its block, if it moves.
         buf.clear();
         let (mline, block) = match conv.as_mut() {
@@ -405,8 +440,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                         Start::Unknown => start_unknown = true,
                         Start::AtPose => {}
                     }
-                    out.write_all(&buf).map_err(io)?;
-                    continue;
+                    return Ok(Unit::Raw(buf.clone()));
                 }
             },
             None => {
@@ -429,11 +463,8 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             }
         };
         let Some(block) = block else {
-            mline.write_to(&mut &mut *out).map_err(io)?;
-            continue;
+            return Ok(Unit::Line(mline));
         };
-        report.blocks_in += 1;
-        report.blocks_out += 1;
         // A modulo axis turns the short way (the controller's rule, and the
         // way its words are written): the segment is measured and divided
         // on that path, not across the 0/360° seam.
@@ -451,9 +482,46 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             .iter()
             .any(|it| matches!(it.kind, ItemKind::BlockDelete));
         let start_skippable = std::mem::replace(&mut prev_skippable, skippable);
-        let Some(qa) = prev.replace(block.q.clone()) else {
-            mline.write_to(&mut &mut *out).map_err(io)?;
-            continue;
+        let qa = prev.replace(block.q.clone());
+        Ok(Unit::Block(Box::new(Pending {
+            mline,
+            block,
+            qa,
+            start_skippable,
+        })))
+    };
+    let measure = |u: &Unit| -> Option<Measured> {
+        let Unit::Block(b) = u else { return None };
+        let (qa, qb) = (b.qa.as_ref()?, &b.block.q);
+        if b.block.motion != Motion::Linear || !b.block.measurable {
+            return None;
+        }
+        let before = nonlinear_error(&machine.chain, &NoErrors, qa, qb);
+        let moved = axes.moved(qa, qb);
+        let plan = plan_block(machine, &axes, qa, qb, moved, before.max_mm, opts, pair);
+        let worst = match &plan {
+            Ok(Some(points)) => {
+                Some(worst_segment(&machine.chain, &NoErrors, qa, points, qb).max_mm)
+            }
+            _ => None,
+        };
+        Some((before, plan, worst))
+    };
+    let mut write = |u: Unit, measured: Option<Measured>| -> Result<()> {
+        let Pending {
+            mline,
+            block,
+            qa,
+            start_skippable,
+        } = match u {
+            Unit::Raw(bytes) => return out.write_all(&bytes).map_err(io),
+            Unit::Line(line) => return line.write_to(&mut &mut *out).map_err(io),
+            Unit::Block(b) => *b,
+        };
+        report.blocks_in += 1;
+        report.blocks_out += 1;
+        let Some(qa) = qa else {
+            return mline.write_to(&mut &mut *out).map_err(io);
         };
         let qb = &block.q;
         let moved = axes.moved(&qa, qb);
@@ -466,7 +534,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             report.over_axes_after += usize::from(moved > opts.max_axes);
             report.cycle_time_after_s += 60.0 * time_before;
             mline.write_to(&mut &mut *out).map_err(io)?;
-            continue;
+            return Ok(());
         }
         if !block.measurable {
             return Err(Error::input_with(
@@ -476,19 +544,18 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             ));
         }
         report.over_axes_before += usize::from(moved > opts.max_axes);
-        let before = nonlinear_error(&machine.chain, &NoErrors, &qa, qb);
+        let (before, plan, worst) = measured.expect("a measured block has its measurement");
         if before.max_mm > report.nonlinear_max_before_mm {
             report.nonlinear_max_before_mm = before.max_mm;
             report.nonlinear_max_before_line = line_number(&mline);
         }
-        let plan =
-            plan_block(machine, &axes, &qa, qb, moved, before.max_mm, opts, pair).map_err(|m| {
-                Error::input_with(
-                    Location::new(&opts.file_name, mline.number, 0),
-                    m,
-                    mline.text_lossy(),
-                )
-            })?;
+        let plan = plan.map_err(|m| {
+            Error::input_with(
+                Location::new(&opts.file_name, mline.number, 0),
+                m,
+                mline.text_lossy(),
+            )
+        })?;
         let points = match plan {
             None => {
                 report.max_axes_moved_after = report.max_axes_moved_after.max(moved);
@@ -496,7 +563,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                 note_after(&mut report, before.max_mm, &mline);
                 report.cycle_time_after_s += 60.0 * time_before;
                 mline.write_to(&mut &mut *out).map_err(io)?;
-                continue;
+                return Ok(());
             }
             Some(p) => p,
         };
@@ -531,8 +598,8 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
         report.blocks_split += 1;
         report.points_inserted += points.len();
         report.blocks_out += points.len();
-        let worst = worst_segment(&machine.chain, &NoErrors, &qa, &points, qb);
-        note_after(&mut report, worst.max_mm, &mline);
+        let worst = worst.expect("a divided block has its worst segment");
+        note_after(&mut report, worst, &mline);
         let feed_text = |text: &mut String| {
             if let (FeedMode::InverseTime, Some(f)) = (block.feed.mode, block.feed.value) {
                 text.push_str(" F");
@@ -598,7 +665,45 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             &mut text,
         );
         out.write_all(&text).map_err(io)?;
+        Ok(())
+    };
+    let mut lines = LineReader::new(input);
+    let mut batch: Vec<Unit> = Vec::with_capacity(LINES_PER_BATCH);
+    loop {
+        let mut stop = None;
+        let mut ended = false;
+        while batch.len() < LINES_PER_BATCH {
+            let Some(line) = lines.next() else {
+                ended = true;
+                break;
+            };
+            lines_in += 1;
+            match line
+                .map_err(|e| Error::io(&opts.file_name, e))
+                .and_then(&mut read)
+            {
+                Ok(u) => batch.push(u),
+                Err(e) => {
+                    stop = Some(e);
+                    break;
+                }
+            }
+        }
+        let measured: Vec<Option<Measured>> = {
+            use rayon::prelude::*;
+            batch.par_iter().map(measure).collect()
+        };
+        for (u, m) in batch.drain(..).zip(measured) {
+            write(u, m)?;
+        }
+        if let Some(e) = stop {
+            return Err(e);
+        }
+        if ended {
+            break;
+        }
     }
+    report.lines_in = lines_in;
     Ok(report)
 }
 

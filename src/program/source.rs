@@ -295,6 +295,25 @@ impl MachineAxisTracker {
                     item: i,
                 });
             } else if machine.axes.iter().any(|a| a.name == w.address) {
+                // The same axis twice (`X1 … X2`): which one a controller
+                // takes is not for kinpost to guess; LinuxCNC and Fanuc
+                // refuse the block.
+                let same = |k: &usize| match &line.items[*k].kind {
+                    ItemKind::Word(f) => f.address == w.address,
+                    _ => false,
+                };
+                if let Some(&first) = axis_items.iter().find(|k| same(k)) {
+                    return Err(Error::input_with(
+                        Location::new(file, line.number, item.start + 1),
+                        format!(
+                            "axis word {} is given twice in this block ({} and {}): the block is ambiguous (LinuxCNC and Fanuc refuse it too); give each axis once",
+                            w.address,
+                            String::from_utf8_lossy(line.item_bytes(&line.items[first])).trim(),
+                            String::from_utf8_lossy(line.item_bytes(item)).trim()
+                        ),
+                        line.text_lossy(),
+                    ));
+                }
                 axis_items.push(i);
             }
         }

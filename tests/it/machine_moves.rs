@@ -245,3 +245,40 @@ fn linkage_divides_from_where_a_machine_move_left_the_machine() {
         "{err}"
     );
 }
+
+/// Found in session 16: a block in machine axes with an axis word twice
+/// (`G1 X1 X2 A5`) was read with its last word by `linkage`, `simulate` and
+/// `analyze --nonlinear`; `linkage` even rewrote it as a valid block
+/// (`X2.0000`), exit 0. LinuxCNC and Fanuc refuse such a block, and which
+/// word a controller would take is not for kinpost to guess: the commands
+/// that read the block's motion refuse it at the second word. `post`, which
+/// converts nothing there, passes the line through as it came.
+#[test]
+fn a_machine_axis_block_with_an_axis_twice_is_refused_where_its_motion_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let prog = dir.path().join("dup.ngc");
+    let text = "G90 G21\nG0 X0 Y0 Z0 A0 C0\nG1 X1 X2 A5 F100\n";
+    std::fs::write(&prog, text).unwrap();
+    let p = prog.to_str().unwrap();
+    let out = dir.path().join("out");
+    let o = out.to_str().unwrap();
+    for args in [
+        vec!["linkage", "-m", "xyzac-trt", p, "-o", o],
+        vec!["simulate", "-m", "xyzac-trt", "-p", p, "-o", o],
+        vec!["analyze", "-m", "xyzac-trt", "--nonlinear", p],
+    ] {
+        let r = kinpost(&args);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("dup.ngc:3:7:")
+                && err.contains("X is given twice")
+                && err.contains("X1 and X2"),
+            "{args:?}: {err}"
+        );
+        assert!(!out.exists(), "{args:?} wrote an output");
+    }
+    let r = kinpost(&["post", "-m", "xyzac-trt", p]);
+    assert!(r.status.success());
+    assert_eq!(String::from_utf8_lossy(&r.stdout), text);
+}
