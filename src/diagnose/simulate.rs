@@ -295,11 +295,6 @@ impl<'c> Sampler<'c> {
         })
     }
 
-    /// The time of sample `i`, s.
-    fn time(&self, i: usize) -> f64 {
-        (i as f64 * self.interval * 1e9).round() / 1e9
-    }
-
     /// The next waypoint; `take` is given the window and the time of each
     /// sample that is known now.
     pub(crate) fn push(
@@ -341,7 +336,7 @@ impl<'c> Sampler<'c> {
         // come can start before the last time its consumer asks for.
         let last = (self.window.end_time() / self.interval).floor();
         loop {
-            let t = self.time(self.next);
+            let t = sample_time(self.next, self.interval);
             let known = if self.window.ended() {
                 self.next as f64 <= last
             } else {
@@ -388,15 +383,24 @@ pub fn central_velocities(traj: &mut [TrajPoint]) {
     }
     for i in 0..n {
         let (a, b) = central_pair(i, n);
-        let dt = traj[b].t - traj[a].t;
-        let v: Vec<f64> = traj[b]
-            .q
-            .iter()
-            .zip(&traj[a].q)
-            .map(|(qb, qa)| if dt > 0.0 { (qb - qa) / dt } else { 0.0 })
-            .collect();
-        traj[i].v = v;
+        traj[i].v = velocity_between(&traj[a], &traj[b]);
     }
+}
+
+/// The time of sample `i` of a sampling every `interval` s, rounded to
+/// 1 ns.
+pub(crate) fn sample_time(i: usize, interval: f64) -> f64 {
+    (i as f64 * interval * 1e9).round() / 1e9
+}
+
+/// The velocity between two points of a trajectory (per component; 0
+/// where they share a time).
+pub(crate) fn velocity_between(a: &TrajPoint, b: &TrajPoint) -> Vec<f64> {
+    let dt = b.t - a.t;
+    b.q.iter()
+        .zip(&a.q)
+        .map(|(qb, qa)| if dt > 0.0 { (qb - qa) / dt } else { 0.0 })
+        .collect()
 }
 
 /// The tool tip (mm, noise-free) of the machine `chain` + `errors` (its

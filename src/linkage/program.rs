@@ -282,7 +282,6 @@ struct FeedState {
     value: Option<f64>,
 }
 
-/// One motion block as the linkage stage sees it.
 /// Lines converted, unwound and measured a batch at a time.
 const LINES_PER_BATCH: usize = 512;
 
@@ -315,6 +314,7 @@ type Measured = (
     Option<f64>,
 );
 
+/// One motion block as the linkage stage sees it.
 struct Block {
     q: Vec<f64>,
     motion: Motion,

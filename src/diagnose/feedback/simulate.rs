@@ -6,7 +6,9 @@
 use super::super::rng::Rng;
 use std::collections::VecDeque;
 
-use super::super::simulate::{Sampler, SimOptions, TrajPoint, TrajectoryWalker, Waypoint};
+use super::super::simulate::{
+    Sampler, SimOptions, TrajPoint, TrajectoryWalker, Waypoint, sample_time, velocity_between,
+};
 use super::super::timeline::Window;
 use super::FeedbackRecording;
 use crate::error::Result;
@@ -137,9 +139,8 @@ struct FeedbackState {
     n: usize,
     /// With a clock offset: the commanded points and the axes' own
     /// positions of the samples whose central velocity waits for the
-    /// next sample (at most two), and how many samples were taken.
+    /// next sample (at most two).
     waiting: VecDeque<(TrajPoint, TrajPoint)>,
-    taken: usize,
 }
 
 impl<'c> FeedbackSimulator<'c> {
@@ -179,7 +180,6 @@ impl<'c> FeedbackSimulator<'c> {
                 opts: opts.clone(),
                 n,
                 waiting: VecDeque::new(),
-                taken: 0,
             },
         })
     }
@@ -205,23 +205,13 @@ impl<'c> FeedbackSimulator<'c> {
         // The last sample's velocity: one-sided, from the one before.
         if let Some((p, mut m)) = state.waiting.pop_back() {
             if let Some((_, before)) = state.waiting.pop_back() {
-                m.v = difference(&before, &m);
+                m.v = velocity_between(&before, &m);
             }
             let row = state.row(&p, &m)?;
             sink(row)?;
         }
         Ok(n)
     }
-}
-
-/// The velocity between two points of a trajectory (0 where they share a
-/// time).
-fn difference(a: &TrajPoint, b: &TrajPoint) -> Vec<f64> {
-    let dt = b.t - a.t;
-    b.q.iter()
-        .zip(&a.q)
-        .map(|(qb, qa)| if dt > 0.0 { (qb - qa) / dt } else { 0.0 })
-        .collect()
 }
 
 impl FeedbackState {
@@ -240,18 +230,18 @@ impl FeedbackState {
         }
         let m = self.axes_at(win, t - self.opts.time_offset_s);
         self.waiting.push_back((p, m));
-        self.taken += 1;
         match self.waiting.len() {
-            // The first sample: one-sided, towards the second.
-            2 if self.taken == 2 => {
-                let v = difference(&self.waiting[0].1, &self.waiting[1].1);
+            // The first sample (later ones leave two waiting, and the next
+            // makes three): one-sided, towards the second.
+            2 => {
+                let v = velocity_between(&self.waiting[0].1, &self.waiting[1].1);
                 self.waiting[0].1.v = v;
                 let (p0, m0) = self.waiting[0].clone();
                 let row = self.row(&p0, &m0)?;
                 sink(row)
             }
             3 => {
-                let v = difference(&self.waiting[0].1, &self.waiting[2].1);
+                let v = velocity_between(&self.waiting[0].1, &self.waiting[2].1);
                 self.waiting[1].1.v = v;
                 self.waiting.pop_front();
                 let (p1, m1) = self.waiting[0].clone();
@@ -267,7 +257,7 @@ impl FeedbackState {
     /// (every [`FINE_S`], at most 0.1 ms off against the offsets and sample
     /// intervals used) about it; velocity 0 (set from the neighbours).
     fn axes_at(&self, win: &Window, t: f64) -> TrajPoint {
-        let at = |k: usize| (k as f64 * FINE_S * 1e9).round() / 1e9;
+        let at = |k: usize| sample_time(k, FINE_S);
         // The fine sampling's last point: known once the window ended, and
         // not reached before (the sampler asks that far ahead).
         let last = (win.end_time() / FINE_S).floor() as usize;
