@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Peak memory (RSS) of the streaming commands (post, compensate,
-# analyze --nonlinear, linkage, simulate) on a long program, default
+# analyze --nonlinear with --json or --svg, linkage, simulate) on a long program, default
 # 2,000,000 blocks (about 160 MB of G-code), and as many APT CL statements.
 # Not part of CI.
 #
@@ -28,10 +28,11 @@ run "compensate -o FILE" target/release/kinpost compensate -q --errors fixtures/
 run "compensate --report FILE -o FILE" target/release/kinpost compensate -q --errors fixtures/errors/zhao2022-xzbc.csv --report "$WORK/report.json" "$PROGRAM" -o "$WORK/comp.nc"
 run "analyze --nonlinear (text)" target/release/kinpost analyze --errors fixtures/errors/zhao2022-xzbc.csv --nonlinear "$PROGRAM"
 run "analyze --nonlinear --json" target/release/kinpost analyze --errors fixtures/errors/zhao2022-xzbc.csv --nonlinear --json "$PROGRAM"
+run "analyze --nonlinear --svg FILE" target/release/kinpost analyze --errors fixtures/errors/zhao2022-xzbc.csv --nonlinear --svg "$WORK/analyze.svg" "$PROGRAM"
 run "linkage -o FILE" target/release/kinpost linkage -q "$PROGRAM" -o "$WORK/link.nc"
 run "simulate -o FILE" target/release/kinpost simulate -p "$PROGRAM" --errors fixtures/errors/zhao2022-xzbc.csv --inject backlash:X=0.003 -o "$WORK/sim.csv"
 run "simulate --time-offset --feedback -o FILE" target/release/kinpost simulate -p "$PROGRAM" --time-offset 0.2 --feedback --inject servo_lag:X=0.02 -o "$WORK/sim.csv"
-rm -f "$WORK/link.nc" "$WORK/sim.csv"
+rm -f "$WORK/link.nc" "$WORK/sim.csv" "$WORK/analyze.svg"
 # The same length as APT CL (the lens ring back and forth).
 CL="$WORK/lens-$POSES.cls"
 [ -s "$CL" ] || target/release/examples/bench_lens_cl "$POSES" cl > "$CL"

@@ -22,6 +22,7 @@ use crate::machine::{Machine, NoErrors};
 use crate::output::write_atomically;
 use crate::program::PoseStart;
 use crate::program::source::looks_like_poses;
+use crate::report::Envelope;
 use crate::report::svg::{Panel, write_panels};
 use crate::trajectory::{TrajectoryOptions, joint_trajectory};
 
@@ -174,6 +175,24 @@ struct Job<'a> {
 }
 
 /// What the text report needs of a run.
+/// The per-pose series of `--svg`, thinned as they grow (x: the pose's
+/// index from 0).
+#[derive(Default)]
+struct PosePlot {
+    /// Poses analysed.
+    poses: usize,
+    tip: Envelope,
+    orientation: Envelope,
+}
+
+/// The per-block series of `--svg --nonlinear` (x: the measured block's
+/// index from 1).
+#[derive(Default)]
+struct NonlinearPlot {
+    exact: Envelope,
+    estimate: Envelope,
+}
+
 struct Done {
     analysis: Option<Analysis>,
     nl_max: Option<NonlinearBlock>,
@@ -192,18 +211,19 @@ fn run(
     let io = |e| Error::io("<stdout>", e);
     // Joint values per block (theoretical IK for poses).
     let mut analyzer = match (job.model, job.bound) {
-        // The per-block results are kept only for the plot (the JSON
-        // streams them): memory stays flat otherwise.
-        (Some(m), Some(b)) => Some(Analyzer::new(machine, m, b)?.keep_blocks(a.svg.is_some())),
+        // The per-block results are not kept: the JSON streams them and
+        // the plot thins them as they come, so memory stays flat.
+        (Some(m), Some(b)) => Some(Analyzer::new(machine, m, b)?.keep_blocks(false)),
         _ => None,
     };
-    let mut nonlinear: Vec<NonlinearBlock> = Vec::new();
+    // The plotted series, thinned as they grow (`--svg`).
+    let mut pose_plot = a.svg.as_ref().map(|_| PosePlot::default());
+    let mut nl_plot = a.svg.as_ref().map(|_| NonlinearPlot::default());
     let mut prev_q: Option<Vec<f64>> = None;
     let axis_tolerance = a.axis_tolerance.rad()?;
     // The text report needs only the largest and the count; the JSON
     // streams the blocks (those of the nonlinear error through a spool, as
     // they come after the analysis's own in the report).
-    let keep_nonlinear = a.svg.is_some();
     let mut spool = match (a.json, a.nonlinear) {
         (true, true) => Some(std::io::BufWriter::new(
             tempfile::tempfile().map_err(|e| Error::io("<spool>", e))?,
@@ -245,8 +265,10 @@ fn run(
             {
                 nl_max = Some(b.clone());
             }
-            if keep_nonlinear {
-                nonlinear.push(b);
+            if let Some(p) = nl_plot.as_mut() {
+                let x = nl_count as f64;
+                p.exact.push(x, b.max_mm * 1e3);
+                p.estimate.push(x, b.estimate_mm * 1e3);
             }
         }
         Ok::<(), Error>(())
@@ -293,6 +315,12 @@ fn run(
             if let Some(r) = report.as_mut() {
                 r.value(&block).map_err(io)?;
             }
+            if let Some(p) = pose_plot.as_mut() {
+                let x = p.poses as f64;
+                p.tip.push(x, block.tip_error_mm * 1e3);
+                p.orientation.push(x, block.orientation_error_urad);
+                p.poses += 1;
+            }
         }
         // A circular move is not a straight move of the joints: not
         // measured; the next block starts at its end.
@@ -301,52 +329,24 @@ fn run(
     measure(&mut batch)?;
     let analysis = analyzer.map(|an| an.finish());
 
-    if let Some(svg) = &a.svg {
+    if let (Some(svg), Some(p), Some(nl)) = (&a.svg, &pose_plot, &nl_plot) {
         let mut panels = Vec::new();
-        if let Some(an) = &analysis {
+        if analysis.is_some() {
             panels.push(Panel {
                 y_label: "tool-tip error E [µm]",
-                series: vec![(
-                    "E",
-                    an.blocks
-                        .iter()
-                        .enumerate()
-                        .map(|(i, b)| (i as f64, b.tip_error_mm * 1e3))
-                        .collect(),
-                )],
+                series: vec![("E", p.tip.points())],
             });
             panels.push(Panel {
                 y_label: "orientation error ε [µrad]",
-                series: vec![(
-                    "ε",
-                    an.blocks
-                        .iter()
-                        .enumerate()
-                        .map(|(i, b)| (i as f64, b.orientation_error_urad))
-                        .collect(),
-                )],
+                series: vec![("ε", p.orientation.points())],
             });
         }
         if a.nonlinear {
             panels.push(Panel {
                 y_label: "nonlinear error [µm]",
                 series: vec![
-                    (
-                        "exact",
-                        nonlinear
-                            .iter()
-                            .enumerate()
-                            .map(|(i, b)| (i as f64 + 1.0, b.max_mm * 1e3))
-                            .collect(),
-                    ),
-                    (
-                        "r·Δθ²/8",
-                        nonlinear
-                            .iter()
-                            .enumerate()
-                            .map(|(i, b)| (i as f64 + 1.0, b.estimate_mm * 1e3))
-                            .collect(),
-                    ),
+                    ("exact", nl.exact.points()),
+                    ("r·Δθ²/8", nl.estimate.points()),
                 ],
             });
         }

@@ -11,6 +11,7 @@ mod diagnose_support;
 mod gcode_reference;
 mod seed003_tables;
 
+mod analyze_plot;
 mod architecture;
 mod bad_input;
 mod cl;
