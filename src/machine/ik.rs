@@ -694,8 +694,6 @@ impl IkSolver {
     }
 
     /// With the rotary joints of `q` fixed, sets its prismatic joints so that
-    /// the tip meets `target` (least squares when there are fewer than 3).
-    /// With the rotary joints of `q` fixed, sets its prismatic joints so that
     /// the tip meets `target` (least squares when there are fewer than 3);
     /// returns the pose with the linear axes at 0 (whose tool axis is that
     /// of the solution: linear axes turn nothing).

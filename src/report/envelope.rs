@@ -114,7 +114,10 @@ mod tests {
             .map(|i| {
                 let x = i as f64;
                 let spike = if i % 9973 == 17 { 50.0 } else { 0.0 };
-                (x, (x * 0.001).sin() + 0.01 * ((i * 7919) % 101) as f64 + spike)
+                (
+                    x,
+                    (x * 0.001).sin() + 0.01 * ((i * 7919) % 101) as f64 + spike,
+                )
             })
             .collect()
     }
@@ -138,7 +141,11 @@ mod tests {
                 e.push(x, y);
             }
             let drawn = e.points();
-            assert!(drawn.len() <= 2 * MAX_BUCKETS, "{n}: {} points", drawn.len());
+            assert!(
+                drawn.len() <= 2 * MAX_BUCKETS,
+                "{n}: {} points",
+                drawn.len()
+            );
             assert!(drawn.len() > MAX_BUCKETS / 2, "{n}: {} points", drawn.len());
             // In order of x, each one a point of the series.
             assert!(drawn.windows(2).all(|w| w[0].0 < w[1].0), "{n}");
@@ -158,7 +165,10 @@ mod tests {
                     .filter(|p| p.0 >= x0 && p.0 <= x1)
                     .map(|p| p.1)
                     .collect();
-                assert!(inside.contains(&lo) && inside.contains(&hi), "{n}: run at {x0}");
+                assert!(
+                    inside.contains(&lo) && inside.contains(&hi),
+                    "{n}: run at {x0}"
+                );
             }
         }
     }

@@ -43,7 +43,11 @@ fn a_long_program_plots_a_bounded_number_of_points_per_series() {
             "--svg",
             svg.to_str().unwrap(),
         ]);
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let text = String::from_utf8(out.stdout).unwrap();
         assert!(text.contains(&format!("{poses} poses")), "{text}");
         let svg = std::fs::read_to_string(&svg).unwrap();
