@@ -20,6 +20,7 @@
 #![allow(clippy::needless_range_loop)]
 
 mod csv;
+mod dynamic;
 pub mod feedback;
 pub mod fit;
 pub mod motion_components;
@@ -38,6 +39,7 @@ use std::collections::BTreeMap;
 
 pub use crate::geometric::effect_spec::parse_effect_spec;
 pub use crate::geometric::effects::{self, Effect, EffectKind, EffectSpec};
+pub use dynamic::{DynamicErrors, compensate_dynamic, dynamic_offsets};
 pub use recording::{Recording, RecordingReader, Sample};
 pub use report::{Finding, Report, RunnerUp, Where};
 pub use simulate::{
@@ -45,14 +47,14 @@ pub use simulate::{
     sample_waypoints, simulate,
 };
 
-use crate::geometric::effects::BoundEffect;
 use fit::{Candidate, Family, Fitted, SearchCtx, Selected, Term};
 use prepare::{ModelMachine, Prepared, prepare};
 use report::{Condition, Locate, Series, Window};
 
 use crate::error::{Error, Location, Result};
 use crate::geometric::ErrorModel;
-use crate::machine::chain::{Chain, ErrorMotion, JointErrors, JointKind};
+use crate::machine::chain::{Chain, JointKind};
+use rayon::prelude::*;
 
 /// Relative standard deviation of a drift's τ above which the report says
 /// that τ is only loosely determined (at 10 % a 20 % error is a 2σ event).
@@ -191,17 +193,23 @@ pub fn diagnose(
         let rss_now = rss0 - sel.h.dot(&(&sel.ginv * &sel.h));
         let chi_now = rss_now / (s2 * n_rows);
         let above_noise = chi_now > 1.05 && (chi_now - 1.0) * (1.5 * n_rows).sqrt() > 4.0;
-        let mut cands: Vec<Candidate> = families
+        // The families are searched on every core, the candidates taken
+        // in the families' order.
+        let searched: Vec<Family> = families
             .iter()
-            .filter(|f| !terms.iter().any(|t| t.family.same_slot(**f)))
+            .copied()
+            .filter(|f| !terms.iter().any(|t| t.family.same_slot(*f)))
             .filter(|f| {
                 !matches!(f, Family::Vibration(_))
                     || terms.is_empty()
                     || above_noise
                     || first_round
                         .iter()
-                        .any(|c| c.term.family == **f && c.score >= opts.bic_margin)
+                        .any(|c| c.term.family == *f && c.score >= opts.bic_margin)
             })
+            .collect();
+        let mut cands: Vec<Candidate> = searched
+            .par_iter()
             .filter_map(|f| fit::search_family(&prep, &sel, *f, &ctx))
             .collect();
         cands.sort_by(|a, b| b.score.total_cmp(&a.score));
@@ -880,121 +888,4 @@ fn series(prep: &Prepared, after: &[[f64; 3]], top: Option<&Term>, tips: &[[f64;
     s.proj_before = (0..n).map(|i| dot(&prep.r[i], &dir[i])).collect();
     s.proj_after = (0..n).map(|i| dot(&after[i], &dir[i])).collect();
     s
-}
-
-/// Dynamic offsets of a model's dynamic effects (backlash, servo lag,
-/// thermal drift) along a trajectory: Δq per point (mm, deg), chain order.
-/// Directions are tracked along `traj`; thermal drift runs from the first
-/// point (or from its `from_block`).
-pub fn dynamic_offsets(
-    chain: &Chain,
-    model: &ErrorModel,
-    traj: &[TrajPoint],
-) -> Result<Vec<Vec<f64>>> {
-    let n = chain.dof();
-    let mut effects: Vec<BoundEffect> = model
-        .effects
-        .iter()
-        .filter(|e| e.effect.kind().is_dynamic())
-        .map(|e| BoundEffect::new(e, chain))
-        .collect::<Result<_>>()?;
-    let mut walker = simulate::TrajectoryWalker::new(n, effects.len());
-    let mut out = Vec::with_capacity(traj.len());
-    for p in traj {
-        let (st, active) = walker.step(p, &mut effects)?;
-        let mut dq = vec![0.0; n];
-        for (e, _) in effects.iter().zip(active).filter(|(_, a)| **a) {
-            if let Some(j) = e.joint {
-                dq[j] += e.delta_q(&st);
-            }
-        }
-        out.push(dq);
-    }
-    Ok(out)
-}
-
-/// Pre-compensates a commanded trajectory for the model's dynamic effects:
-/// each point's command becomes `q − Δq` (backlash: half the reversal value
-/// in the direction of motion; servo lag: `+τ·v` feed-forward; thermal
-/// drift: minus the drift at that time). Static effects are compensated by
-/// the Newton refinement on the model's chain (`crate::compensate`).
-pub fn compensate_dynamic(
-    chain: &Chain,
-    model: &ErrorModel,
-    traj: &[TrajPoint],
-) -> Result<Vec<TrajPoint>> {
-    let dq = dynamic_offsets(chain, model, traj)?;
-    Ok(traj
-        .iter()
-        .zip(dq)
-        .map(|(p, d)| TrajPoint {
-            t: p.t,
-            block: p.block,
-            q: p.q.iter().zip(&d).map(|(q, d)| q - d).collect(),
-            v: p.v.clone(),
-        })
-        .collect())
-}
-
-/// A [`JointErrors`] source that adds known dynamic joint offsets (from
-/// [`dynamic_offsets`], in file units) to a base error source: evaluate the
-/// chain at one trajectory point with the direction, speed and time known.
-pub struct DynamicErrors<'a> {
-    base: &'a dyn JointErrors,
-    kinds: Vec<JointKind>,
-    axes: Vec<nalgebra::Vector3<f64>>,
-    dq: Vec<f64>,
-}
-
-impl<'a> DynamicErrors<'a> {
-    /// Wraps `base` for `chain` with zero offsets.
-    pub fn new(chain: &Chain, base: &'a dyn JointErrors) -> Self {
-        DynamicErrors {
-            base,
-            kinds: chain.joints().iter().map(|j| j.kind).collect(),
-            axes: chain.joints().iter().map(|j| j.axis.into_inner()).collect(),
-            dq: vec![0.0; chain.dof()],
-        }
-    }
-
-    /// Sets the offsets of the current point (mm, deg; chain order).
-    pub fn set_offsets(&mut self, dq: &[f64]) {
-        for (a, b) in self.dq.iter_mut().zip(dq) {
-            *a = *b;
-        }
-    }
-}
-
-impl JointErrors for DynamicErrors<'_> {
-    fn error(&self, joint: usize, q: f64) -> Option<ErrorMotion> {
-        self.error_and_derivative(joint, q).map(|(e, _)| e)
-    }
-
-    fn error_and_derivative(&self, joint: usize, q: f64) -> Option<(ErrorMotion, ErrorMotion)> {
-        let base = self.base.error_and_derivative(joint, q);
-        let d = *self.dq.get(joint)?;
-        if d == 0.0 {
-            return base;
-        }
-        let u = self.axes[joint];
-        let mut e = ErrorMotion::zeros();
-        if self.kinds[joint] == JointKind::Revolute {
-            let r = d.to_radians();
-            e[3] = r * u.x;
-            e[4] = r * u.y;
-            e[5] = r * u.z;
-        } else {
-            e[0] = d * u.x;
-            e[1] = d * u.y;
-            e[2] = d * u.z;
-        }
-        Some(match base {
-            Some((b, db)) => (b + e, db),
-            None => (e, ErrorMotion::zeros()),
-        })
-    }
-
-    fn is_empty(&self) -> bool {
-        self.base.is_empty() && self.dq.iter().all(|d| *d == 0.0)
-    }
 }

@@ -7,6 +7,7 @@
 #![allow(clippy::needless_range_loop)]
 
 use super::*;
+use rayon::prelude::*;
 
 /// The best candidate of one family.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -306,9 +307,9 @@ pub(super) fn periodic_search(
             }
         }
     }
-    // Score of one frequency from the per-sample (sin θ, cos θ).
-    let mut cs = vec![0.0; 2 * ks];
-    let mut score = |trig: &[(f64, f64)]| -> f64 {
+    // Score of one frequency from the per-sample (sin θ, cos θ); `cs`: a
+    // buffer of 2·ks values.
+    let score = |trig: &[(f64, f64)], cs: &mut [f64]| -> f64 {
         let (mut ss, mut sc, mut cc, mut rs, mut rc) = (0.0, 0.0, 0.0, 0.0, 0.0);
         cs.iter_mut().for_each(|x| *x = 0.0);
         for (i, &(sn, co)) in trig.iter().enumerate() {
@@ -348,26 +349,38 @@ pub(super) fn periodic_search(
         (0..prep.n).map(|i| (omega * x[i]).sin_cos()).collect()
     };
     // The grid is uniform in frequency: each sample's (sin, cos)
-    // advances by a fixed rotation from one grid value to the next
-    // (re-seeded exactly every 32 steps against rounding drift).
+    // advances by a fixed rotation from one grid value to the next,
+    // re-seeded exactly every `RESEED` steps against rounding drift; the
+    // runs between seeds are independent, and are scored on every core
+    // (the same numbers as one after the other).
+    const RESEED: usize = 32;
     let rot = trig_at(step);
-    let mut trig = Vec::new();
-    let mut vals: Vec<(f64, f64)> = Vec::with_capacity(grid);
-    for g in 0..grid {
-        let f = f_lo + step * g as f64;
-        if g % 32 == 0 {
-            trig = trig_at(f);
-        } else {
-            for (t, r) in trig.iter_mut().zip(&rot) {
-                *t = (t.0 * r.1 + t.1 * r.0, t.1 * r.1 - t.0 * r.0);
-            }
-        }
-        vals.push((score(&trig), f));
-    }
+    let mut vals: Vec<(f64, f64)> = (0..grid.div_ceil(RESEED))
+        .into_par_iter()
+        .flat_map_iter(|run| {
+            let mut cs = vec![0.0; 2 * ks];
+            let mut trig = Vec::new();
+            let (first, end) = (run * RESEED, ((run + 1) * RESEED).min(grid));
+            (first..end)
+                .map(|g| {
+                    let f = f_lo + step * g as f64;
+                    if g == first {
+                        trig = trig_at(f);
+                    } else {
+                        for (t, r) in trig.iter_mut().zip(&rot) {
+                            *t = (t.0 * r.1 + t.1 * r.0, t.1 * r.1 - t.0 * r.0);
+                        }
+                    }
+                    (score(&trig, &mut cs), f)
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect();
     vals.sort_by(|a, b| b.0.total_cmp(&a.0));
     let f_best = vals[0].1;
+    let mut cs = vec![0.0; 2 * ks];
     let (f, _) = crate::numeric::golden_section_max(
-        &mut |f| score(&trig_at(f)),
+        &mut |f| score(&trig_at(f), &mut cs),
         (f_best - step).max(f_lo),
         (f_best + step).min(f_hi),
         16,
