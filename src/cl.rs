@@ -192,6 +192,9 @@ pub struct ClReader<R: BufRead> {
     logical: Logical,
     /// Texts of records given back, for the next records' texts.
     spare: Vec<Vec<u8>>,
+    /// A line read ahead (after a comment that may go on) and not taken:
+    /// the next physical line (`line` counts it already).
+    ahead: Option<Vec<u8>>,
     done: bool,
 }
 
@@ -242,6 +245,7 @@ impl<R: BufRead> ClReader<R> {
             buf: Vec::with_capacity(256),
             logical: Logical::default(),
             spare: Vec::new(),
+            ahead: None,
             done: false,
         }
     }
@@ -262,6 +266,10 @@ impl<R: BufRead> ClReader<R> {
 
     /// Read one physical line into `self.buf`; `Ok(false)` at end of file.
     fn read_physical(&mut self) -> Result<bool, Error> {
+        if let Some(line) = self.ahead.take() {
+            self.buf = line;
+            return Ok(true);
+        }
         self.buf.clear();
         match self.reader.read_until(b'\n', &mut self.buf) {
             Ok(0) => Ok(false),
@@ -299,12 +307,40 @@ impl<R: BufRead> ClReader<R> {
         // A whole-line `$$` comment.
         let start = &self.buf[col - 1..];
         if start.starts_with(b"$$") {
-            let comment = String::from_utf8_lossy(strip_eol(&start[2..]));
+            let mut comment = String::from_utf8_lossy(strip_eol(&start[2..]))
+                .trim()
+                .to_string();
+            // Creo comments a statement out over several lines, each ended
+            // with the continuation `$` inside the comment (`$$-> CSYS / 1,
+            // 0, 0, 0,  $`, then lines of numbers). A line that cannot start
+            // a statement (it starts with a number or a comma) after such a
+            // line goes on with the comment; any other is read next.
+            while comment.ends_with('$') {
+                match self.read_physical() {
+                    Ok(true) => {}
+                    Ok(false) => break,
+                    Err(e) => return Some(Err(e)),
+                }
+                let goes_on = first_non_blank(&self.buf).is_some_and(|c| {
+                    matches!(self.buf[c - 1], b'0'..=b'9' | b'+' | b'-' | b'.' | b',')
+                });
+                if !goes_on {
+                    self.ahead = Some(std::mem::take(&mut self.buf));
+                    break;
+                }
+                text.extend_from_slice(&self.buf);
+                comment.pop();
+                comment = format!(
+                    "{} {}",
+                    comment.trim_end(),
+                    String::from_utf8_lossy(strip_eol(&self.buf)).trim()
+                );
+            }
             return Some(Ok(ClRecord {
                 line: first,
                 col,
                 text,
-                statement: ClStatement::Comment(comment.trim().to_string()),
+                statement: ClStatement::Comment(comment),
             }));
         }
 

@@ -102,3 +102,27 @@ fn a_tool_length_in_the_axis_words_is_not_compensated_again() {
         "{out}"
     );
 }
+
+/// Creo comments a statement out over several lines, each ended with the
+/// continuation `$` inside the comment (`$$-> CSYS / …,  $`, then lines of
+/// numbers): the numbers go on with the comment. A `$` at the end of an
+/// ordinary comment does not swallow the statement after it. Before, the
+/// first line of numbers was refused as "expected an APT statement" (a
+/// Creo CL file found on GitHub).
+#[test]
+fn a_creo_comment_continued_with_a_dollar_takes_its_lines_of_numbers() {
+    let cl = "$$* Pro/CLfile  Version 9.0\nUNITS / MM\nMULTAX / ON\n$$-> CSYS / 1.0, 0.0, 0.0, 0.0,  $\n            0.0, 1.0, 0.0, 0.0,  $\n            0.0, 0.0, 1.0, 0.0\nRAPID\nGOTO / 0.0, 0.0, 10.0, 0.0, 0.0, 1.0\n$$ a note that ends with a dollar $\nGOTO / 5.0, 0.0, 10.0, 0.0, 0.0, 1.0\nFINI\n";
+    let (code, out, err) = post(cl);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains(
+            "\n(-> CSYS / 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0)\nG0 X0.0000 Y0.0000 Z10.0000"
+        ),
+        "{out}"
+    );
+    assert!(
+        out.contains("\n(a note that ends with a dollar $)\nG1 X5.0000 Y0.0000 Z10.0000"),
+        "{out}"
+    );
+    assert!(err.contains("2 poses converted"), "{err}");
+}
