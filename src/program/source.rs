@@ -252,6 +252,9 @@ const FRAME_KEYWORDS: [&str; 11] = [
     "CROTS",
 ];
 
+/// The addresses of axis words: a block's motion.
+const MOTION_AXES: [&str; 9] = ["X", "Y", "Z", "A", "B", "C", "U", "V", "W"];
+
 /// Follows the axis positions and modal state of a program in machine axes
 /// (absolute or incremental, mm or inch). Axes not yet programmed are 0
 /// (mm / deg).
@@ -272,6 +275,68 @@ impl MachineAxisTracker {
             ext: vec![0.0; machine.axes.len()],
             unknown: vec![false; machine.axes.len()],
         }
+    }
+
+    /// Refuses a move whose motion words cannot be followed: an axis word
+    /// the machine does not have (`B45` on an A/C machine: the program is
+    /// for another machine), and a motion word holding what kinpost does
+    /// not evaluate (`Y#1`, `Y[#1*4]`, `X=R1`, `I[-#104]`, `F#3`: a
+    /// parameter, an expression or a malformed number, whose text also
+    /// hides the rest of the block).
+    fn check_motion_words(
+        &self,
+        machine: &crate::machine::Machine,
+        line: &crate::gcode::Line,
+        file: &str,
+    ) -> Result<()> {
+        let refuse = |item: &crate::gcode::Item, message: String| {
+            Err(Error::input_with(
+                Location::new(file, line.number, item.start + 1),
+                message,
+                line.text_lossy(),
+            ))
+        };
+        for item in &line.items {
+            match &item.kind {
+                ItemKind::Word(w)
+                    if MOTION_AXES.contains(&w.address.as_str())
+                        && !machine.axes.iter().any(|a| a.name == w.address) =>
+                {
+                    let names: Vec<&str> = machine.axes.iter().map(|a| a.name.as_str()).collect();
+                    return refuse(
+                        item,
+                        format!(
+                            "axis word {} in a move, and machine {} has no {} axis (its axes: {}): the program is for another machine, and this move cannot be followed",
+                            w.address,
+                            machine.name,
+                            w.address,
+                            names.join(" ")
+                        ),
+                    );
+                }
+                ItemKind::Opaque => {
+                    let text = String::from_utf8_lossy(line.item_bytes(item));
+                    let text = text.trim();
+                    let mut chars = text.chars();
+                    let first = chars.next().map(|c| c.to_ascii_uppercase());
+                    let motion = first.is_some_and(|c| "XYZABCUVWIJKF".contains(c))
+                        && chars
+                            .next()
+                            .is_some_and(|c| c.is_ascii_digit() || "#[=-+.".contains(c));
+                    if motion {
+                        return refuse(
+                            item,
+                            format!(
+                                "this move holds syntax kinpost does not evaluate (`{}`: a parameter, an expression or a malformed number): where the axes go is not known; evaluate it first (in the CAM system or the controller's simulation)",
+                                crate::error::visible(text)
+                            ),
+                        );
+                    }
+                }
+                _ => {}
+            }
+        }
+        Ok(())
     }
 
     /// Applies one line; returns the block when it carries machine-axis words.
@@ -408,6 +473,7 @@ impl MachineAxisTracker {
             }
             return Ok(None);
         }
+        self.check_motion_words(machine, line, file)?;
         // A full circle may give its centre alone (`G2 I-10`): it ends
         // where it starts.
         let full_circle = meaning.motion == Motion::Arc

@@ -282,3 +282,72 @@ fn a_machine_axis_block_with_an_axis_twice_is_refused_where_its_motion_is_read()
     assert!(r.status.success());
     assert_eq!(String::from_utf8_lossy(&r.stdout), text);
 }
+
+/// Found in session 17 (third hunt for real input): `simulate` and
+/// `analyze --nonlinear` read a block in machine axes whose motion words
+/// hold a parameter or an expression (`G0 X10 Y#1 Z50`, LinuxCNC and Fanuc
+/// macro programs) as if those words were not there: the text from `Y#1`
+/// on is one unreadable item, so Y and Z (and a feed `F#3`) were dropped,
+/// exit 0; the recording put Y at 0 where the program says 5. A block with
+/// an axis word the machine does not have (`B45` on an A/C machine: a
+/// program for another machine) lost that axis the same way. `post`
+/// refused the first in pose mode already, and `linkage` the second where
+/// it had to divide the block. Now the three commands that read a block's
+/// motion refuse both at the word.
+#[test]
+fn a_move_with_an_expression_or_an_axis_the_machine_lacks_is_refused_where_its_motion_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "param.ngc",
+            "#1=5.\nG21 G90 G94\nG0 X0 Y0 Z50 A0 C0\nG0 X10 Y#1 Z50\nG1 X20 Y20 F600\nM30\n",
+            "param.ngc:4:8:",
+            "`Y#1 Z50`: a parameter, an expression or a malformed number",
+        ),
+        (
+            "feed.ngc",
+            "G21 G90 G94\nG0 X0 Y0 Z50 A0 C0\nG1 X10 F#3\nM30\n",
+            "feed.ngc:3:8:",
+            "`F#3`",
+        ),
+        (
+            "b.ngc",
+            "G21 G90 G94\nG1 X0 Y0 Z10 A0 C0 F1000\nG1 X10 Y0 Z10 B45 C90\nM30\n",
+            "b.ngc:3:15:",
+            "axis word B in a move, and machine xyzac-trt has no B axis (its axes: X Y Z A C)",
+        ),
+    ];
+    for (name, text, at, what) in cases {
+        let prog = dir.path().join(name);
+        std::fs::write(&prog, text).unwrap();
+        let p = prog.to_str().unwrap();
+        let out = dir.path().join("out");
+        let o = out.to_str().unwrap();
+        for args in [
+            vec!["linkage", "-m", "xyzac-trt", p, "-o", o],
+            vec!["simulate", "-m", "xyzac-trt", "-p", p, "-o", o],
+            vec!["analyze", "-m", "xyzac-trt", "--nonlinear", p],
+        ] {
+            let r = kinpost(&args);
+            let err = String::from_utf8_lossy(&r.stderr);
+            assert_eq!(r.status.code(), Some(1), "{args:?}: {err}");
+            assert!(err.contains(at) && err.contains(what), "{args:?}: {err}");
+            assert!(!out.exists(), "{args:?} wrote an output");
+        }
+    }
+    // A parameter set, or a G10 data block with one, moves nothing.
+    let prog = dir.path().join("data.ngc");
+    std::fs::write(
+        &prog,
+        "#1=5.\nG21 G90 G94\nG10 L2 P1 X#1\nG0 X0 Y0 Z50 A0 C0\nG1 X10 F600\nM30\n",
+    )
+    .unwrap();
+    let r = kinpost(&[
+        "analyze",
+        "-m",
+        "xyzac-trt",
+        "--nonlinear",
+        prog.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+}

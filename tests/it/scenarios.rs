@@ -145,9 +145,14 @@ fn random_walk(machine: &Machine, rng: &mut SplitMix64) -> Vec<Vec<f64>> {
 /// The pose program of `qs`: arcs first, then pose mode, feeds alternating
 /// between G94 and G93 every 100 blocks.
 fn pose_program(machine: &Machine, qs: &[Vec<f64>]) -> (String, Vec<kinpost::machine::Pose>) {
-    let mut s = String::from(
-        "%\nG21 G90 G17\nG0 X10 Y0 Z50\nG2 X0 Y10 I-10 J0 F500\nG3 X-10 Y0 I0 J-10\nG43.5 H1\n",
-    );
+    // The arcs in machine axes: in G17, or in G18 on a machine without a Y
+    // axis (whose program has no Y word before the poses).
+    let arcs = if machine.axes.iter().any(|a| a.name == "Y") {
+        "G17\nG0 X10 Y0 Z50\nG2 X0 Y10 I-10 J0 F500\nG3 X-10 Y0 I0 J-10\n"
+    } else {
+        "G18\nG0 X10 Z50\nG2 X0 Z60 I-10 K0 F500\nG3 X-10 Z50 I0 K-10\nG17\n"
+    };
+    let mut s = format!("%\nG21 G90\n{arcs}G43.5 H1\n");
     let mut poses = Vec::new();
     for (i, q) in qs.iter().enumerate() {
         let p = machine.chain.pose(q, &NoErrors);
@@ -408,7 +413,8 @@ fn random_machines_and_programs_through_every_command() {
             let posted = std::fs::read_to_string(d.join("post.nc")).unwrap();
             assert!(out.is_empty());
             assert!(
-                posted.contains("G2 X0 Y10 I-10 J0 F500\nG3 X-10 Y0 I0 J-10\n"),
+                posted.contains("G2 X0 Y10 I-10 J0 F500\nG3 X-10 Y0 I0 J-10\n")
+                    || posted.contains("G2 X0 Z60 I-10 K0 F500\nG3 X-10 Z50 I0 K-10\n"),
                 "{name}: arcs changed"
             );
             let rows = axis_rows(&m, &posted, 6);

@@ -233,12 +233,13 @@ fn analyze_measures_the_block_after_an_arc_from_its_end() {
 
 /// An arc in a plane whose axes the machine lacks (`G17` on the X Z B C
 /// lens machine) is refused with file:line:col, the column of the block.
-/// Before, the message named no column.
+/// Before, the message named no column. (With a `Y` word the block is
+/// refused at that word first: the machine has no Y axis.)
 #[test]
 fn an_arc_in_a_plane_the_machine_lacks_is_refused_at_its_block() {
     let dir = tempfile::tempdir().unwrap();
     let prog = dir.path().join("xy.ngc");
-    std::fs::write(&prog, "G21 G90 G17\nG1 X10 Z0 F600\nG2 X20 Y10 I0 J10\n").unwrap();
+    std::fs::write(&prog, "G21 G90 G17\nG1 X10 Z0 F600\nG2 X20 I5 J0\n").unwrap();
     let out = kinpost(&[
         "simulate",
         "-m",
