@@ -42,6 +42,7 @@ pub fn cl_poses<R: BufRead>(
     let mut axis = Vector3::z();
     let mut units = Units::Mm;
     let mut feed = None;
+    let mut per_rev = false;
     let mut rapid = false;
     let mut records = crate::cl::lower(
         ClReader::new(input, file),
@@ -110,6 +111,15 @@ pub fn cl_poses<R: BufRead>(
                     crate::cl::ClUnits::Mm => Units::Mm,
                 }
             }
+            // The lowering gives a feed per revolution as `G95` and the
+            // feed in mm/rev (`cl::lower`): no feed per minute until `G94`.
+            ClStatement::Block(ref b) if b == "G95" || b == "G94" => {
+                per_rev = b == "G95";
+                if per_rev {
+                    feed = None;
+                }
+            }
+            ClStatement::Fedrat { .. } if per_rev => feed = None,
             ClStatement::Fedrat { value, unit } => {
                 feed = match unit {
                     FeedUnit::Mmpm => Some(value),
