@@ -107,6 +107,7 @@ pub fn lower<R: BufRead>(
         tool: None,
         per_rev: false,
         commented: BTreeMap::new(),
+        silenced: Default::default(),
     }
 }
 
@@ -181,6 +182,11 @@ impl<R: BufRead> Lowered<R> {
                 });
             }
             "CYCLE" => self.cycle(r, &args)?,
+            "SYN" => {
+                self.synonyms(r)?;
+                self.count_commented(major);
+                return Ok(true);
+            }
             "INDIRV" => {
                 let v = self.numbers(r, &args, "INDIRV")?;
                 if v.len() != 3 || norm([v[0], v[1], v[2]]) < 1e-12 {
@@ -415,6 +421,25 @@ impl<R: BufRead> Lowered<R> {
         {
             return Err(self.err(&r, "CIRCLE must be followed by the GOTO that ends the arc"));
         }
+        // A statement whose major word a `SYN` commented out.
+        if !self.silenced.is_empty() && !matches!(r.statement, ClStatement::Comment(_)) {
+            let text = String::from_utf8_lossy(&r.text);
+            let major = text
+                .trim_start()
+                .split(|c: char| c == '/' || c == ',' || c.is_whitespace())
+                .next()
+                .unwrap_or_default()
+                .to_ascii_uppercase();
+            if self.silenced.contains(&major) {
+                let comment = ClStatement::Comment(format!("{} (SYN: a comment)", text.trim()));
+                self.count_commented(&major);
+                self.out.push_back(ClRecord {
+                    statement: comment,
+                    ..r
+                });
+                return Ok(());
+            }
+        }
         // Whether `r` is kept as it is.
         let keep = match &r.statement {
             ClStatement::Goto { tip, axis } => {
@@ -456,6 +481,55 @@ impl<R: BufRead> Lowered<R> {
             self.out.push_back(r);
         } else {
             self.inner.recycle(r.text);
+        }
+        Ok(())
+    }
+
+    /// `SYN/'WORD','$$…',…`: pairs of a word and what it stands for. A word
+    /// that stands for a comment (`$$…`, as CATIA's ICAM output writes
+    /// `SYN/'TLAXIS','$$*TLAXIS'`) makes its statements comments; any
+    /// other synonym, or one that would comment out a statement of the
+    /// tool's path, is refused: kinpost does not apply it.
+    fn synonyms(&mut self, r: &ClRecord) -> Result<(), Error> {
+        // From the record's text: a `$$` in a quoted word is not a comment.
+        let text = String::from_utf8_lossy(&r.text);
+        let after = text.split_once('/').map_or("", |(_, a)| a);
+        let mut args: Vec<String> = Vec::new();
+        let (mut quote, mut current) = (None, String::new());
+        let mut chars = after.chars().peekable();
+        while let Some(c) = chars.next() {
+            match (quote, c) {
+                (None, '\'' | '"') => quote = Some(c),
+                (Some(q), _) if c == q => quote = None,
+                (None, ',') => args.push(std::mem::take(&mut current)),
+                // A `$$` comment to the line's end; a continuation `$`
+                // and the line ends are not part of the words.
+                (None, '$') if chars.peek() == Some(&'$') => {
+                    chars.by_ref().take_while(|&c| c != '\n').for_each(drop);
+                }
+                (None, '$' | '\r' | '\n') => {}
+                _ => current.push(c),
+            }
+        }
+        args.push(current);
+        let args: Vec<String> = args.iter().map(|a| a.trim().to_ascii_uppercase()).collect();
+        if args.is_empty() || args.len() % 2 != 0 {
+            return Err(self.err(r, "SYN expects pairs of a word and what it stands for"));
+        }
+        for pair in args.chunks(2) {
+            let (name, meaning) = (pair[0].clone(), pair[1].clone());
+            let path = [
+                "GOTO", "GODLTA", "GOHOME", "FROM", "CIRCLE", "CYCLE", "MOVARC",
+            ];
+            if !meaning.starts_with("$$") || path.contains(&name.as_str()) {
+                return Err(self.err(
+                    r,
+                    format!(
+                        "SYN makes `{name}` stand for `{meaning}`: kinpost applies a synonym only where it comments out a statement that is not part of the tool's path (`SYN/'TLAXIS','$$*TLAXIS'`); replace the synonyms in the CL data first"
+                    ),
+                ));
+            }
+            self.silenced.insert(name);
         }
         Ok(())
     }

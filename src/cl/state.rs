@@ -83,6 +83,9 @@ pub struct Lowered<R: BufRead> {
     pub(super) tool: Option<u32>,
     pub(super) per_rev: bool,
     pub(super) commented: BTreeMap<String, usize>,
+    /// Major words a `SYN/'WORD','$$…'` commented out: their statements
+    /// are kept as comments.
+    pub(super) silenced: std::collections::BTreeSet<String>,
 }
 
 /// The statements of a feed change: `G95` or `G94` when the feed mode

@@ -171,3 +171,31 @@ fn a_feed_per_revolution_is_not_read_as_a_feed_per_minute() {
         .unwrap();
     assert!(last_t > 1.0 && last_t < 2.0, "{last_t} s");
 }
+
+/// CATIA's ICAM output comments a statement out with a synonym,
+/// `SYN/'TLAXIS','$$*TLAXIS'`: the `TLAXIS` after it is a comment, and the
+/// tool stays along Z. Before, the `SYN` was kept as a comment and the
+/// `TLAXIS/0,1,0` applied: `A90`, the tool tilted a quarter turn, exit 0.
+/// Any other synonym (`SYN/GT,GOTO`), and one that would comment out a
+/// statement of the tool's path, is refused.
+#[test]
+fn a_synonym_that_comments_a_statement_out_is_applied_and_others_are_refused() {
+    let cl = "PARTNO SYN TEST\nUNITS/MM\nSYN/'TLAXIS','$$*TLAXIS'\nMULTAX/ON\nFEDRAT/500.0,MMPM\nTLAXIS/ 0.000000, 1.000000, 0.000000\nGOTO/10.0,0.0,5.0\nGOTO/20.0,0.0,5.0\nFINI\n";
+    let (code, out, err) = crate::cl_support::post_stdin("xyzac-trt", &[], cl);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("(TLAXIS/ 0.000000, 1.000000, 0.000000 [SYN: a comment])\nG1 X10.0000 Y0.0000 Z5.0000 A0.0000 C0.0000 F500.0\n"),
+        "{out}"
+    );
+    assert!(err.contains("SYN 1, TLAXIS 1"), "{err}");
+    for (syn, word) in [
+        ("SYN/GT,GOTO", "`GT` stand for `GOTO`"),
+        ("SYN/'GOTO','$$GOTO'", "`GOTO` stand for `$$GOTO`"),
+        ("SYN/'TLAXIS'", "pairs of a word"),
+    ] {
+        let cl = format!("UNITS/MM\n{syn}\nGOTO/1,2,3\n");
+        let (code, _, err) = crate::cl_support::post_stdin("xyzac-trt", &[], &cl);
+        assert_eq!(code, 1, "{syn}: {err}");
+        assert!(err.contains(":2:1:") && err.contains(word), "{syn}: {err}");
+    }
+}
