@@ -7,18 +7,24 @@ use super::chain::NoErrors;
 use super::{JointKind, Machine, Pose, RotaryMode};
 
 /// A rotary axis turning more than this within one block (deg) is looked
-/// at mid-block.
-pub const BIG_TURN_DEG: f64 = 90.0;
+/// at mid-block. Ordinary five-axis blocks turn a rotary by a degree or
+/// two; a pass near the singular pose (tilt near 0, where a small change
+/// of the tool axis turns the other rotary far), a change of branch or an
+/// unwinding turns it by tens of degrees.
+pub const BIG_TURN_DEG: f64 = 5.0;
+
+/// A rotary turn above which the block is said to change branch, deg.
+const BRANCH_TURN_DEG: f64 = 90.0;
 
 /// Mid-block departure from the programmed line above which a big turn is
 /// warned of, mm.
 pub const BIG_TURN_DEPARTURE_MM: f64 = 1.0;
 
 /// The warning for a block in which a rotary axis turns by more than
-/// [`BIG_TURN_DEG`] (a change of branch at a tilt limit, or an unwinding)
-/// and the tool, moved by the controller along the straight line in joint
-/// space, leaves the programmed line by more than
-/// [`BIG_TURN_DEPARTURE_MM`] mid-block; `None` otherwise.
+/// [`BIG_TURN_DEG`] (a pass near the singular pose, a change of branch at
+/// a tilt limit, or an unwinding) and the tool, moved by the controller
+/// along the straight line in joint space, leaves the programmed line by
+/// more than [`BIG_TURN_DEPARTURE_MM`] mid-block; `None` otherwise.
 pub fn branch_change_warning(
     machine: &Machine,
     prev: &[f64],
@@ -68,9 +74,14 @@ pub fn branch_change_warning(
     let mid_q: Vec<f64> = prev.iter().zip(&step).map(|(a, d)| a + 0.5 * d).collect();
     let mid = machine.chain.pose(&mid_q, &none).tip;
     let departure = (mid - 0.5 * (start + pose.tip)).norm();
+    let why = if turn > BRANCH_TURN_DEG {
+        "the pose is reached on another branch of the kinematics"
+    } else {
+        "near the singular pose a small change of the tool axis turns a rotary far"
+    };
     (departure > BIG_TURN_DEPARTURE_MM).then(|| {
         format!(
-            "{} turns {turn:.1}° within this block (the pose is reached on another branch of the kinematics); moved along a straight line in joint space the tool is {departure:.3} mm off the programmed line mid-block: check the clearance, or let `kinpost linkage` insert points",
+            "{} turns {turn:.1}° within this block ({why}); moved along a straight line in joint space the tool is {departure:.3} mm off the programmed line mid-block: check the clearance, or let `kinpost linkage` insert points",
             joints[j].name
         )
     })

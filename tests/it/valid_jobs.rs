@@ -267,6 +267,65 @@ fn axis_rows(text: &str) -> Vec<[f64; 5]> {
         .collect()
 }
 
+/// Found in session 17 on an NCL CL file: tool axes within 1° of +Z, where
+/// a small change of the axis turns the table's C far (here 24° and 65° in
+/// two blocks). The poses are right; the controller, moving the joints
+/// along a straight line, takes the tool 1.5 and 10.6 mm off the
+/// programmed line mid-block. Only turns above 90° were looked at: no
+/// warning. Now every block whose rotary turns more than 5° is, and a
+/// departure above 1 mm is warned of, recomputed here from the written
+/// words through forward kinematics.
+#[test]
+fn a_pass_near_the_singular_pose_is_warned_of_with_its_mid_block_departure() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("near.apt");
+    std::fs::write(
+        &p,
+        "UNITS/MM\nMULTAX/ON\nFEDRAT/300,MMPM\nGOTO  /   67.5889,    1.0510,    2.2198, 0.0141598,-0.0038088, 0.9998925\nGOTO  /   68.1602,    1.0544,    2.2132, 0.0068718,-0.0055681, 0.9999609\nGOTO  /   68.4121,    1.0555,    2.2115,-0.0190379,-0.0091253, 0.9997771\nFINI\n",
+    )
+    .unwrap();
+    let (code, out, err) = run(&["post", "--machine", "xyzbc-trt", p.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let warnings: Vec<&str> = err.lines().filter(|l| l.contains(" turns ")).collect();
+    assert_eq!(warnings.len(), 2, "{err}");
+    let m = kinpost::machine::Machine::embedded("xyzbc-trt").unwrap();
+    let moves: String = out
+        .lines()
+        .filter(|l| !l.starts_with('('))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let rows = axis_rows(&moves);
+    assert_eq!(rows.len(), 3, "{out}");
+    let tip = |r: [f64; 5]| {
+        let q = m.to_internal(&r);
+        m.chain.pose(&q, &kinpost::machine::NoErrors).tip
+    };
+    for (k, w) in warnings.iter().enumerate() {
+        assert!(w.contains(&format!("near.apt:{}:1:", 5 + k)), "{w}");
+        assert!(w.contains("near the singular pose"), "{w}");
+        let (a, b) = (rows[k], rows[k + 1]);
+        // C is a modulo axis: the controller takes the short way.
+        let mut turn = b[4] - a[4];
+        turn -= 360.0 * (turn / 360.0).round();
+        let mut mid: Vec<f64> = (0..5).map(|j| 0.5 * (a[j] + b[j])).collect();
+        mid[4] = a[4] + 0.5 * turn;
+        let departure =
+            (tip([mid[0], mid[1], mid[2], mid[3], mid[4]]) - 0.5 * (tip(a) + tip(b))).norm();
+        let said: f64 = w
+            .split("tool is ")
+            .nth(1)
+            .and_then(|s| s.split(" mm").next())
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(
+            departure > 1.0 && (said - departure).abs() < 0.001,
+            "{said} vs {departure}"
+        );
+        assert!(w.contains(&format!("C turns {:.1}°", turn.abs())), "{w}");
+    }
+}
+
 #[test]
 fn a_change_of_branch_at_the_tilt_limit_is_warned_of_with_its_mid_block_departure() {
     // Tilting through 0 towards −X on xyzbc-trt (B −35 … 110°): past
