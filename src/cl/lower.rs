@@ -513,7 +513,7 @@ impl<R: BufRead> Lowered<R> {
         }
         args.push(current);
         let args: Vec<String> = args.iter().map(|a| a.trim().to_ascii_uppercase()).collect();
-        if args.is_empty() || args.len() % 2 != 0 {
+        if args.is_empty() || !args.len().is_multiple_of(2) {
             return Err(self.err(r, "SYN expects pairs of a word and what it stands for"));
         }
         for pair in args.chunks(2) {
