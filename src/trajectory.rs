@@ -108,7 +108,7 @@ pub fn joint_trajectory<R: BufRead>(
                 previous.as_deref(),
                 axis_tolerance_rad,
             )
-            .map_err(|m| Error::input(Location::new(file, ev.line, 0), m))?;
+            .map_err(|m| Error::input(Location::new(file, ev.line, 1), m))?;
             let block = TrajectoryBlock {
                 line: ev.line,
                 q: q.to_vec(),

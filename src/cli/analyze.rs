@@ -311,7 +311,7 @@ fn run(
         if let (Some(an), Some(pose)) = (analyzer.as_mut(), &b.pose) {
             let block = an
                 .add(b.line, pose)
-                .map_err(|m| Error::input(crate::error::Location::new(name, b.line, 0), m))?;
+                .map_err(|m| Error::input(crate::error::Location::new(name, b.line, 1), m))?;
             if let Some(r) = report.as_mut() {
                 r.value(&block).map_err(io)?;
             }

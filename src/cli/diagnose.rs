@@ -150,7 +150,7 @@ pub fn program_waypoints(
             (false, Some(f), Some(before)) => {
                 if !(f.is_finite() && f > 0.0) {
                     return Err(Error::input(
-                        Location::new(&name, b.line, 0),
+                        Location::new(&name, b.line, 1),
                         format!(
                             "inverse-time feed F{f} (G93): expected a positive number of moves per minute"
                         ),

@@ -92,7 +92,9 @@ pub fn describe_opaque(bytes: &[u8]) -> String {
             "`{quoted}`: the word {address} has no number; expected a number such as {address}12.5"
         );
     }
-    if value.starts_with(['[', '#', '<']) {
+    // A name (`CYCLE_974`, `CGTECH_MACRO`: a call, a variable, a keyword),
+    // not an address with a bad number.
+    if value.starts_with(['[', '#', '<', '_']) || address.len() >= 3 {
         return generic();
     }
     let unsigned = value.trim_start_matches(['+', '-']).trim_start();
@@ -418,5 +420,14 @@ mod tests {
         assert!(d(b"A3=R12").starts_with("`A3=R12`: an R parameter"));
         assert!(d(b"O<a> WHILE [1]").starts_with("an o-word control statement (`o<a> WHILE`"));
         assert!(d(b"o100").starts_with("malformed number"));
+        // A name is not an address with a bad number (it was "expected a
+        // number such as CYCLE12.5", on a Vericut Sinumerik file).
+        for name in [&b"CYCLE_974"[..], b"CGTECH_MACRO", b"L_HOME"] {
+            let m = d(name);
+            assert!(
+                m.contains("does not evaluate") && m.contains("such as X12.5"),
+                "{m}"
+            );
+        }
     }
 }
