@@ -15,7 +15,8 @@ use std::path::PathBuf;
 /// `kinpost linkage`.
 #[derive(Debug, Args)]
 pub struct LinkageArgs {
-    /// Five-axis program: machine axes, or tool poses (converted first).
+    /// Five-axis G-code program: machine axes, or tool poses (converted
+    /// first). APT CL: convert it with `kinpost post` first and pass its output.
     #[arg(value_name = "PROGRAM")]
     pub input: Option<PathBuf>,
     #[command(flatten)]

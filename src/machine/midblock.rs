@@ -77,7 +77,7 @@ pub fn branch_change_warning(
     let why = if turn > BRANCH_TURN_DEG {
         "the pose is reached on another branch of the kinematics"
     } else {
-        "near the singular pose a small change of the tool axis turns a rotary far"
+        "a large change of the tool axis in one block, or a small one near the singular pose, where it turns a rotary far"
     };
     (departure > BIG_TURN_DEPARTURE_MM).then(|| {
         format!(

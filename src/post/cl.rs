@@ -112,6 +112,7 @@ pub fn convert_cl<S: Stage, R: BufRead, W: Write + ?Sized>(
             last_tip: None,
             g93: false,
             feed_written: None,
+            warned_no_feed: false,
             motion_written: None,
             plane_written: None,
             g80_applied: 0,
@@ -244,6 +245,8 @@ struct ClBack<'a> {
     /// The output is in `G93`.
     g93: bool,
     feed_written: Option<f64>,
+    /// A feed move without a feed was warned of.
+    warned_no_feed: bool,
     motion_written: Option<u8>,
     plane_written: Option<u8>,
     /// The `G80` blocks applied to `motion_written`.
@@ -677,6 +680,15 @@ impl ClBack<'_> {
             scratch.push_str(" F");
             cl_motion::push_number(scratch, pending.feed.unwrap_or(0.0));
             self.feed_written = pending.feed;
+        } else if motion == 1 && pending.feed.is_none() && !self.warned_no_feed {
+            self.warned_no_feed = true;
+            self.warnings.push((
+                (pending.seq, 1),
+                format!(
+                    "{}: a feed move (a GOTO after no RAPID) before any FEDRAT: written as G1 without F; a controller refuses it (LinuxCNC, Fanuc) or moves at a feed left from before the program; give a FEDRAT in the CL data",
+                    location(opts, record)
+                ),
+            ));
         }
         out.extend_from_slice(scratch.as_bytes());
         // The block without trailing spaces (the words may be none).

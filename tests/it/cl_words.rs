@@ -199,3 +199,33 @@ fn a_synonym_that_comments_a_statement_out_is_applied_and_others_are_refused() {
         assert!(err.contains(":2:1:") && err.contains(word), "{syn}: {err}");
     }
 }
+
+/// A CL whose first feed moves come before any `FEDRAT` was written as
+/// `G1` without `F`, without a word said: LinuxCNC and Fanuc refuse such a
+/// block, others move at a feed left from before. Now it is warned of,
+/// once, at the first such `GOTO`.
+#[test]
+fn a_feed_move_before_any_feed_is_warned_of() {
+    let cl = "UNITS/MM\nGOTO/1,2,3\nGOTO/2,2,3\nFEDRAT/100,MMPM\nGOTO/3,2,3\nFINI\n";
+    let (code, out, err) = post(cl);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("\nG1 X1.0000 Y2.0000 Z3.0000 B0.0000 C0.0000\n"),
+        "{out}"
+    );
+    let warned: Vec<&str> = err
+        .lines()
+        .filter(|l| l.contains("before any FEDRAT"))
+        .collect();
+    assert_eq!(warned.len(), 1, "{err}");
+    assert!(warned[0].contains("<stdin>:2:1:"), "{err}");
+    // With a feed first, or rapids only, nothing is said.
+    for cl in [
+        "UNITS/MM\nFEDRAT/100,MMPM\nGOTO/1,2,3\nFINI\n",
+        "UNITS/MM\nRAPID\nGOTO/1,2,3\nFINI\n",
+    ] {
+        let (code, _, err) = post(cl);
+        assert_eq!(code, 0, "{err}");
+        assert!(!err.contains("FEDRAT"), "{err}");
+    }
+}
