@@ -13,7 +13,10 @@
 //! Feeds: in `G94` the feed carries over (the inserted blocks repeat an `F`
 //! the block sets); in `G93` every inserted block gets `F = n·F₀` so each of
 //! the `n` segments takes `1/n` of the original block's time and the original
-//! segment keeps its time (tool tips are evenly spaced along the line).
+//! segment keeps its time (tool tips are evenly spaced along the line). A
+//! `G94` block that turns rotaries alone (F in degrees a minute) whose
+//! segments move linear axes gets per-segment feeds that keep its time,
+//! and the programmed feed is set again after it.
 
 use super::carry::share_out;
 use super::nonlinear::nonlinear_error;
@@ -213,6 +216,29 @@ impl<'m> Axes<'m> {
             .collect()
     }
 
+    /// What a `G94` feed applies to from `a` to `b` as written (program
+    /// units): the linear axes' path, or where no linear axis moves the
+    /// largest rotary turn (deg, a modulo axis the short way); and whether
+    /// a linear axis moves.
+    fn written_feed_distance(&self, a: &[f64], b: &[f64], units: Units) -> (f64, bool) {
+        let (ra, rb) = (self.rounded(a, units), self.rounded(b, units));
+        let (mut lin, mut rot) = (0.0f64, 0.0f64);
+        for (k, axis) in self.machine.axes.iter().enumerate() {
+            match (axis.kind, axis.rotary) {
+                (JointKind::Prismatic, _) => lin += (rb[k] - ra[k]).powi(2),
+                (_, RotaryMode::Modulo) => {
+                    rot = rot.max((unwind_near_degrees(rb[k], ra[k]) - ra[k]).abs())
+                }
+                _ => rot = rot.max((rb[k] - ra[k]).abs()),
+            }
+        }
+        if lin > 0.0 {
+            (lin.sqrt(), true)
+        } else {
+            (rot, false)
+        }
+    }
+
     /// Number of axes the machine has.
     fn count(&self) -> usize {
         self.machine.axes.len()
@@ -256,23 +282,31 @@ fn move_minutes(machine: &Machine, qa: &[f64], qb: &[f64], feed: &FeedState) -> 
     match feed.mode {
         FeedMode::InverseTime => feed.value.map(|f| 1.0 / f).unwrap_or(0.0),
         FeedMode::PerRevolution => 0.0,
-        FeedMode::PerMinute => {
-            let ea = machine.to_external(qa);
-            let eb = machine.to_external(qb);
-            let (mut lin, mut rot) = (0.0f64, 0.0f64);
-            for (k, a) in machine.axes.iter().enumerate() {
-                let d = eb[k] - ea[k];
-                match a.kind {
-                    JointKind::Prismatic => lin += d * d,
-                    JointKind::Revolute => rot = rot.max(d.abs()),
-                }
-            }
-            let dist = if lin > 1e-18 { lin.sqrt() } else { rot };
-            match feed.value {
-                Some(f) if f > 0.0 => dist / f,
-                _ => 0.0,
-            }
+        FeedMode::PerMinute => match feed.value {
+            Some(f) if f > 0.0 => feed_distance(machine, qa, qb).0 / f,
+            _ => 0.0,
+        },
+    }
+}
+
+/// What a `G94` feed applies to from `qa` to `qb`: the linear axes' path
+/// (mm), or where no linear axis moves the largest rotary turn (deg); and
+/// whether a linear axis moves.
+fn feed_distance(machine: &Machine, qa: &[f64], qb: &[f64]) -> (f64, bool) {
+    let ea = machine.to_external(qa);
+    let eb = machine.to_external(qb);
+    let (mut lin, mut rot) = (0.0f64, 0.0f64);
+    for (k, a) in machine.axes.iter().enumerate() {
+        let d = eb[k] - ea[k];
+        match a.kind {
+            JointKind::Prismatic => lin += d * d,
+            JointKind::Revolute => rot = rot.max(d.abs()),
         }
+    }
+    if lin > 1e-18 {
+        (lin.sqrt(), true)
+    } else {
+        (rot, false)
     }
 }
 
@@ -587,6 +621,36 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
         let carried = share_out(&mline, &block.axis_items, block.feed_item)
             .map_err(|(i, m)| Error::input_with(at(Some(i)), m, mline.text_lossy()))?;
         let segments = points.len() + 1;
+        // A G94 block that turns rotaries alone runs at F degrees a minute;
+        // where its segments move linear axes, F would be mm/min there and
+        // the turn would run at another speed. Each segment then gets the
+        // feed that keeps its share (1/n) of the block's time, and the
+        // programmed feed is set again after the block.
+        let ends: Vec<&[f64]> = std::iter::once(qa.as_slice())
+            .chain(points.iter().map(|p| p.as_slice()))
+            .chain(std::iter::once(qb.as_slice()))
+            .collect();
+        let block_minutes = move_minutes(machine, &qa, qb, &block.feed);
+        // Each segment's path as written (program units: inch in G20).
+        let written: Vec<(f64, bool)> = ends
+            .windows(2)
+            .map(|w| axes.written_feed_distance(w[0], w[1], block.units))
+            .collect();
+        let retimed: Option<Vec<f64>> = (block.feed.mode == FeedMode::PerMinute
+            && block_minutes > 0.0
+            && !feed_distance(machine, &qa, qb).1
+            && written.iter().any(|w| w.1))
+        .then(|| {
+            written
+                .iter()
+                .map(|(d, _)| d * segments as f64 / block_minutes)
+                .collect()
+        });
+        let retimed_text = |k: usize| {
+            let mut t = String::from(" F");
+            push_fixed(&mut t, retimed.as_ref().map_or(0.0, |f| f[k]), 4);
+            t
+        };
         // The feed of each segment: in G93 every one gets n·F₀.
         let segment_feed = match block.feed.mode {
             FeedMode::InverseTime => FeedState {
@@ -624,6 +688,8 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             s.push_str(&axes.words(&from, p, block.units, block.absolute));
             if block.feed.mode == FeedMode::InverseTime {
                 feed_text(&mut s);
+            } else if retimed.is_some() {
+                s.push_str(&retimed_text(i));
             } else if let (0, Some(item)) = (i, block.feed_item) {
                 // The block sets a new feed: it applies from the first inserted block on.
                 s.push(' ');
@@ -639,13 +705,21 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             let m = axes.moved(&from, p);
             report.max_axes_moved_after = report.max_axes_moved_after.max(m);
             report.over_axes_after += usize::from(m > opts.max_axes);
-            report.cycle_time_after_s += 60.0 * move_minutes(machine, &from, p, &segment_feed);
+            report.cycle_time_after_s += 60.0
+                * match retimed {
+                    Some(_) => block_minutes / segments as f64,
+                    None => move_minutes(machine, &from, p, &segment_feed),
+                };
             from = p.clone();
         }
         let m = axes.moved(&from, qb);
         report.max_axes_moved_after = report.max_axes_moved_after.max(m);
         report.over_axes_after += usize::from(m > opts.max_axes);
-        report.cycle_time_after_s += 60.0 * move_minutes(machine, &from, qb, &segment_feed);
+        report.cycle_time_after_s += 60.0
+            * match retimed {
+                Some(_) => block_minutes / segments as f64,
+                None => move_minutes(machine, &from, qb, &segment_feed),
+            };
         let mut words = axes.words(&from, qb, block.units, block.absolute);
         let mut replace = block.axis_items.clone();
         if let (FeedMode::InverseTime, Some(item)) = (block.feed.mode, block.feed_item) {
@@ -654,6 +728,12 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             let mut f = String::new();
             feed_text(&mut f);
             words.push_str(&f);
+        } else if retimed.is_some() {
+            if let Some(item) = block.feed_item {
+                replace.push(item);
+                replace.sort_unstable();
+            }
+            words.push_str(&retimed_text(segments - 1));
         }
         text.clear();
         rewrite(
@@ -665,6 +745,14 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             &mut text,
         );
         out.write_all(&text).map_err(io)?;
+        if let (Some(_), Some(f)) = (&retimed, block.feed.value) {
+            let mut s = String::from("F");
+            push_fixed(&mut s, f, 4);
+            s.push_str(" (kinpost linkage: the programmed feed again)");
+            s.push_str(eol(&mline));
+            out.write_all(s.as_bytes()).map_err(io)?;
+            report.blocks_out += 1;
+        }
         Ok(())
     };
     let mut lines = LineReader::new(input);

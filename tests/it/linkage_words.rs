@@ -306,3 +306,71 @@ fn tool_centre_point_control_past_the_start_is_refused() {
         );
     }
 }
+
+/// Minutes of the `G1` moves of `text` in G94 as LinuxCNC and Fanuc time
+/// them on X Y Z B C: F is mm/min along the linear axes' path, or, where
+/// only rotaries move, degrees a minute of the largest turn.
+fn g94_minutes(text: &str) -> f64 {
+    let (mut pos, mut feed, mut rapid, mut minutes) = ([0.0f64; 5], 0.0, true, 0.0);
+    for line in text.lines() {
+        let l = kinpost::gcode::parse_line(line.as_bytes(), 1);
+        let mut next = pos;
+        for w in l.words() {
+            match (w.address.as_str(), w.value) {
+                ("G", 0.0) => rapid = true,
+                ("G", 1.0) => rapid = false,
+                ("F", v) => feed = v,
+                (a, v) => {
+                    if let Some(k) = ["X", "Y", "Z", "B", "C"].iter().position(|x| *x == a) {
+                        next[k] = v;
+                    }
+                }
+            }
+        }
+        let lin = (0..3)
+            .map(|k| (next[k] - pos[k]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let rot = (3..5).map(|k| (next[k] - pos[k]).abs()).fold(0.0, f64::max);
+        if !rapid && (lin > 0.0 || rot > 0.0) {
+            minutes += if lin > 1e-12 { lin } else { rot } / feed;
+        }
+        pos = next;
+    }
+    minutes
+}
+
+/// Found in session 17 (a real five-axis program, `G1 A30 F100`): a block
+/// that turns a rotary alone runs at F degrees a minute. Divided to keep
+/// the tool on the programmed line, its segments also move linear axes,
+/// where the same F is mm/min: the turn ran 11 % faster, and the report
+/// said so in its cycle time only. Now each segment carries the feed that
+/// keeps its share of the block's time, and the programmed feed is set
+/// again after the block: the program runs as long as before, timed here
+/// as a controller times it.
+#[test]
+fn a_divided_rotary_turn_keeps_its_time_and_the_feed_after_it() {
+    let program = "G21 G90 G94\nG0 X0 Y15 Z50 B0 C0\nG1 C40 F100\nG1 C50\nG1 X5 F300\nM30\n";
+    let (code, out, err) = linkage("turn.ngc", program);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.lines().count() > 10, "the turn is divided: {out}");
+    let (before, after) = (g94_minutes(program), g94_minutes(&out));
+    assert!(
+        (before - (0.4 + 0.1 + 5.0 / 300.0)).abs() < 1e-12,
+        "{before}"
+    );
+    // The feeds are worked out from the words as written; the feed's own
+    // four decimals remain. Before, the turns took 11 % less.
+    assert!(
+        (after - before).abs() < 1e-3 * before,
+        "{after} min against {before} min:\n{out}"
+    );
+    // After each of the two divided turns.
+    assert_eq!(
+        out.matches("\nF100.0000 (kinpost linkage: the programmed feed again)\n")
+            .count(),
+        2,
+        "{out}"
+    );
+    assert!(err.contains("(+0.0 %)"), "{err}");
+}
