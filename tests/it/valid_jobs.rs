@@ -267,6 +267,17 @@ fn axis_rows(text: &str) -> Vec<[f64; 5]> {
         .collect()
 }
 
+/// The mid-block departure a warning gives ("the tool is 1.480 mm off"), mm.
+fn departure_said(warning: &str) -> f64 {
+    warning
+        .split("tool is ")
+        .nth(1)
+        .and_then(|s| s.split(" mm").next())
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
 /// Found in session 17 on an NCL CL file: tool axes within 1° of +Z, where
 /// a small change of the axis turns the table's C far (here 24° and 65° in
 /// two blocks). The poses are right; the controller, moving the joints
@@ -311,13 +322,7 @@ fn a_pass_near_the_singular_pose_is_warned_of_with_its_mid_block_departure() {
         mid[4] = a[4] + 0.5 * turn;
         let departure =
             (tip([mid[0], mid[1], mid[2], mid[3], mid[4]]) - 0.5 * (tip(a) + tip(b))).norm();
-        let said: f64 = w
-            .split("tool is ")
-            .nth(1)
-            .and_then(|s| s.split(" mm").next())
-            .unwrap()
-            .parse()
-            .unwrap();
+        let said = departure_said(w);
         assert!(
             departure > 1.0 && (said - departure).abs() < 0.001,
             "{said} vs {departure}"
@@ -372,13 +377,7 @@ fn a_change_of_branch_at_the_tilt_limit_is_warned_of_with_its_mid_block_departur
         })
         .collect();
     assert!(departures.iter().all(|d| *d > 10.0), "{departures:?}");
-    let said: f64 = warnings[0]
-        .split("tool is ")
-        .nth(1)
-        .and_then(|s| s.split(" mm").next())
-        .unwrap()
-        .parse()
-        .unwrap();
+    let said = departure_said(warnings[0]);
     assert!(
         departures.iter().any(|d| (said - d).abs() < 0.01),
         "{said} vs {departures:?}"
