@@ -181,10 +181,18 @@ pub fn program_waypoints(
         Ok(())
     })?;
     if count < 2 {
-        return Err(Error::input(
-            Location::new(&name, 0, 0),
-            "the program has fewer than two positions to move between",
-        ));
+        // Named at the one position, or at the start of a program with none.
+        let (line, what) = match &last {
+            Some(w) => (
+                w.block as usize,
+                "this is the program's only position: a recording needs two or more to move between",
+            ),
+            None => (
+                1,
+                "the program has no position to move between: no block in it moves the machine",
+            ),
+        };
+        return Err(Error::input(Location::new(&name, line, 1), what));
     }
     if !no_feed.is_empty() {
         eprintln!(

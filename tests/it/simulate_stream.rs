@@ -176,3 +176,39 @@ fn a_feedback_trace_with_a_clock_offset_runs_a_long_program() {
         }
     }
 }
+
+/// A program with one position or none cannot be recorded; the refusal
+/// names a line and column (it named only the file).
+#[test]
+fn a_program_with_fewer_than_two_positions_is_refused_at_a_line() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, text, said) in [
+        (
+            "one.ngc",
+            "G21 G90\nG0 X1 Y2 Z3\nM30\n",
+            "one.ngc:2:1: this is the program's only position",
+        ),
+        (
+            "none.ngc",
+            "G21 G90\nM30\n",
+            "none.ngc:1:1: the program has no position",
+        ),
+    ] {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        let o = dir.path().join("r.csv");
+        let out = kinpost(&[
+            "simulate",
+            "-m",
+            "xyz-3axis",
+            "-p",
+            p.to_str().unwrap(),
+            "-o",
+            o.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(err.contains(said), "{err}");
+        assert!(!o.exists());
+    }
+}
