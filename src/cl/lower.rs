@@ -424,12 +424,10 @@ impl<R: BufRead> Lowered<R> {
         // A statement whose major word a `SYN` commented out.
         if !self.silenced.is_empty() && !matches!(r.statement, ClStatement::Comment(_)) {
             let text = String::from_utf8_lossy(&r.text);
-            let major = text
-                .trim_start()
-                .split(|c: char| c == '/' || c == ',' || c.is_whitespace())
-                .next()
-                .unwrap_or_default()
-                .to_ascii_uppercase();
+            // The first word, as the statement grammar reads it.
+            let major = super::major_word(text.trim_start().as_bytes())
+                .map(|(_, w)| String::from_utf8_lossy(w).to_ascii_uppercase())
+                .unwrap_or_default();
             if self.silenced.contains(&major) {
                 let comment = ClStatement::Comment(format!("{} (SYN: a comment)", text.trim()));
                 self.count_commented(&major);

@@ -222,21 +222,16 @@ impl<'m> Axes<'m> {
     /// a linear axis moves.
     fn written_feed_distance(&self, a: &[f64], b: &[f64], units: Units) -> (f64, bool) {
         let (ra, rb) = (self.rounded(a, units), self.rounded(b, units));
-        let (mut lin, mut rot) = (0.0f64, 0.0f64);
-        for (k, axis) in self.machine.axes.iter().enumerate() {
-            match (axis.kind, axis.rotary) {
-                (JointKind::Prismatic, _) => lin += (rb[k] - ra[k]).powi(2),
-                (_, RotaryMode::Modulo) => {
-                    rot = rot.max((unwind_near_degrees(rb[k], ra[k]) - ra[k]).abs())
+        let steps = self.machine.axes.iter().enumerate().map(|(k, axis)| {
+            let d = match (axis.kind, axis.rotary) {
+                (JointKind::Revolute, RotaryMode::Modulo) => {
+                    unwind_near_degrees(rb[k], ra[k]) - ra[k]
                 }
-                _ => rot = rot.max((rb[k] - ra[k]).abs()),
-            }
-        }
-        if lin > 0.0 {
-            (lin.sqrt(), true)
-        } else {
-            (rot, false)
-        }
+                _ => rb[k] - ra[k],
+            };
+            (axis.kind, d)
+        });
+        g94_path(steps, 0.0)
     }
 
     /// Number of axes the machine has.
@@ -295,15 +290,22 @@ fn move_minutes(machine: &Machine, qa: &[f64], qb: &[f64], feed: &FeedState) -> 
 fn feed_distance(machine: &Machine, qa: &[f64], qb: &[f64]) -> (f64, bool) {
     let ea = machine.to_external(qa);
     let eb = machine.to_external(qb);
+    let steps = (machine.axes.iter().enumerate()).map(|(k, a)| (a.kind, eb[k] - ea[k]));
+    g94_path(steps, 1e-18)
+}
+
+/// The path a `G94` feed applies to over the axes' `steps` (kind, change):
+/// the linear axes' path where its square is above `floor`, else the
+/// largest rotary turn; and whether it is the linear path.
+fn g94_path(steps: impl Iterator<Item = (JointKind, f64)>, floor: f64) -> (f64, bool) {
     let (mut lin, mut rot) = (0.0f64, 0.0f64);
-    for (k, a) in machine.axes.iter().enumerate() {
-        let d = eb[k] - ea[k];
-        match a.kind {
+    for (kind, d) in steps {
+        match kind {
             JointKind::Prismatic => lin += d * d,
             JointKind::Revolute => rot = rot.max(d.abs()),
         }
     }
-    if lin > 1e-18 {
+    if lin > floor {
         (lin.sqrt(), true)
     } else {
         (rot, false)
