@@ -34,7 +34,7 @@ use std::io::BufRead;
 
 use nom::{
     IResult, Parser,
-    bytes::complete::{tag, take_while, take_while1},
+    bytes::complete::{take_while, take_while1},
     character::complete::one_of,
     combinator::recognize,
 };
@@ -45,10 +45,12 @@ mod arc;
 mod cycle;
 mod lower;
 mod state;
+mod statement;
+use statement::parse_statement;
 mod vec3;
 pub use arc::ArcMove;
 pub use cycle::HoleMove;
-pub use lower::{DEFAULT_ARC_TOLERANCE_MM, Lowered, MOTION_MAJORS, lower};
+pub use lower::{DEFAULT_ARC_TOLERANCE_MM, FLOW_MAJORS, Lowered, MOTION_MAJORS, lower};
 
 /// Feed rate units of `FEDRAT`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -106,8 +108,14 @@ pub enum ClStatement {
     TlAxis([f64; 3]),
     /// `MULTAX`, `MULTAX/ON` (true) or `MULTAX/OFF` (false).
     Multax(bool),
-    /// `LOADTL/n[,...]`: tool number.
-    LoadTl(u32),
+    /// `LOADTL/n[,...]`: tool number, and the length offset register an
+    /// `ADJUST,h` among the other words names.
+    LoadTl {
+        /// The tool number.
+        tool: u32,
+        /// `ADJUST,h`: the register h.
+        adjust: Option<u32>,
+    },
     /// `SPINDL/[RPM,]s[,CLW|CCLW]`, `SPINDL/ON`, `SPINDL/OFF`.
     Spindle {
         /// Speed in revolutions per minute, if given.
@@ -301,6 +309,26 @@ impl<R: BufRead> ClReader<R> {
                 break (self.line, col);
             }
         };
+        // DOS's end-of-file mark (`^Z`, 0x1A) ends the data; only blanks
+        // and more marks may follow it.
+        if self.buf[col - 1] == DOS_EOF {
+            loop {
+                let rest = strip_eol(&self.buf);
+                if let Some(k) = rest.iter().position(|&b| !is_blank(b) && b != DOS_EOF) {
+                    return Some(Err(self.error(
+                        self.line,
+                        k + 1,
+                        "text after DOS's end-of-file mark (^Z, byte 0x1A): the data ends at the mark; a file joined from several?".into(),
+                        rest,
+                    )));
+                }
+                match self.read_physical() {
+                    Ok(true) => {}
+                    Ok(false) => return None,
+                    Err(e) => return Some(Err(e)),
+                }
+            }
+        }
         let mut text = self.text_buffer();
         text.extend_from_slice(&self.buf);
 
@@ -355,7 +383,12 @@ impl<R: BufRead> ClReader<R> {
                     text,
                     statement,
                 }),
-                Err(e) => Err(self.error(first, col + e.offset, e.message, strip_eol(&text))),
+                Err(e) => Err(self.error(
+                    first,
+                    col + e.offset,
+                    cr_inside(strip_eol(&text)).unwrap_or(e.message),
+                    strip_eol(&text),
+                )),
             });
         }
 
@@ -397,7 +430,8 @@ impl<R: BufRead> ClReader<R> {
             Err(e) => {
                 let (line, col) = self.logical.position(e.offset);
                 let snippet = physical_line(&text, line.saturating_sub(first));
-                return Some(Err(self.error(line, col, e.message, snippet)));
+                let message = cr_inside(snippet).unwrap_or(e.message);
+                return Some(Err(self.error(line, col, message, snippet)));
             }
         };
         Some(Ok(ClRecord {
@@ -424,6 +458,17 @@ impl<R: BufRead> Iterator for ClReader<R> {
         r
     }
 }
+
+/// The message for a statement that cannot be read and holds a carriage
+/// return inside its line: the file's lines most likely end in CR alone.
+fn cr_inside(line: &[u8]) -> Option<String> {
+    line.contains(&b'\r').then(|| {
+        "a carriage return (CR) inside the line: the file seems to use CR-only (old Mac) line endings, which are not line breaks here; convert them to LF or CR LF (e.g. `tr '\\r' '\\n'`)".into()
+    })
+}
+
+/// DOS's end-of-file mark, `^Z`.
+const DOS_EOF: u8 = 0x1A;
 
 fn is_blank(b: u8) -> bool {
     b == b' ' || b == b'\t'
@@ -630,265 +675,6 @@ fn non_zero(v: [f64; 3], at: &Arg, what: &str) -> Result<[f64; 3], StatementErro
     } else {
         Err(at.err(format!("{what} has zero length; expected a direction")))
     }
-}
-
-/// Majors whose text after the major word is free text, not `/args`.
-const TEXT_MAJORS: &[&str] = &["PARTNO", "PPRINT", "INSERT", "REMARK"];
-
-/// Majors that are interpreted only with `/args`.
-const NEEDS_ARGS: &[&str] = &[
-    "GOTO", "TLAXIS", "FEDRAT", "LOADTL", "UNITS", "SPINDL", "COOLNT",
-];
-
-/// Interpret one logical statement (starts at its first non-blank byte).
-fn parse_statement(text: &[u8]) -> Result<ClStatement, StatementError> {
-    let Ok((rest, major_raw)) = major_words(text) else {
-        return Err(StatementError {
-            offset: 0,
-            message: "expected an APT statement (`MAJOR/args` or `MAJOR`)".into(),
-        });
-    };
-    // The first word alone, for statements without `/`.
-    let first_raw = major_word(text).map(|(_, w)| w).unwrap_or_default();
-    let first_known = known_major(first_raw);
-    let after_first = trim(&text[first_raw.len()..]);
-    if let Some(word) = first_known.filter(|w| TEXT_MAJORS.contains(w)) {
-        return Ok(ClStatement::Other {
-            major: word.to_string(),
-            text: String::from_utf8_lossy(after_first).into_owned(),
-        });
-    }
-    let slash: PResult<In> = (take_while(is_blank), tag(&b"/"[..]))
-        .parse_complete(rest)
-        .map(|(r, _)| (r, r));
-    let Ok((args_text, _)) = slash else {
-        // No slash: a bare major word, possibly followed by free text.
-        if let Some(word) = first_known.filter(|w| NEEDS_ARGS.contains(w)) {
-            return Err(StatementError {
-                offset: first_raw.len(),
-                message: format!("expected `/` and arguments after {word}"),
-            });
-        }
-        return Ok(bare(collapse_upper(first_raw), after_first));
-    };
-    // The major word(s), uppercased, blanks collapsed (no allocation for
-    // the majors interpreted here).
-    let major: std::borrow::Cow<'static, str> = match first_known {
-        Some(word) if major_raw.len() == first_raw.len() => word.into(),
-        _ => collapse_upper(major_raw).into(),
-    };
-    let args_offset = text.len() - args_text.len();
-    let args = split_args(args_text, args_offset);
-    let at_major = Arg {
-        text: &text[..major_raw.len()],
-        offset: 0,
-    };
-    let other = || ClStatement::Other {
-        major: major.to_string(),
-        text: String::from_utf8_lossy(trim(args_text)).into_owned(),
-    };
-    let count_err = |want: &str| {
-        at_major.err(format!(
-            "{major} expects {want}, found {} argument{}",
-            args.len(),
-            if args.len() == 1 { "" } else { "s" }
-        ))
-    };
-    match &*major {
-        "GOTO" => {
-            if args.len() != 3 && args.len() != 6 {
-                return Err(count_err("3 numbers (x,y,z) or 6 (x,y,z,i,j,k)"));
-            }
-            let tip = vector(&args[..3], "a coordinate")?;
-            let axis = if args.len() == 6 {
-                let v = vector(&args[3..], "a tool axis component")?;
-                Some(non_zero(v, &args[3], "the tool axis")?)
-            } else {
-                None
-            };
-            Ok(ClStatement::Goto { tip, axis })
-        }
-        "TLAXIS" => {
-            if args.len() != 3 {
-                return Err(count_err("3 numbers (i,j,k)"));
-            }
-            let v = vector(&args, "a tool axis component")?;
-            Ok(ClStatement::TlAxis(non_zero(v, &args[0], "the tool axis")?))
-        }
-        "FEDRAT" => fedrat(&args).ok_or_else(|| {
-            count_err("a feed rate, optionally with a unit: `FEDRAT/[MMPM|IPM|MMPR|IPR,]f`")
-        })?,
-        "LOADTL" => {
-            let Some(first) = args.first() else {
-                return Err(count_err("a tool number"));
-            };
-            match first.number() {
-                Some(n) if n >= 0.0 && n.fract() == 0.0 && n <= f64::from(u32::MAX) => {
-                    Ok(ClStatement::LoadTl(n as u32))
-                }
-                _ => Err(first.err(format!(
-                    "expected a tool number (a whole number), found `{}`",
-                    String::from_utf8_lossy(first.text)
-                ))),
-            }
-        }
-        "MULTAX" => match args.as_slice() {
-            [] => Ok(ClStatement::Multax(true)),
-            [a] if a.is("ON") => Ok(ClStatement::Multax(true)),
-            [a] if a.is("OFF") => Ok(ClStatement::Multax(false)),
-            [a, ..] => Err(a.err(format!(
-                "expected MULTAX/ON or MULTAX/OFF, found `{}`",
-                a.upper()
-            ))),
-        },
-        "UNITS" => match args.as_slice() {
-            [a] if a.is("MM") => Ok(ClStatement::Units(ClUnits::Mm)),
-            [a] if a.is("INCHES") || a.is("INCH") => Ok(ClStatement::Units(ClUnits::Inches)),
-            [a, ..] => Err(a.err(format!(
-                "expected UNITS/MM or UNITS/INCHES, found `{}`",
-                a.upper()
-            ))),
-            [] => Err(count_err("MM or INCHES")),
-        },
-        "COOLNT" => match args.as_slice() {
-            [a, ..] if a.is("OFF") => Ok(ClStatement::Coolant(false)),
-            [a, ..]
-                if ["ON", "FLOOD", "MIST", "THRU", "AIR", "TAPKUL"]
-                    .iter()
-                    .any(|w| a.is(w)) =>
-            {
-                Ok(ClStatement::Coolant(true))
-            }
-            _ => Ok(other()),
-        },
-        "SPINDL" => spindle(&args).map(|s| s.unwrap_or_else(other)),
-        "RAPID" => Ok(ClStatement::Rapid),
-        "FINI" | "END" => Ok(ClStatement::End),
-        _ => Ok(other()),
-    }
-}
-
-/// A bare statement (no `/`).
-fn bare(major: String, after: &[u8]) -> ClStatement {
-    match (major.as_str(), after.is_empty()) {
-        ("RAPID", true) => ClStatement::Rapid,
-        ("FINI" | "END", true) => ClStatement::End,
-        ("MULTAX", true) => ClStatement::Multax(true),
-        _ => ClStatement::Other {
-            major,
-            text: String::from_utf8_lossy(after).into_owned(),
-        },
-    }
-}
-
-/// The major words interpreted here (`NEEDS_ARGS`, `TEXT_MAJORS`, the
-/// bare ones), as written in this list: `word` compared without case.
-const KNOWN_MAJORS: &[&str] = &[
-    "GOTO", "TLAXIS", "FEDRAT", "LOADTL", "UNITS", "SPINDL", "COOLNT", "MULTAX", "RAPID", "FINI",
-    "END", "PARTNO", "PPRINT", "INSERT", "REMARK",
-];
-
-/// `word` uppercased, when it is one of [`KNOWN_MAJORS`].
-fn known_major(word: &[u8]) -> Option<&'static str> {
-    KNOWN_MAJORS
-        .iter()
-        .copied()
-        .find(|k| word.eq_ignore_ascii_case(k.as_bytes()))
-}
-
-/// Uppercase, blanks collapsed to one space.
-fn collapse_upper(s: &[u8]) -> String {
-    let mut out = String::with_capacity(s.len());
-    for word in String::from_utf8_lossy(s)
-        .split([' ', '\t'])
-        .filter(|w| !w.is_empty())
-    {
-        if !out.is_empty() {
-            out.push(' ');
-        }
-        out.push_str(word);
-    }
-    out.make_ascii_uppercase();
-    out
-}
-
-fn feed_unit(a: &Arg) -> Option<FeedUnit> {
-    [
-        ("MMPM", FeedUnit::Mmpm),
-        ("IPM", FeedUnit::Ipm),
-        ("MMPR", FeedUnit::Mmpr),
-        ("IPR", FeedUnit::Ipr),
-    ]
-    .into_iter()
-    .find(|(w, _)| a.is(w))
-    .map(|(_, u)| u)
-}
-
-/// `FEDRAT/f`, `FEDRAT/unit,f` or `FEDRAT/f,unit`; `None` if malformed.
-fn fedrat(args: &[Arg]) -> Option<Result<ClStatement, StatementError>> {
-    let (value_arg, unit) = match args {
-        [f] if feed_unit(f).is_none() => (f, FeedUnit::Unspecified),
-        [u, f] if feed_unit(u).is_some() => (f, feed_unit(u)?),
-        [f, u] if feed_unit(u).is_some() => (f, feed_unit(u)?),
-        _ => return None,
-    };
-    Some(match value_arg.expect_number("a feed rate") {
-        Ok(v) if v >= 0.0 => Ok(ClStatement::Fedrat { value: v, unit }),
-        Ok(_) => Err(value_arg.err("expected a feed rate that is not negative")),
-        Err(e) => Err(e),
-    })
-}
-
-/// `SPINDL/OFF`, `SPINDL/ON`, `SPINDL/[RPM,]s[,CLW|CCLW][,RANGE,n|MAXRPM,n]`.
-/// `Ok(None)`: a form not interpreted (surface speed, unknown words).
-fn spindle(args: &[Arg]) -> Result<Option<ClStatement>, StatementError> {
-    let mut rpm = None;
-    let mut dir = None;
-    let mut k = 0;
-    while let Some(a) = args.get(k) {
-        if a.is("OFF") && args.len() == 1 {
-            return Ok(Some(ClStatement::Spindle {
-                rpm: None,
-                dir: None,
-                off: true,
-            }));
-        } else if a.is("RPM") && rpm.is_some() && k == 1 {
-            // `SPINDL/n,RPM,...`: the unit after the speed.
-        } else if a.is("RPM") {
-            let Some(v) = args.get(k + 1) else {
-                return Err(a.err("expected a speed after RPM"));
-            };
-            rpm = Some(v.expect_number("a spindle speed")?);
-            k += 1;
-        } else if a.is("RANGE") || a.is("MAXRPM") {
-            let Some(v) = args.get(k + 1) else {
-                return Err(a.err(format!("expected a number after {}", a.upper())));
-            };
-            v.expect_number("a number")?;
-            k += 1;
-        } else if a.is("CLW") {
-            dir = Some(SpindleDir::Clockwise);
-        } else if a.is("CCLW") {
-            dir = Some(SpindleDir::CounterClockwise);
-        } else if a.is("ON") {
-        } else if k == 0 && a.number().is_some() {
-            rpm = a.number();
-        } else {
-            return Ok(None);
-        }
-        k += 1;
-    }
-    if args.is_empty() {
-        return Ok(None);
-    }
-    if rpm.is_some_and(|v| v < 0.0) {
-        return Err(args[0].err("expected a spindle speed that is not negative"));
-    }
-    Ok(Some(ClStatement::Spindle {
-        rpm,
-        dir,
-        off: false,
-    }))
 }
 
 /// Statement majors that mark CL data at the start of a line.

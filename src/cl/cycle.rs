@@ -283,7 +283,7 @@ impl<R: BufRead> Lowered<R> {
                 "1STPECK" | "STEP" | "INCR" => c.first_peck = val(k + 1)?,
                 "SUBPECK" => c.sub_peck = val(k + 1)?,
                 "MMPM" | "IPM" | "MMPR" | "IPR" => {
-                    let u = super::feed_unit(&args[k]).unwrap_or(FeedUnit::Unspecified);
+                    let u = super::statement::feed_unit(&args[k]).unwrap_or(FeedUnit::Unspecified);
                     let f = val(k + 1)?;
                     if f < 0.0 || absurd_feed(f, u, self.mm_per_unit) {
                         return Err(

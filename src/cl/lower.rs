@@ -26,7 +26,7 @@ use std::collections::{BTreeMap, VecDeque};
 use std::io::BufRead;
 
 pub use super::state::Lowered;
-use super::state::{Circle, MAX_FEED_MM_MIN, MAX_FEED_MM_REV, absurd_feed};
+use super::state::{Circle, MAX_FEED_MM_MIN, MAX_FEED_MM_REV, absurd_feed, det};
 use super::vec3::{add, norm, num, scale};
 use super::{ClReader, ClRecord, ClStatement, ClUnits, split_args};
 use crate::error::Error;
@@ -51,7 +51,10 @@ pub const DEFAULT_ARC_TOLERANCE_MM: f64 = 1e-3;
 /// `DEFSUB` and `ENDSUB` run where `CALSUB` calls them, not where they
 /// stand). Before, these were kept as comments (counted
 /// in a warning, exit 0): the tool went straight from one `GOTO` to the
-/// next past an NX spline of 3 mm sag.
+/// next past an NX spline of 3 mm sag. NCL's abbreviations of the motion
+/// words (`GO`, `GF`, `GL`, `GR`, `GB`, `GU`, `GD`, `IV`, `IP`, `TN`, and
+/// a `GT` without its `/`) are refused as the words are; `GT/x,y,z` and
+/// `RP` are read as `GOTO` and `RAPID`.
 pub const MOTION_MAJORS: &[&str] = &[
     "GOTO", "GODLTA", "GOHOME", "FROM", "CIRCLE", "MOVARC", "CYCLE", "CUTCOM", "CSYS", "TRNTYP",
     "TLAXIS", "MULTAX", "RAPID", "FEDRAT", "SPINDL", "LOAD", "LOADTL", "SELECT", "TURRET", "UNITS",
@@ -61,8 +64,23 @@ pub const MOTION_MAJORS: &[&str] = &[
     "PITCH", "CLAMP", "COOLNT", "NURBS", "KNOT", "CNTRL", "RETRCT", "GOCLER", "SAFPOS", "POSTN",
     "PREFUN", "ZSURF", "PIVOTZ", "COUPLE", "OPSKIP", "TLCOMP", "WPLANE", "CALL", "CALLSUB",
     "CALSUB", "DEFSUB", "ENDSUB", "MOVETO", "PLUNGE", "PROBX", "PROBY", "PICKUP", "CLEARP",
-    "VTLAXS", "LOCKX", "ULOCKX",
+    "VTLAXS", "LOCKX", "ULOCKX", "GT", "GO", "GF", "GL", "GR", "GB", "GU", "GD", "IV", "IP", "TN",
 ];
+
+/// Majors of APT and NCL part programs that change which statements run or
+/// in what order: jumps (`JUMPTO`, arithmetic `IF`), loops (`LOOPST`,
+/// `LOOPND`, NCL's `DO`) and macros (`name=MACRO/…` to `TERMAC`). Before,
+/// these were kept as comments and the file run from top to bottom: a
+/// loop body once, a skipped branch run, a macro's motions where it is
+/// defined. Refused.
+pub const FLOW_MAJORS: &[&str] = &["JUMPTO", "IF", "LOOPST", "LOOPND", "DO", "TERMAC", "MACRO"];
+
+/// Whether the text after a major word defines a macro (`M1=MACRO/…`).
+fn is_macro_definition(text: &str) -> bool {
+    text.trim_start()
+        .strip_prefix('=')
+        .is_some_and(|t| t.trim_start().to_ascii_uppercase().starts_with("MACRO"))
+}
 
 /// Lowers the records of `inner` (see the module documentation); arcs are
 /// linearised within `arc_tolerance_mm`.
@@ -108,6 +126,7 @@ pub fn lower<R: BufRead>(
         per_rev: false,
         commented: BTreeMap::new(),
         silenced: Default::default(),
+        rapid_pending: false,
     }
 }
 
@@ -128,6 +147,7 @@ impl<R: BufRead> Lowered<R> {
                 )),
             );
         }
+        self.rapid_pending = false;
         let from_axis = self.axis;
         if let Some(a) = axis {
             self.axis = a;
@@ -167,6 +187,9 @@ impl<R: BufRead> Lowered<R> {
                 }
             },
             "CIRCLE" => {
+                if self.rapid_pending {
+                    return Err(self.err(r, "CIRCLE after RAPID: an arc at the rapid rate has no G-code form (G0 moves straight, and each axis at its own rate); give the arc a feed, or remove the RAPID"));
+                }
                 let v = self.numbers(r, &args, "CIRCLE")?;
                 if v.len() < 6 {
                     return Err(self.err(r, "CIRCLE expects xc,yc,zc,i,j,k[,r,...]"));
@@ -220,6 +243,9 @@ impl<R: BufRead> Lowered<R> {
                 }) && v[3] == 0.0
                     && v[7] == 0.0
                     && v[11] == 0.0;
+                if self.cutcom && (det(m) < 0.0) != self.mirrored() {
+                    return Err(self.err(r, "CSYS changes between a right- and a left-handed frame while cutter compensation is on: the side the tool is offset to would change mid-path; switch it off (CUTCOM/OFF) before"));
+                }
                 self.csys = if ident {
                     None
                 } else {
@@ -258,7 +284,13 @@ impl<R: BufRead> Lowered<R> {
                     {
                         return Err(self.err(r, format!("CUTCOM/{},{} asks for cutter compensation in another plane than X Y, and kinpost writes G41/G42 in G17 (X Y) only: have the CAM system output the tool-centre path for this operation", a(0), p.upper())));
                     }
-                    let g = if a(0) == "LEFT" { "G41" } else { "G42" };
+                    // A mirrored (left-handed) set-up turns the path the
+                    // other way round: the tool's left is the path's right.
+                    let g = if (a(0) == "LEFT") != self.mirrored() {
+                        "G41"
+                    } else {
+                        "G42"
+                    };
                     // `CUTCOM/LEFT[,XYPLAN][,n]`: n is the offset register
                     // (Autodesk writes the tool's diameter offset there).
                     let mut register = self.tool;
@@ -326,6 +358,14 @@ impl<R: BufRead> Lowered<R> {
                     self.block(r, format!("G43 H{h}"));
                 }
             }
+            // A gear range alone: the spindle is not started.
+            "SPINDL" if args.len() == 2 && a(0) == "RANGE" => {
+                self.count_commented(major);
+                return Ok(true);
+            }
+            "SPINDL" if args.iter().any(|x| x.is("MAXRPM")) => {
+                return Err(self.err(r, "SPINDL with MAXRPM: a spindle speed clamp, which matters under a constant surface speed, and kinpost does not write one (its form depends on the controller: G50 S, G92 S, LIMS=, G96 D); set it at the program's start and give SPINDL without it"));
+            }
             "SPINDL" => {
                 // Surface speed: SPINDL/SFM|SMM,v[,CLW|CCLW] or v,SFM|SMM,...
                 let mut m = "M3";
@@ -359,8 +399,8 @@ impl<R: BufRead> Lowered<R> {
             }
             "DELAY" => {
                 let t = args.first().and_then(|x| x.number()).filter(|t| *t >= 0.0);
-                let Some(t) = t else {
-                    return Err(self.err(r, "DELAY expects a time in seconds"));
+                let (Some(t), 1) = (t, args.len()) else {
+                    return Err(self.err(r, "DELAY expects a time in seconds (DELAY/s); other forms (DELAY/s,REV: revolutions of the spindle) are not converted"));
                 };
                 self.block(r, format!("G4 P{}", num(t)));
             }
@@ -395,6 +435,9 @@ impl<R: BufRead> Lowered<R> {
             }
             "NURBS" | "KNOT" | "CNTRL" => {
                 return Err(self.err(r, format!("{major}: a NURBS spline (the path between two GOTO points) is not converted; refused rather than kept as a comment, which would move the tool straight past it; have the CAM system write the path as GOTO points")));
+            }
+            _ if FLOW_MAJORS.contains(&major) || is_macro_definition(text) => {
+                return Err(self.err(r, format!("{} changes which statements run, or in what order (a jump, a loop, a macro); kinpost reads CL data from top to bottom and does not follow it: refused rather than kept as a comment; have the CAM system write the path it stands for", if FLOW_MAJORS.contains(&major) { major.to_string() } else { format!("{major}=MACRO") })));
             }
             _ if MOTION_MAJORS.contains(&major)
                 || (major.starts_with("CYCLE") && major != "CYCLE") =>
@@ -464,13 +507,22 @@ impl<R: BufRead> Lowered<R> {
                 };
                 true
             }
-            ClStatement::LoadTl(n) => {
-                self.tool = Some(*n);
-                true
+            // As `LOAD/TOOL,n[,ADJUST,h]`: the tool change and its length
+            // compensation (h defaults to n).
+            ClStatement::LoadTl { tool, adjust } => {
+                let (n, h) = (*tool, adjust.unwrap_or(*tool));
+                self.tool = Some(n);
+                self.block(&r, format!("T{n} M6"));
+                self.block(&r, format!("G43 H{h}"));
+                false
             }
             ClStatement::Other { major, text } => self.other(&r, major, text)?,
             ClStatement::Multax(_) => {
                 self.count_commented("MULTAX");
+                true
+            }
+            ClStatement::Rapid => {
+                self.rapid_pending = true;
                 true
             }
             _ => true,

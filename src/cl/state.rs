@@ -86,6 +86,8 @@ pub struct Lowered<R: BufRead> {
     /// Major words a `SYN/'WORD','$$…'` commented out: their statements
     /// are kept as comments.
     pub(super) silenced: std::collections::BTreeSet<String>,
+    /// A `RAPID` waits for the motion it applies to.
+    pub(super) rapid_pending: bool,
 }
 
 /// The statements of a feed change: `G95` or `G94` when the feed mode
@@ -174,8 +176,15 @@ impl<R: BufRead> Lowered<R> {
         }
     }
 
+    /// Whether the set-up in force (`CSYS`) is a left-handed frame, which
+    /// mirrors the path.
+    pub(super) fn mirrored(&self) -> bool {
+        self.csys.is_some_and(|(m, _)| det(m) < 0.0)
+    }
+
     /// Emits a move to `tip` (CL frame) with the current tool axis.
     pub(super) fn go(&mut self, r: &ClRecord, tip: [f64; 3], rapid: bool) {
+        self.rapid_pending = false;
         if rapid {
             self.emit(r, ClStatement::Rapid);
         }
@@ -218,4 +227,11 @@ impl<R: BufRead> Lowered<R> {
             })
             .collect()
     }
+}
+
+/// The determinant of a 3×3 matrix (rows).
+pub(super) fn det(m: [[f64; 3]; 3]) -> f64 {
+    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
 }

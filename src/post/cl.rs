@@ -388,7 +388,7 @@ impl ClFront<'_> {
             }
             ClStatement::Rapid => self.rapid_next = true,
             ClStatement::TlAxis(a) => self.axis = Vector3::new(a[0], a[1], a[2]),
-            ClStatement::LoadTl(n) => line(out, format_args!("T{n} M6")),
+            ClStatement::LoadTl { tool, .. } => line(out, format_args!("T{tool} M6")),
             ClStatement::Spindle { rpm, dir, off } => {
                 if *off {
                     line(out, format_args!("M5"));

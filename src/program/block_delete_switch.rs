@@ -67,7 +67,7 @@ impl Modes {
         );
         add(
             self.frame != other.frame,
-            "a frame (G68…, G51, G51.1, G16, TRANS, ROT, CYCLE800 and their cancels)",
+            "a frame (G68…, G51, G51.1, G16, G254, TRANS, ROT, CYCLE800 and their cancels)",
         );
         add(
             self.cutter_comp != other.cutter_comp,

@@ -291,10 +291,12 @@ impl ModalState {
                         // I J K the factors) and G16 polar coordinates (X
                         // the radius, Y the angle) change how later moves
                         // land in the same way.
-                        680 | 682 | 683 | 684 | 511 | 510 | 160 => frame = Some(w.item),
+                        // Haas G254 (dynamic work offset) moves the work
+                        // offset with the rotaries: a frame too.
+                        680 | 682 | 683 | 684 | 511 | 510 | 160 | 2540 => frame = Some(w.item),
                         // G69, G50 (scaling off), G50.1 (mirror off), G15
-                        // (polar off).
-                        690 | 500 | 501 | 150 => self.frame_seen = false,
+                        // (polar off), Haas G255 (dynamic work offset off).
+                        690 | 500 | 501 | 150 | 2550 => self.frame_seen = false,
                         // Sinumerik G110–G112 set the pole of polar
                         // coordinates: their X Y are the pole, not a move.
                         1100 | 1110 | 1120 => {
@@ -333,10 +335,11 @@ impl ModalState {
                             non_modal = true;
                             setup = setup.or(Some((w.item, "changes the coordinate system the poses are given in (G10, G52, G92)")));
                         }
-                        540..=590 | 591..=593 | 5000..=5990 => {
+                        // G54.1 P (Fanuc), G154 P (Haas): more work offsets.
+                        540..=590 | 591..=593 | 1540 | 5000..=5990 => {
                             setup = setup.or(Some((
                                 w.item,
-                                "changes the work offset (G54–G59.3, Sinumerik G500–G599)",
+                                "changes the work offset (G54–G59.3, G54.1 P, Haas G154 P, Sinumerik G500–G599)",
                             )));
                         }
                         280 | 300 => {
@@ -458,7 +461,7 @@ impl ModalState {
             if self.pose_mode {
                 return Err(BlockError {
                     item: Some(item),
-                    message: "a frame (G68, G68.2–G68.4, G51 scaling, G51.1 mirroring, G16 polar coordinates; Sinumerik TRANS, ATRANS, ROT, AROT, SCALE, MIRROR, CYCLE800) in pose mode is not converted: the poses must be in the machine's workpiece frame; apply the frame in the CAM system".into(),
+                    message: "a frame (G68, G68.2–G68.4, G51 scaling, G51.1 mirroring, G16 polar coordinates, Haas G254 dynamic work offset; Sinumerik TRANS, ATRANS, ROT, AROT, SCALE, MIRROR, CYCLE800) in pose mode is not converted: the poses must be in the machine's workpiece frame; apply the frame in the CAM system".into(),
                 });
             }
             non_modal = true;
@@ -469,7 +472,7 @@ impl ModalState {
         if self.pose_mode && self.frame_seen {
             return Err(BlockError {
                 item: start_item(),
-                message: "pose mode starts while a frame set earlier in the program (G68…, G51, G51.1, G16, TRANS, ROT, AROT, SCALE, MIRROR, CYCLE800) is active: the controller would move kinpost's machine axis words by it; cancel the frame before, or apply it in the CAM system".into(),
+                message: "pose mode starts while a frame set earlier in the program (G68…, G51, G51.1, G16, G254, TRANS, ROT, AROT, SCALE, MIRROR, CYCLE800) is active: the controller would move kinpost's machine axis words by it; cancel the frame before, or apply it in the CAM system".into(),
             });
         }
         if self.pose_mode && self.cutter_comp {

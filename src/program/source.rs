@@ -480,6 +480,7 @@ impl MachineAxisTracker {
                     })
                     .collect();
                 self.set_axes(machine, line, &rotaries, &meaning, true);
+                self.check_rotary_limits(machine, line, &rotaries, file)?;
             }
             return Ok(None);
         }
@@ -499,6 +500,7 @@ impl MachineAxisTracker {
         // which axes were not known.
         let before = (!start_known).then(|| (self.ext.clone(), self.unknown.clone()));
         self.set_axes(machine, line, &axis_items, &meaning, meaning.absolute);
+        self.check_rotary_limits(machine, line, &axis_items, file)?;
         // A rotary that turns, or one not known that is programmed to a
         // position (it may turn), makes the tip's path depend on the start.
         let rotary_still = before.as_ref().is_none_or(|(ext, unknown)| {
@@ -516,6 +518,50 @@ impl MachineAxisTracker {
             end_known: !self.unknown.contains(&true),
             measurable: start_known || rotary_still,
         }))
+    }
+
+    /// Refuses a block that puts a rotary axis it names beyond the
+    /// machine's limits of that axis. A rotary's program and machine
+    /// coordinates are one (kinpost writes rotary words as joint angles),
+    /// so its limits apply to the program's words; a linear axis's
+    /// program coordinates are shifted by a work offset kinpost does not
+    /// know, and are not checked.
+    fn check_rotary_limits(
+        &self,
+        machine: &crate::machine::Machine,
+        line: &crate::gcode::Line,
+        axis_items: &[usize],
+        file: &str,
+    ) -> Result<()> {
+        for &i in axis_items {
+            let ItemKind::Word(w) = &line.items[i].kind else {
+                continue;
+            };
+            let Some(k) = machine.axes.iter().position(|a| a.name == w.address) else {
+                continue;
+            };
+            let axis = &machine.axes[k];
+            if axis.kind != crate::machine::JointKind::Revolute
+                || crate::machine::rotary::within_limits(axis, self.ext[k].to_radians())
+            {
+                continue;
+            }
+            let bound =
+                |b: Option<f64>, sign: &str| b.map_or(format!("{sign}∞"), |v| format!("{v}"));
+            return Err(Error::input_with(
+                Location::new(file, line.number, line.items[i].start + 1),
+                format!(
+                    "axis {} would move to {:.4}°, outside its limits {} … {}° on machine {}: the machine cannot follow this move (a program for another machine, or the wrong machine file)",
+                    axis.name,
+                    self.ext[k],
+                    bound(axis.min, "−"),
+                    bound(axis.max, "+"),
+                    machine.name
+                ),
+                line.text_lossy(),
+            ));
+        }
+        Ok(())
     }
 
     /// Puts the axes of `axis_items` where the line's words say (`absolute`:

@@ -70,7 +70,13 @@ fn nx_sample() {
     );
     assert!(matches!(st[2], ClStatement::Other { major, .. } if major == "MSYS"));
     assert_eq!(*st[3], ClStatement::Comment("centerline data".into()));
-    assert_eq!(*st[6], ClStatement::LoadTl(3));
+    assert_eq!(
+        *st[6],
+        ClStatement::LoadTl {
+            tool: 3,
+            adjust: Some(3)
+        }
+    );
     assert_eq!(
         *st[7],
         ClStatement::Spindle {
@@ -172,9 +178,27 @@ fn rapid_tlaxis_multax_loadtl() {
     assert_eq!(one("MULTAX"), ClStatement::Multax(true));
     assert_eq!(one("MULTAX/ON"), ClStatement::Multax(true));
     assert_eq!(one("MULTAX/OFF"), ClStatement::Multax(false));
-    assert_eq!(one("LOADTL/12"), ClStatement::LoadTl(12));
-    assert_eq!(one("LOADTL/7,IN,7,LENGTH,75.0"), ClStatement::LoadTl(7));
-    assert_eq!(one("LOADTL/5.0"), ClStatement::LoadTl(5));
+    assert_eq!(
+        one("LOADTL/12"),
+        ClStatement::LoadTl {
+            tool: 12,
+            adjust: None
+        }
+    );
+    assert_eq!(
+        one("LOADTL/7,IN,7,LENGTH,75.0"),
+        ClStatement::LoadTl {
+            tool: 7,
+            adjust: None
+        }
+    );
+    assert_eq!(
+        one("LOADTL/5.0"),
+        ClStatement::LoadTl {
+            tool: 5,
+            adjust: None
+        }
+    );
 }
 
 #[test]

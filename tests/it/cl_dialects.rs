@@ -252,18 +252,22 @@ fn every_motion_major_is_documented() {
         .and_then(|t| t.split("\n### ").next())
         .expect("the table of CL major words");
     let rows: Vec<&str> = table.lines().filter(|l| l.starts_with("| ")).collect();
-    for major in kinpost::cl::MOTION_MAJORS.iter().chain(&[
-        "TOOL PATH",
-        "TLDATA",
-        "MSYS",
-        "PAINT",
-        "END-OF-PATH",
-        "TOOLNO",
-        "TPRINT",
-        "AUTOPS",
-        "MACHIN",
-        "PPRINT",
-    ]) {
+    for major in kinpost::cl::MOTION_MAJORS
+        .iter()
+        .chain(kinpost::cl::FLOW_MAJORS)
+        .chain(&[
+            "TOOL PATH",
+            "TLDATA",
+            "MSYS",
+            "PAINT",
+            "END-OF-PATH",
+            "TOOLNO",
+            "TPRINT",
+            "AUTOPS",
+            "MACHIN",
+            "PPRINT",
+        ])
+    {
         assert!(
             rows.iter().any(|r| r.contains(&format!("`{major}"))),
             "{major} is not in the table of CL major words"

@@ -194,7 +194,7 @@ fn cl_kind(s: &ClStatement) -> &'static str {
         ClStatement::Rapid => "Rapid",
         ClStatement::TlAxis(_) => "TlAxis",
         ClStatement::Multax(_) => "Multax",
-        ClStatement::LoadTl(_) => "LoadTl",
+        ClStatement::LoadTl { .. } => "LoadTl",
         ClStatement::Spindle { .. } => "Spindle",
         ClStatement::Coolant(_) => "Coolant",
         ClStatement::Units(_) => "Units",

@@ -341,3 +341,59 @@ fn a_move_with_an_expression_or_an_axis_the_machine_lacks_is_refused_where_its_m
     ]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
 }
+
+/// Found in session 18 (fourth hunt for real input): a program in machine
+/// axes that turns a rotary beyond the machine's limits (`A150` on
+/// xyzac-trt, whose A tilts −30…110°; a Fanuc four-axis program wrapping
+/// A through ±180°) was followed there by `linkage` (1,422 inserted
+/// blocks running A to 150°), `simulate` and `analyze --nonlinear`, exit 0
+/// and nothing said. A rotary's program coordinates are its machine
+/// coordinates, so the commands that follow the motion refuse the word; an
+/// incremental turn and `G53` count too. A modulo axis (xyzbc-trt's C)
+/// has no limits, and a linear axis's program coordinates are shifted by
+/// a work offset kinpost does not know: neither is checked.
+#[test]
+fn a_rotary_moved_beyond_its_limits_is_refused_where_its_motion_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            "abs.ngc",
+            "G90 G21\nG1 X0 Y0 Z50 A0 C0 F500\nG1 X10 Y5 Z40 A150 C30\n",
+            "abs.ngc:3:15:",
+            "A would move to 150.0000°",
+        ),
+        (
+            "inc.ngc",
+            "G90 G21\nG1 X0 Y0 Z50 A100 C0 F500\nG91 G1 A-20\nG1 A30\n",
+            "inc.ngc:4:4:",
+            "A would move to 110.0000°",
+        ),
+        (
+            "g53.ngc",
+            "G90 G21\nG1 X0 Y0 Z50 A0 C0 F500\nG53 A-45\nG1 X5\n",
+            "g53.ngc:3:5:",
+            "A would move to -45.0000°",
+        ),
+    ];
+    for (name, text, at, what) in cases {
+        let prog = dir.path().join(name);
+        std::fs::write(&prog, text).unwrap();
+        if name == "inc.ngc" {
+            // 110° is the limit itself: within.
+            let p = prog.to_str().unwrap();
+            let r = kinpost(&["analyze", "-m", "xyzac-trt", "--nonlinear", p]);
+            assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+            std::fs::write(&prog, format!("{text}G1 A0.001\n")).unwrap();
+            refused_where_its_motion_is_read(&prog, &["inc.ngc:5:4:", "A would move to 110.0010°"]);
+            continue;
+        }
+        refused_where_its_motion_is_read(&prog, &[at, what, "outside its limits -30 … 110°"]);
+    }
+    // C of xyzbc-trt turns without limits; X beyond its travel in program
+    // coordinates is left to the controller (a work offset shifts it).
+    let prog = dir.path().join("ok.ngc");
+    std::fs::write(&prog, "G90 G21\nG1 X0 Y0 Z50 B0 C0 F500\nG1 X900 C720\n").unwrap();
+    let p = prog.to_str().unwrap();
+    let r = kinpost(&["analyze", "-m", "xyzbc-trt", "--nonlinear", p]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+}

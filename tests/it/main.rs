@@ -18,6 +18,7 @@ mod cl;
 mod cl_cutcom;
 mod cl_dialects;
 mod cl_driver;
+mod cl_part_programs;
 mod cl_real;
 mod cl_words;
 mod cli_corpus_echo;

@@ -279,6 +279,20 @@ fn offsets_and_homing_in_pose_mode_are_refused() {
             "G28 X0 Y0 Z50",
             "g28.ngc:3:1: this block moves home",
         ),
+        // Haas's additional work offsets (found in a fourth hunt: passed
+        // through with exit 0 before), and Fanuc's.
+        (
+            "g154.ngc",
+            "G154 P7",
+            "g154.ngc:3:1: this block changes the work offset",
+        ),
+        (
+            "g541.ngc",
+            "G54.1 P2",
+            "g541.ngc:3:1: this block changes the work offset",
+        ),
+        // Haas G254, the dynamic work offset: a frame (exit 0 before).
+        ("g254.ngc", "G254", "g254.ngc:3:1: a frame"),
     ] {
         let (code, _, err) = post(name, format!("{pose}{block}\nG49\nM30\n").as_bytes());
         assert_eq!(code, 1, "{name}: {err}");
@@ -293,6 +307,23 @@ fn offsets_and_homing_in_pose_mode_are_refused() {
         err.contains("g500.mpf:3:1: this block changes the work offset"),
         "{err}"
     );
+    // Pose mode does not start under Haas G254 until G255 (exit 0
+    // before: the controller would move the converted axis words with
+    // the rotaries).
+    let (code, _, err) = post(
+        "dwo.ngc",
+        b"G254\nG234 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\nG49\nM30\n",
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("dwo.ngc:2:1: pose mode starts while a frame"),
+        "{err}"
+    );
+    let (code, _, err) = post(
+        "dwo_off.ngc",
+        b"G254\nG255\nG234 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\nG49\nM30\n",
+    );
+    assert_eq!(code, 0, "{err}");
     // Before TCP is on, and G53 / G4 inside it, pass.
     let ok = b"G54 G92 X0\nG43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\nG4 P1\nG53 G0 Z0\nG49\nG28\nM30\n";
     let (code, _, err) = post("ok.ngc", ok);

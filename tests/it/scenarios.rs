@@ -40,13 +40,19 @@ use std::process::{Command, Stdio};
 
 use crate::util::BIN;
 
-/// Programs per machine: 3, or `KINPOST_SCENARIO_SEEDS` for a longer
-/// search (`docs/robustness.md`, Scenario generators).
-fn seeds() -> u64 {
-    std::env::var("KINPOST_SCENARIO_SEEDS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(3)
+/// The seeds of the programs run per machine: 3, or
+/// `KINPOST_SCENARIO_SEEDS` for a longer search, from
+/// `KINPOST_SCENARIO_FIRST` (default 0) for one that covers new scenarios
+/// (`docs/robustness.md`, Scenario generators).
+fn seeds() -> std::ops::Range<u64> {
+    let var = |name: &str, default: u64| {
+        std::env::var(name)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(default)
+    };
+    let first = var("KINPOST_SCENARIO_FIRST", 0);
+    first..first + var("KINPOST_SCENARIO_SEEDS", 3)
 }
 
 /// Pose blocks per program.
@@ -377,7 +383,7 @@ fn random_machines_and_programs_through_every_command() {
     let mut refused = 0;
     let seeds = seeds();
     for file in &files {
-        for seed in 0..seeds {
+        for seed in seeds.clone() {
             let mut rng = SplitMix64::new(1000 * seed + checked + 17);
             let m = random_machine(file, &mut rng, &d.join("m.json"));
             if m.chain
@@ -640,9 +646,10 @@ fn random_machines_and_programs_through_every_command() {
             checked += 1;
         }
     }
-    assert!(checked >= 6 * seeds, "only {checked} scenarios ran");
+    let per_machine = seeds.end - seeds.start;
+    assert!(checked >= 6 * per_machine, "only {checked} scenarios ran");
     assert!(
-        refused <= seeds,
+        refused <= per_machine,
         "linkage refused {refused} lens-machine scenarios"
     );
 }
