@@ -283,6 +283,11 @@ impl<R: BufRead> ClReader<R> {
             Ok(0) => Ok(false),
             Ok(_) => {
                 self.line += 1;
+                // A byte-order mark before the first statement (a file
+                // saved by a Windows editor) is no part of it.
+                if self.line == 1 && self.buf.starts_with(BOM) {
+                    self.buf.drain(..BOM.len());
+                }
                 Ok(true)
             }
             Err(e) => Err(Error::io(self.file.clone(), e)),
@@ -466,6 +471,9 @@ fn cr_inside(line: &[u8]) -> Option<String> {
         "a carriage return (CR) inside the line: the file seems to use CR-only (old Mac) line endings, which are not line breaks here; convert them to LF or CR LF (e.g. `tr '\\r' '\\n'`)".into()
     })
 }
+
+/// The UTF-8 byte-order mark.
+const BOM: &[u8] = b"\xEF\xBB\xBF";
 
 /// DOS's end-of-file mark, `^Z`.
 const DOS_EOF: u8 = 0x1A;
@@ -696,12 +704,19 @@ const CL_MARKERS: &[&str] = &[
     "PPRINT",
     "END-OF-PATH",
     "FINI",
+    "MODE/",
+    "FROM/",
+    "LOAD/",
+    "CSYS/",
+    "TRNTYP/",
+    "UNIT/",
 ];
 
 /// `true` if the start of a file looks like APT CL data rather than G-code:
 /// a CL statement (`GOTO/`, `TOOL PATH/`, `$$`, `PARTNO`, `FEDRAT/`, ...)
 /// starts a line before any line that holds a G-code word.
 pub fn looks_like_cl(first_bytes: &[u8]) -> bool {
+    let first_bytes = first_bytes.strip_prefix(BOM).unwrap_or(first_bytes);
     for (k, raw) in first_bytes.split(|&b| b == b'\n').enumerate() {
         let line = trim(strip_eol(raw));
         if line.is_empty() {
@@ -710,7 +725,17 @@ pub fn looks_like_cl(first_bytes: &[u8]) -> bool {
         if line.starts_with(b"$$") {
             return true;
         }
-        let upper = line.to_ascii_uppercase();
+        // Blanks before `/` (`GOTO / 10 , 20 , 5`) do not count.
+        let mut upper = Vec::with_capacity(line.len());
+        for (i, &b) in line.iter().enumerate() {
+            let before_slash = line[i..]
+                .iter()
+                .find(|&&c| !is_blank(c))
+                .is_some_and(|&c| c == b'/');
+            if !(is_blank(b) && before_slash) {
+                upper.push(b.to_ascii_uppercase());
+            }
+        }
         if CL_MARKERS.iter().any(|m| upper.starts_with(m.as_bytes())) || upper == b"RAPID" {
             return true;
         }

@@ -183,6 +183,8 @@ struct AxisWriter<'m> {
     /// The last block's words (output order, file units), for modal output
     /// and G91; empty before the first.
     last: Vec<AxisValue>,
+    /// The next block writes every axis word ([`AxisWriter::forget`]).
+    write_all: bool,
     /// Scratch for the next block's (its allocation reused).
     next: Vec<AxisValue>,
     /// The words of the last block (ASCII), their buffer reused.
@@ -233,10 +235,17 @@ impl<'m> AxisWriter<'m> {
             decimals,
             scales,
             last: Vec::with_capacity(machine.axes.len()),
+            write_all: false,
             next: Vec::with_capacity(machine.axes.len()),
             text: Vec::with_capacity(128),
             scratch: String::new(),
         }
+    }
+
+    /// Forgets the last block's words: the next block writes every axis
+    /// (the machine may have moved since, in a way kinpost did not write).
+    pub(crate) fn forget(&mut self) {
+        self.write_all = true;
     }
 
     /// Axis words for joint values `q` (chain order, internal units), written
@@ -260,9 +269,17 @@ impl<'m> AxisWriter<'m> {
             } else {
                 v
             };
-            next.push(AxisValue {
-                raw,
-                scaled: scaled_integer(raw * s),
+            let scaled = scaled_integer(raw * s);
+            // A modulo axis just below 360° rounds to 360: it is written 0.
+            let full_turn = axis.rotary == crate::machine::RotaryMode::Modulo
+                && scaled.is_some_and(|i| i as f64 == 360.0 * s);
+            next.push(if full_turn {
+                AxisValue {
+                    raw: 0.0,
+                    scaled: Some(0),
+                }
+            } else {
+                AxisValue { raw, scaled }
             });
         }
         let out = &mut self.text;
@@ -270,7 +287,7 @@ impl<'m> AxisWriter<'m> {
         for (k, axis) in self.machine.axes.iter().enumerate() {
             let (value, scale) = (next[k], self.scales[k]);
             let previous = self.last.get(k).copied();
-            if modal && previous.is_some_and(|p| p.same_as(value, scale)) {
+            if modal && !self.write_all && previous.is_some_and(|p| p.same_as(value, scale)) {
                 continue;
             }
             // Separators and axis names are a byte or two: pushed, not copied.
@@ -304,6 +321,7 @@ impl<'m> AxisWriter<'m> {
         }
         // The previous values become the next block's scratch.
         self.next = std::mem::replace(&mut self.last, next);
+        self.write_all = false;
         Ok(&self.text)
     }
 }

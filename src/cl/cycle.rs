@@ -184,7 +184,7 @@ impl<R: BufRead> Lowered<R> {
                 "CYCLE expects a cycle type (DRILL, DEEP, BRKCHP, BORE, REAM, TAP, ON, OFF, ...)",
             ));
         };
-        let comment = format!("({})", String::from_utf8_lossy(&r.text).trim());
+        let comment = super::state::as_comment(&r.text);
         let mut k = 1;
         let mut c = match first.upper().as_str() {
             "OFF" => {

@@ -216,7 +216,7 @@ impl<R: BufRead> Lowered<R> {
                     return Err(self.err(r, "INDIRV expects a direction i,j,k that is not zero"));
                 }
                 self.indirv = Some([v[0], v[1], v[2]]);
-                self.block(r, format!("({})", String::from_utf8_lossy(&r.text).trim()));
+                self.block(r, super::state::as_comment(&r.text));
             }
             "TLON" => self.tlon_gofwd(r, text)?,
             "CSYS" => {
@@ -257,7 +257,7 @@ impl<R: BufRead> Lowered<R> {
                 // along its frame's Z after six-value ones along another
                 // frame's; the axis left from those would tilt the tool.
                 self.axis = [m[0][2], m[1][2], m[2][2]];
-                self.block(r, format!("({})", String::from_utf8_lossy(&r.text).trim()));
+                self.block(r, super::state::as_comment(&r.text));
             }
             "TRNTYP" => {
                 if a(0) != "WORLD" {
@@ -265,7 +265,7 @@ impl<R: BufRead> Lowered<R> {
                         self.err(r, format!("TRNTYP/{} is not supported (only WORLD)", a(0)))
                     );
                 }
-                self.block(r, format!("({})", String::from_utf8_lossy(&r.text).trim()));
+                self.block(r, super::state::as_comment(&r.text));
             }
             // `MODE/MILL` (Autodesk's ISO 4343 APT starts with it): the
             // milling mode kinpost converts in. Lathe modes are refused.

@@ -235,3 +235,16 @@ pub(super) fn det(m: [[f64; 3]; 3]) -> f64 {
         - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
         + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
 }
+
+/// A statement's text as a G-code comment, `(…)`: its lines (a statement
+/// continued with `$`) joined by a blank, parentheses turned into
+/// brackets, so that the comment stays on one line and closes where it
+/// should.
+pub(super) fn as_comment(text: &[u8]) -> String {
+    let joined: Vec<String> = String::from_utf8_lossy(text)
+        .lines()
+        .map(|l| l.trim().replace('(', "[").replace(')', "]"))
+        .filter(|l| !l.is_empty())
+        .collect();
+    format!("({})", joined.join(" "))
+}

@@ -91,6 +91,7 @@ pub fn convert_cl<S: Stage, R: BufRead, W: Write + ?Sized>(
             queue: VecDeque::new(),
             axis: Vector3::z(),
             rapid_next: false,
+            other_since_pose: false,
             units: Units::Mm,
             feed: None,
             per_rev: false,
@@ -162,6 +163,10 @@ pub struct ClPending {
     seq: u64,
     /// Cutter compensation in force.
     cutcom: Option<CutcomOn>,
+    /// A block that may move the machine or change the controlled point
+    /// (a tool change, `G43`, a hole's cycle) was written since the pose
+    /// before: with `--modal-axes` every axis word is written.
+    after_other: bool,
 }
 
 /// Warnings with the place of their statement and half (0: begin,
@@ -202,6 +207,8 @@ struct ClFront<'a> {
     /// The tool axis in force.
     axis: Vector3<f64>,
     rapid_next: bool,
+    /// See [`ClPending::after_other`].
+    other_since_pose: bool,
     units: Units,
     feed: Option<f64>,
     /// `--feed inverse-time`: the feed is per revolution (no conversion).
@@ -343,6 +350,7 @@ impl ClFront<'_> {
             g80: self.g80,
             seq: self.seq,
             cutcom: self.cutcom,
+            after_other: std::mem::take(&mut self.other_since_pose),
         }))
     }
 
@@ -357,6 +365,13 @@ impl ClFront<'_> {
         out: &mut Vec<u8>,
     ) -> Result<Option<ClPending>> {
         self.seq += 1;
+        self.other_since_pose |= matches!(
+            statement,
+            ClStatement::Block(_)
+                | ClStatement::LoadTl { .. }
+                | ClStatement::CutterCompensation { .. }
+                | ClStatement::Hole(_)
+        );
         // Back to G94 before anything but a straight move in pose order
         // (an arc, a hole, the end): it keeps the programmed feed. (Only
         // `post` writes G93, and it writes each pose before the next
@@ -651,6 +666,9 @@ impl ClBack<'_> {
             }
             _ => None,
         };
+        if pending.after_other {
+            self.writer.forget();
+        }
         let words = self
             .writer
             .words(&solved.q, Units::Mm, true, opts.modal_axes, " ")

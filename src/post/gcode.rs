@@ -56,6 +56,10 @@ pub struct BlockReader<'a> {
     /// `compensate`'s theoretical one; [`BlockReader::begun`]) or of the
     /// machine position followed since.
     previous: Option<JointValues>,
+    /// A line with words was passed through since the last pose begun, or
+    /// that pose was a block-delete one: the next pose's axis words are
+    /// all written, also with `--modal-axes` ([`PendingPose::after_other`]).
+    other_since_pose: bool,
     /// Machine axis positions (output order, mm / deg) followed through
     /// blocks in machine coordinates (pose mode off); unknown axes are 0.
     machine_ext: Vec<f64>,
@@ -124,6 +128,7 @@ impl<'a> GcodeConverter<'a> {
                         .iter()
                         .any(|(_, m)| m.tool_length_mm != 0.0),
                 previous: None,
+                other_since_pose: false,
                 machine_ext: vec![0.0; machine.axes.len()],
                 machine_ext_stale: false,
                 words: Vec::with_capacity(16),
@@ -271,6 +276,9 @@ impl BlockReader<'_> {
             if !self.modal.pose_mode {
                 self.follow_machine_words(line, &meaning);
             }
+            // It may move the machine (a pass-through move, G28, a tool
+            // change) or change the controlled point (G43).
+            self.other_since_pose |= has_words;
             let crlf = line.bytes.ends_with(b"\r\n");
             if opts.inverse_time
                 && let Some(w) = writer
@@ -315,7 +323,12 @@ impl BlockReader<'_> {
                 at.text.clone(),
             ));
         }
+        // After a block-delete pose the controller may stand where the
+        // block before left it.
+        let block_delete = line.bytes.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'/');
+        let after_other = std::mem::replace(&mut self.other_since_pose, block_delete);
         Ok(Some(PendingPose {
+            after_other,
             pose: Pose::new(tip, axis),
             from: self.previous.clone(),
             start_tip: match start_tip {
@@ -399,6 +412,9 @@ impl BlockWriter<'_> {
         self.max_axis_miss_rad = self.max_axis_miss_rad.max(solved.axis_miss_rad);
         self.poses += 1;
         let sep = separator(line, &meaning.pose_items);
+        if pending.after_other {
+            self.axes.forget();
+        }
         let words_text = self
             .axes
             .words(
@@ -583,6 +599,10 @@ fn machine_at<'m>(machine: &'m Machine, opts: &'m PostOptions, line: usize) -> &
 /// [`BlockWriter::finish`].
 #[derive(Debug, Clone)]
 pub struct PendingPose {
+    /// Lines with words passed through since the pose before, or that pose
+    /// was a block-delete one: with `--modal-axes` every axis word is
+    /// written (the machine may not stand where kinpost's last words put it).
+    pub after_other: bool,
     /// The tool pose to solve.
     pub pose: Pose,
     /// The joint values the block starts from: the pose before's (as

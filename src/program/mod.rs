@@ -14,6 +14,7 @@ pub mod modal;
 pub mod opaque;
 pub mod rewrite;
 pub mod source;
+pub mod unfollowed;
 
 pub use modal::{
     BlockError, BlockMeaning, FeedMode, ModalState, Motion, PoseStart, TcpCode, Units, WordRef,

@@ -25,6 +25,7 @@
 //!   this state (`block_delete_switch::BlockDeleteSwitch`).
 
 use super::ijk;
+use super::unfollowed;
 use nalgebra::Vector3;
 
 /// One word of a block, as the modal state needs it.
@@ -55,13 +56,6 @@ pub enum Motion {
     /// Canned cycles and anything else that moves but is not a straight line.
     Other,
 }
-
-/// Words that give the tool orientation, or something tied to it, in a
-/// pose block other than a tool vector; refused in pose mode.
-const ORIENTATION_WORDS: &[&str] = &[
-    "A", "B", "C", "A2", "B2", "C2", "A4", "B4", "C4", "A5", "B5", "C5", "A6", "B6", "C6", "A7",
-    "B7", "C7", "XH", "YH", "ZH", "LEAD", "TILT", "THETA",
-];
 
 /// Units of lengths in the program.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -152,6 +146,9 @@ pub struct BlockMeaning {
     /// frame, a pole): its axis words are not a move in program
     /// coordinates.
     pub non_modal: bool,
+    /// A code or transformation kinpost does not follow (outside pose
+    /// mode; in it the block is refused): its item and what it does.
+    pub unfollowed: Option<(usize, String)>,
 }
 
 /// A problem with a block: message and the item it concerns.
@@ -268,6 +265,7 @@ impl ModalState {
         // Block delete (`/`, a pseudo-keyword): the controller may skip the block.
         let block_delete = keywords.iter().find(|(_, k)| *k == "/").map(|(i, _)| *i);
         let lathe_cycle = words.iter().any(|w| w.address == "Q");
+        let mut unfollowed: Option<(usize, String)> = None; // (`program::unfollowed`)
         for w in words {
             match w.address {
                 "G" => {
@@ -352,7 +350,7 @@ impl ModalState {
                             }
                         }
                         40 | 530 => non_modal = true,
-                        _ => {}
+                        c => unfollowed = unfollowed.or(unfollowed::g_code(c).map(|m| (w.item, m))),
                     }
                 }
                 "F" => {
@@ -403,6 +401,9 @@ impl ModalState {
                 "TRANS" | "ATRANS" | "ROT" | "AROT" | "SCALE" | "ASCALE" | "MIRROR" | "AMIRROR"
                 | "ROTS" | "AROTS" | "CROTS" => {
                     frame = frame.or(Some(*item));
+                }
+                k if unfollowed.is_none() => {
+                    unfollowed = unfollowed::transformation(k).map(|m| (*item, m));
                 }
                 _ => {}
             }
@@ -466,7 +467,9 @@ impl ModalState {
             }
             non_modal = true;
         }
-        if straight && has_axis && !non_modal && ijk::owner(pairs(words)).is_none() {
+        // The I J K of a code not followed (Haas G12, Fanuc G22) are its own.
+        let owned = ijk::owner(pairs(words)).is_some() || unfollowed.is_some();
+        if straight && has_axis && !non_modal && !owned {
             self.pose_mode = true;
         }
         if self.pose_mode && self.frame_seen {
@@ -496,6 +499,7 @@ impl ModalState {
             warnings: Vec::new(),
             vector_deviation: 0.0,
             non_modal,
+            unfollowed: None,
         };
         // The orientation given another way than by a tool vector: rotary
         // axis positions (Fanuc G43.4 type 1, Sinumerik ORIAXES), Euler or
@@ -509,7 +513,7 @@ impl ModalState {
             let call = words
                 .iter()
                 .find(|w| {
-                    (w.address == "M" && (w.value == 98.0 || w.value == 198.0))
+                    (w.address == "M" && [97.0, 98.0, 198.0].contains(&w.value))
                         || (w.address == "G"
                             && [65.0, 66.0, 66.1]
                                 .iter()
@@ -531,29 +535,25 @@ impl ModalState {
                 });
             }
         }
+        if let Some((item, what)) = unfollowed {
+            if self.pose_mode {
+                let message = unfollowed::message(&what, true);
+                return Err(BlockError {
+                    item: Some(item),
+                    message,
+                });
+            }
+            meaning.unfollowed = Some((item, what));
+        }
         if self.pose_mode
             && !non_modal
             && let Some(w) = words
                 .iter()
-                .find(|w| ORIENTATION_WORDS.contains(&w.address))
+                .find(|w| unfollowed::ORIENTATION_WORDS.contains(&w.address))
         {
             return Err(BlockError {
                 item: Some(w.item),
-                message: format!(
-                    "`{}` gives the tool orientation another way than by a tool vector ({}): not converted; give the tool vector as I J K (G43.5 / LinuxCNC) or A3 B3 C3 (Sinumerik ORIVECT) in the CAM post",
-                    w.address,
-                    match w.address {
-                        "A" | "B" | "C" =>
-                            "a rotary axis position, as in Fanuc G43.4 type 1 or Sinumerik ORIAXES",
-                        "A2" | "B2" | "C2" => "Euler or RPY angles",
-                        "A6" | "B6" | "C6" | "A7" | "B7" | "C7" =>
-                            "a rotation or cone axis, or an intermediate orientation (Sinumerik ORICONxx, ORIPLANE)",
-                        "XH" | "YH" | "ZH" => "a second point of the tool (Sinumerik ORICURVE)",
-                        "LEAD" | "TILT" => "lead and tilt angles",
-                        "THETA" => "a rotation of the tool about itself",
-                        _ => "a surface normal for 3-D tool compensation",
-                    }
-                ),
+                message: unfollowed::orientation_message(w.address),
             });
         }
 

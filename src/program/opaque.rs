@@ -347,7 +347,7 @@ pub fn call_len(text: &str) -> Option<usize> {
 /// The name of a call: Sinumerik-style `NAME(…)` (`CYCLE800(1,…)`: a
 /// letter, then letters, digits or `_`, at least two characters, then
 /// `(`), or a LinuxCNC o-word call (`o100 call`, `o<probe> call [1]`).
-fn call_name(text: &str) -> Option<String> {
+pub fn call_name(text: &str) -> Option<String> {
     let t = text.trim_start();
     if t.starts_with(['o', 'O']) {
         let mut parts = t.split_whitespace();

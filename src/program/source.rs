@@ -422,6 +422,44 @@ impl MachineAxisTracker {
                 line.text_lossy(),
             ));
         }
+        // A code or a transformation whose motion is not followed (a
+        // probing move, polar or cylindrical interpolation, TRANSMIT).
+        let unfollowed = meaning.unfollowed.clone().or_else(|| {
+            line.items.iter().enumerate().find_map(|(i, it)| {
+                let name = match &it.kind {
+                    ItemKind::Keyword(k) => k.clone(),
+                    ItemKind::Opaque => {
+                        super::opaque::call_name(&String::from_utf8_lossy(line.item_bytes(it)))?
+                    }
+                    _ => return None,
+                };
+                super::unfollowed::transformation(&name).map(|m| (i, m))
+            })
+        });
+        // A subprogram or macro call runs moves that stand elsewhere (and
+        // the moves of a subprogram stand where they are defined).
+        let call = line.items.iter().enumerate().find_map(|(i, it)| {
+            let name = match &it.kind {
+                ItemKind::Word(w)
+                    if (w.address == "M" && [97.0, 98.0, 198.0].contains(&w.value))
+                        || (w.address == "G" && [65.0, 66.0, 66.1].contains(&w.value)) =>
+                {
+                    String::from_utf8_lossy(line.item_bytes(it)).trim().to_string()
+                }
+                ItemKind::Keyword(k) if matches!(k.as_str(), "CALL" | "PCALL" | "MCALL" | "EXTCALL") => k.clone(),
+                ItemKind::Opaque => super::opaque::call_name(&String::from_utf8_lossy(line.item_bytes(it)))
+                    .filter(|n| n.ends_with(" call"))?,
+                _ => return None,
+            };
+            Some((i, format!("a subprogram or macro call ({name}): its moves stand elsewhere in the program or in another file")))
+        });
+        if let Some((i, what)) = unfollowed.or(call) {
+            return Err(Error::input_with(
+                Location::new(file, line.number, line.items[i].start + 1),
+                super::unfollowed::message(&what, false),
+                line.text_lossy(),
+            ));
+        }
         // A block that is not a move in program coordinates: data (G10,
         // G52, a frame, a pole, a dwell such as Fanuc's `G4 X1.5`) leaves
         // the position as it is; G92 says where the axes it names are now;
@@ -672,8 +710,9 @@ pub fn looks_like_poses(head: &[u8]) -> bool {
         return true;
     }
     // I J K are a tool vector only on straight moves: on an arc (G2/G3,
-    // modal) they are its centre, on threads, splines, G68.2, G87/G88 and
-    // with G40–G42, G54–G59, G65 something else again (`program::ijk`).
+    // modal) they are its centre, on threads, splines, G68.2, G87/G88,
+    // Haas G12/G13 and Fanuc G22 and with G40–G42, G54–G59, G65 something
+    // else again (`program::ijk`, `program::unfollowed`).
     let mut straight = true;
     for (n, raw) in head.split(|b| *b == b'\n').enumerate() {
         let line = crate::gcode::parse_line(raw, n + 1);
@@ -691,7 +730,7 @@ pub fn looks_like_poses(head: &[u8]) -> bool {
                 } else if g == 2.0 || g == 3.0 {
                     straight = false;
                 } else if super::ijk::other_motion(c, pairs.iter().copied())
-                    || [682, 870, 880].contains(&c)
+                    || [682, 870, 880, 120, 130, 220].contains(&c)
                 {
                     other_ijk = true;
                 }

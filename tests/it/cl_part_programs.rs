@@ -170,3 +170,42 @@ fn dos_end_of_file_mark_and_cr_only_line_endings() {
         "{err}"
     );
 }
+
+/// Found by metamorphic tests in session 18: CL data with blanks before
+/// `/` (`GOTO / 10 , 20 , 5`) or a byte-order mark was taken for G-code
+/// and passed through unconverted, exit 0 ("0 poses converted"), or
+/// refused at line 1; a statement continued with `$` and written as a
+/// comment (`CSYS`, `TRNTYP`, `CYCLE`) kept its line breaks: an unclosed
+/// `(CSYS/1,0,0,0,$` and bare lines of numbers after it.
+#[test]
+fn cl_with_blanks_before_the_slash_a_bom_and_continued_comments() {
+    let cl = "UNITS / MM\nFEDRAT / 500 , MMPM\nGOTO / 10 , 20 , 5\nFINI\n";
+    let (code, out, err) = crate::util::post_file("xyz-3axis", "b.apt", cl.as_bytes());
+    assert_eq!(code, 0, "{err}");
+    let out = String::from_utf8(out).unwrap();
+    assert!(
+        out.contains("G1 X10.0000 Y20.0000 Z5.0000 F500.0\n"),
+        "{out}"
+    );
+    let bom = format!("\u{feff}{cl}");
+    let (code, out, err) = crate::util::post_file("xyz-3axis", "bom.apt", bom.as_bytes());
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        String::from_utf8(out)
+            .unwrap()
+            .contains("G1 X10.0000 Y20.0000 Z5.0000")
+    );
+    let (code, out, err) = post(
+        "UNITS/MM\nCSYS/1,0,0,0,$\n 0,1,0,0,$\n 0,0,1,0\nCYCLE/DRILL,FEDTO,5.,$\n MMPM,100.,RAPTO,3.\nGOTO/1,2,3\nCYCLE/OFF\nFINI\n",
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("\n(CSYS/1,0,0,0,$ 0,1,0,0,$ 0,0,1,0)\n"),
+        "{out}"
+    );
+    assert!(
+        out.contains("\n(CYCLE/DRILL,FEDTO,5.,$ MMPM,100.,RAPTO,3.)\n"),
+        "{out}"
+    );
+    assert!(out.lines().all(|l| !l.starts_with(' ')), "{out}");
+}

@@ -397,3 +397,79 @@ fn a_rotary_moved_beyond_its_limits_is_refused_where_its_motion_is_read() {
     let r = kinpost(&["analyze", "-m", "xyzbc-trt", "--nonlinear", p]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
 }
+
+/// Found in session 18: codes and transformations that make the axis
+/// words move the machine otherwise than they say were ignored (an unknown
+/// G code fell through): Fanuc polar and cylindrical interpolation
+/// (`G12.1`, `G7.1 C57.3`, which was even followed as a turn of C to
+/// 57.3°), a probing move (`G31 X100`, `G38.2`), Haas's circular pocket
+/// (`G12`) and `G150`, LinuxCNC's diameter mode (`G7`), Sinumerik
+/// `TRANSMIT` and `TRACYL(40)`, stored stroke limits (`G22 X100 Y100`, its
+/// X Y followed as a move), and subprogram calls (`M98`, Haas `M97`,
+/// `o100 call`), whose moves stand elsewhere: `analyze`, `simulate` and
+/// `linkage` followed the words as moves, exit 0; `post` passed them
+/// through in pose mode, where the controller then reads them in machine
+/// axes. Now the commands that follow motion refuse them at the code, and
+/// `post` refuses them in pose mode; outside pose mode `post` still passes
+/// them through, and codes that leave the axes alone (`G61`, `G64 P0.01`,
+/// `G187`, `G96`, `G98`) pass everywhere.
+#[test]
+fn codes_whose_motion_kinpost_does_not_follow_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    for (code, said) in [
+        ("G12.1", "G12.1 is polar coordinate interpolation"),
+        ("G7.1 C57.3", "G7.1 is cylindrical interpolation"),
+        ("G31 X100", "G31 is a probing or skip move"),
+        ("G38.2 Z-50", "G38.2 is a probing or skip move"),
+        ("G12 I10 K20 Q5 Z-5", "G12 is circular pocket milling"),
+        ("G7", "G7 is diameter mode"),
+        ("G22 X100 Y100", "G22 is stored stroke limits"),
+        ("G5.3", "G5.3 is a code kinpost does not know"),
+        ("TRANSMIT", "TRANSMIT is a Sinumerik transformation"),
+        ("TRACYL(40)", "TRACYL is a Sinumerik transformation"),
+        ("M97 P100", "a subprogram or macro call (M97)"),
+        ("o100 call", "a subprogram or macro call (o100 call)"),
+    ] {
+        let prog = dir.path().join("m.ngc");
+        let text =
+            format!("G21 G90 G94\nG0 X50 Y0 Z10 A0 C0\n{code}\nG1 X20 Y5 Z5 C10 F100\nM30\n");
+        std::fs::write(&prog, text).unwrap();
+        refused_where_its_motion_is_read(&prog, &["m.ngc:3:1:", said]);
+        // Outside pose mode `post` passes the line through.
+        let p = prog.to_str().unwrap();
+        let r = kinpost(&["post", "-m", "xyzac-trt", p]);
+        assert!(
+            r.status.success(),
+            "{code}: {}",
+            String::from_utf8_lossy(&r.stderr)
+        );
+        // In pose mode it refuses it.
+        let pose = dir.path().join("p.ngc");
+        let text = format!(
+            "G21 G90 G94\nG43.4 H1\nG1 X50 Y0 Z10 I0 J0 K1 F100\n{code}\nG1 X20 Y5 Z5 I0 J0 K1\nG49\nM30\n"
+        );
+        std::fs::write(&pose, text).unwrap();
+        let r = kinpost(&["post", "-m", "xyzac-trt", pose.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(1), "{code}: {err}");
+        assert!(err.contains("p.ngc:4:1:"), "{code}: {err}");
+    }
+    for code in ["G61", "G64 P0.01", "G187 P1", "G96 S200", "G98", "G17"] {
+        let prog = dir.path().join("ok.ngc");
+        let text =
+            format!("G21 G90 G94\nG0 X50 Y0 Z10 A0 C0\n{code}\nG1 X20 Y5 Z5 C10 F100\nM30\n");
+        std::fs::write(&prog, text).unwrap();
+        let r = kinpost(&[
+            "analyze",
+            "-m",
+            "xyzac-trt",
+            "--nonlinear",
+            prog.to_str().unwrap(),
+        ]);
+        assert!(
+            r.status.success(),
+            "{code}: {}",
+            String::from_utf8_lossy(&r.stderr)
+        );
+    }
+}

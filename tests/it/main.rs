@@ -64,6 +64,7 @@ mod linkage_fixtures;
 mod linkage_words;
 mod linuxcnc_import;
 mod machine_moves;
+mod modal_axes;
 mod model_file_strict;
 mod not_tool_vectors;
 mod output_safety;

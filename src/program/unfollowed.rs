@@ -1,0 +1,164 @@
+//! What kinpost does not follow in a block: words that give the tool
+//! orientation otherwise than by a tool vector, and G codes and Sinumerik
+//! transformations that move the machine otherwise than the block's axis
+//! words say (a probing move, a pocket cycle), or make later words mean
+//! something else (polar or cylindrical interpolation, a diameter). Such a
+//! block is refused in pose mode, and by the commands that follow a
+//! program's motion in machine axes (`analyze`, `simulate`, `linkage`);
+//! outside pose mode `post` passes it through. G codes are checked against
+//! the list of those kinpost reads or knows to leave the axes' meaning
+//! alone, so a code it has never met is refused too (docs/programs.md).
+
+/// Words that give the tool orientation, or something tied to it, in a
+/// pose block other than a tool vector; refused in pose mode.
+pub const ORIENTATION_WORDS: &[&str] = &[
+    "A", "B", "C", "A2", "B2", "C2", "A4", "B4", "C4", "A5", "B5", "C5", "A6", "B6", "C6", "A7",
+    "B7", "C7", "XH", "YH", "ZH", "LEAD", "TILT", "THETA",
+];
+
+/// Why `address` (one of [`ORIENTATION_WORDS`]) is refused in pose mode.
+pub fn orientation_message(address: &str) -> String {
+    format!(
+        "`{address}` gives the tool orientation another way than by a tool vector ({}): not converted; give the tool vector as I J K (G43.5 / LinuxCNC) or A3 B3 C3 (Sinumerik ORIVECT) in the CAM post",
+        match address {
+            "A" | "B" | "C" =>
+                "a rotary axis position, as in Fanuc G43.4 type 1 or Sinumerik ORIAXES",
+            "A2" | "B2" | "C2" => "Euler or RPY angles",
+            "A6" | "B6" | "C6" | "A7" | "B7" | "C7" => {
+                "a rotation or cone axis, or an intermediate orientation (Sinumerik ORICONxx, ORIPLANE)"
+            }
+            "XH" | "YH" | "ZH" => "a second point of the tool (Sinumerik ORICURVE)",
+            "LEAD" | "TILT" => "lead and tilt angles",
+            "THETA" => "a rotation of the tool about itself",
+            _ => "a surface normal for 3-D tool compensation",
+        }
+    )
+}
+
+/// G codes (ten times their value) that reach the modal state's catch-all
+/// and leave the meaning of the axis words alone: planes and arc-centre
+/// modes (read by `program::arc`), plain tool length compensation
+/// (`program::length_comp`), exact stop and path control (`G8` look-ahead
+/// or LinuxCNC's radius mode, `G9`, `G60`, `G61`, `G61.1`, `G62`, `G63`,
+/// `G64`, Haas `G103`, `G187`), spindle modes (`G96`, `G97`), canned-cycle
+/// return levels and Fanuc lathe feed modes (`G98`, `G99`), the cancels
+/// `G11`, `G13.1`, `G15`, `G23`, `G67`, `G100` (Haas mirror off), storing
+/// a position (`G28.1`, `G30.1`).
+const LEAVES_AXES_ALONE: &[i64] = &[
+    80, 90, 110, 131, 170, 180, 190, 230, 281, 301, 430, 431, 440, 600, 610, 611, 620, 630, 640,
+    670, 901, 911, 960, 970, 980, 990, 1000, 1030, 1870,
+];
+
+/// What the G code `code` (ten times its value) does that kinpost does
+/// not follow, or `None` when it is read or leaves the axes alone
+/// ([`LEAVES_AXES_ALONE`]). Codes the modal state reads itself never get
+/// here.
+pub fn g_code(code: i64) -> Option<String> {
+    if LEAVES_AXES_ALONE.contains(&code) {
+        return None;
+    }
+    let what = match code {
+        71 | 1070 => {
+            "cylindrical interpolation (Fanuc G7.1, Haas G107): the rotary's words become lengths on a cylinder"
+        }
+        121 => {
+            "polar coordinate interpolation (Fanuc G12.1): X and the rotary move as Cartesian X and Y"
+        }
+        650 | 660 | 661 => "a macro call (G65, G66, G66.1): its moves stand elsewhere",
+        70 => {
+            "diameter mode (LinuxCNC G7: X is a diameter) or hypothetical axis interpolation (Fanuc G07)"
+        }
+        310..=314 | 382..=385 => {
+            "a probing or skip move (G31, G38.x): it stops where a signal comes, not where its words say"
+        }
+        21 | 22 | 23 | 24 | 31 | 32 | 33 | 34 => {
+            "a special interpolation (spiral, involute, exponential or 3-D circle)"
+        }
+        120 | 130 => "circular pocket milling (Haas G12, G13): a cycle that moves the tool",
+        220 => "stored stroke limits (Fanuc G22): its X Y Z I J K are limits, not a move",
+        270 | 290 => {
+            "a reference position check or return (G27, G29): it moves through points its words do not give"
+        }
+        390 | 450 | 460 | 470 | 480 => {
+            "a corner offset or tool offset change (G39, G45–G48) that moves the tool off its words"
+        }
+        512 => "polygon turning (G51.2): an axis synchronised with the spindle",
+        531 => "tool axis direction control (G53.1): the controller turns the rotaries",
+        1010 | 2680 => "mirror imaging or feature coordinates (Haas G101, G268): a frame",
+        1360 | 1500 | 1740 | 1840 => {
+            "a probing, pocket or tapping cycle (Haas G136, G150, G174, G184)"
+        }
+        1410 | 1430 => "3-D cutter or five-axis tool length compensation (Haas G141, G143)",
+        171 | 181 | 191 => "a plane of the U V W axes (LinuxCNC G17.1–G19.1)",
+        _ => "",
+    };
+    Some(if what.is_empty() {
+        format!(
+            "G{} is a code kinpost does not know: it may move the machine otherwise than the axis words say, or change what later words mean",
+            g_name(code)
+        )
+    } else {
+        format!("G{} is {what}", g_name(code))
+    })
+}
+
+/// `G` code ten times `code` as written: `12.1`, `154`.
+fn g_name(code: i64) -> String {
+    match code % 10 {
+        0 => format!("{}", code / 10),
+        d => format!("{}.{d}", code / 10),
+    }
+}
+
+/// What a Sinumerik transformation keyword or call name does that kinpost
+/// does not follow: `TRANSMIT`, `TRACYL`, `TRAANG`, `TRACON` (the axes'
+/// words are then in another coordinate system); `None` for any other.
+pub fn transformation(name: &str) -> Option<String> {
+    let upper = name.to_ascii_uppercase();
+    ["TRANSMIT", "TRACYL", "TRAANG", "TRACON"]
+        .contains(&upper.as_str())
+        .then(|| format!("{upper} is a Sinumerik transformation (face, cylinder surface or inclined axis): the axis words after it are in another coordinate system"))
+}
+
+/// The message of a block refused for `what` ([`g_code`],
+/// [`transformation`]): in pose mode (`post`, `compensate`) or where a
+/// program's motion in machine axes is followed.
+pub fn message(what: &str, pose_mode: bool) -> String {
+    if pose_mode {
+        format!(
+            "{what}; in pose mode it is not converted: give the moves it stands for as poses in the CAM system"
+        )
+    } else {
+        format!(
+            "{what}; this command follows the axis words as moves and would not follow it: give the moves it stands for in the CAM system, or run the program on the controller's own simulation"
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn known_codes_pass_and_others_are_named() {
+        assert_eq!(g_code(640), None);
+        assert_eq!(g_code(170), None);
+        assert!(
+            g_code(121)
+                .unwrap()
+                .starts_with("G12.1 is polar coordinate interpolation")
+        );
+        assert!(
+            g_code(53)
+                .unwrap()
+                .starts_with("G5.3 is a code kinpost does not know")
+        );
+        assert!(g_code(383).unwrap().contains("probing"));
+        assert!(
+            transformation("tracyl")
+                .unwrap()
+                .starts_with("TRACYL is a Sinumerik transformation")
+        );
+        assert_eq!(transformation("TRAORI"), None);
+    }
+}
