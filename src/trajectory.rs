@@ -242,6 +242,11 @@ fn gcode_trajectory<R: BufRead>(
             }
             continue;
         };
+        // Where the block starts is not known (after G28, G53 between
+        // poses): the path goes on afresh from its end.
+        if pending.from.is_none() && last.is_some() {
+            restart = true;
+        }
         let q = reachable(
             &ik,
             machine,
@@ -251,11 +256,22 @@ fn gcode_trajectory<R: BufRead>(
         )
         .map_err(|m| reader.solve_error(&line, &pending, m))?;
         reader.begun(&q);
-        last = Some(q.to_vec());
+        // A modulo axis turns the short way, as the controller turns it
+        // (the solution is in [0, 2π): 359° to 0° is a turn of 1°).
+        let mut q = q.to_vec();
+        if let Some(before) = &last {
+            for axis in &machine.axes {
+                if axis.rotary == crate::machine::RotaryMode::Modulo {
+                    let j = axis.joint;
+                    q[j] = crate::machine::rotary::unwind_near(q[j], before[j]);
+                }
+            }
+        }
+        last = Some(q.clone());
         let modal = reader.modal();
         f(TrajectoryBlock {
             line: line.number,
-            q: q.to_vec(),
+            q,
             pose: Some(pending.pose),
             feed_mm_min: feed_of(modal),
             inverse_time: inverse_of(modal),

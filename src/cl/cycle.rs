@@ -106,11 +106,19 @@ impl<R: BufRead> Lowered<R> {
             CycleKind::Deep | CycleKind::BrkChp if c.first_peck > 0.0 => {
                 let mut reached = c.rapto.min(0.0);
                 let mut peck = c.first_peck;
+                // The clearance above the last depth (down again, and the
+                // chip-breaking retract): 0.5 mm in the CL's units.
+                let clearance = 0.5 / self.mm_per_unit;
                 loop {
-                    let target = (reached.min(0.0) - peck).max(bottom);
+                    let mut target = (reached.min(0.0) - peck).max(bottom);
+                    // Pecks that add up to the depth but for rounding
+                    // (0.3 + 3 × 0.2 = 0.9000000000000001) reach it.
+                    if target - bottom <= 1e-9 * (1.0 + bottom.abs()) {
+                        target = bottom;
+                    }
                     if reached < 0.0 {
                         // Back down to just above the last depth.
-                        let back = (reached + 0.5_f64.min(c.rapto.max(0.0))).min(c.rapto);
+                        let back = (reached + clearance.min(c.rapto.max(0.0))).min(c.rapto);
                         self.go(r, at(back), true);
                     }
                     self.go(r, at(target), false);
@@ -121,7 +129,7 @@ impl<R: BufRead> Lowered<R> {
                     let up = if c.kind == CycleKind::Deep {
                         c.rapto
                     } else {
-                        (target + 0.5).min(c.rapto)
+                        (target + clearance).min(c.rapto)
                     };
                     self.go(r, at(up), true);
                     peck = if c.sub_peck > 0.0 {

@@ -275,6 +275,11 @@ impl BlockReader<'_> {
             }
             if !self.modal.pose_mode {
                 self.follow_machine_words(line, &meaning);
+            } else if meaning.non_modal && goes_where_not_known(line) {
+                // `G28`, `G53 G0 Z0` between poses: the next pose starts
+                // where the program does not say, and must give X Y Z.
+                self.modal.tip = [None; 3];
+                self.start = Start::Unknown;
             }
             // It may move the machine (a pass-through move, G28, a tool
             // change) or change the controlled point (G43).
@@ -330,7 +335,10 @@ impl BlockReader<'_> {
         Ok(Some(PendingPose {
             after_other,
             pose: Pose::new(tip, axis),
-            from: self.previous.clone(),
+            from: match self.start {
+                Start::Unknown => None,
+                _ => self.previous.clone(),
+            },
             start_tip: match start_tip {
                 [Some(x), Some(y), Some(z)] => Some(Vector3::new(x, y, z)),
                 _ => None,
@@ -521,7 +529,7 @@ impl BlockReader<'_> {
                 line.words()
                     .any(|w| w.address == "G" && (w.value - v).abs() < 1e-9)
             };
-            if [28.0, 30.0, 53.0, 92.1, 92.2, 92.3].into_iter().any(g) {
+            if goes_where_not_known(line) {
                 // Home, machine coordinates, offsets reset: where the tool
                 // is in program coordinates is no longer known, so the
                 // next pose must give X, Y and Z.
@@ -595,6 +603,18 @@ fn machine_at<'m>(machine: &'m Machine, opts: &'m PostOptions, line: usize) -> &
     }
 }
 
+/// Whether `line` sends the machine somewhere its program coordinates do
+/// not say: home (`G28`, `G30`), machine coordinates (`G53`), the offsets
+/// reset (`G92.1`–`G92.3`).
+fn goes_where_not_known(line: &Line) -> bool {
+    line.words().any(|w| {
+        w.address == "G"
+            && [28.0, 30.0, 53.0, 92.1, 92.2, 92.3]
+                .iter()
+                .any(|v| (w.value - v).abs() < 1e-9)
+    })
+}
+
 /// A pose block between [`BlockReader::begin`] and
 /// [`BlockWriter::finish`].
 #[derive(Debug, Clone)]
@@ -606,7 +626,8 @@ pub struct PendingPose {
     /// The tool pose to solve.
     pub pose: Pose,
     /// The joint values the block starts from: the pose before's (as
-    /// solved in the first pass) or the machine position followed since.
+    /// solved in the first pass) or the machine position followed since;
+    /// `None` where that is not known (after `G28`, `G53`, …).
     pub from: Option<crate::machine::chain::JointValues>,
     /// The tool tip before the block, mm, when known.
     pub start_tip: Option<Vector3<f64>>,

@@ -209,3 +209,35 @@ fn cl_with_blanks_before_the_slash_a_bom_and_continued_comments() {
     );
     assert!(out.lines().all(|l| !l.starts_with(' ')), "{out}");
 }
+
+/// Found by metamorphic tests in session 18: the peck clearance of a
+/// deep or chip-breaking hole (0.5 mm) was 0.5 CL units, 0.5 inch in an
+/// inch CL; and pecks that add up to the depth but for rounding (0.3 +
+/// 3 × 0.2) drilled the bottom twice.
+#[test]
+fn peck_holes_do_not_depend_on_the_units_or_on_rounding() {
+    let moves_of = |cl: &str| -> Vec<String> {
+        let (code, out, err) = post(cl);
+        assert_eq!(code, 0, "{err}");
+        out.lines()
+            .filter(|l| !l.starts_with('(') && l.contains(" Z"))
+            .map(str::to_string)
+            .collect()
+    };
+    for kind in ["DEEP2", "BRKCHP"] {
+        let mm = moves_of(&format!(
+            "UNITS/MM\nRAPID\nGOTO/10,20,25.4\nCYCLE/{kind},FEDTO,12.7,1STPECK,5.08,SUBPECK,2.54,MMPM,254,RAPTO,5.08,RTRCTO,25.4\nGOTO/10,20,0\nCYCLE/OFF\nFINI\n"
+        ));
+        let inch = moves_of(&format!(
+            "UNITS/INCHES\nRAPID\nGOTO/0.393700787401575,0.78740157480315,1\nCYCLE/{kind},FEDTO,0.5,1STPECK,0.2,SUBPECK,0.1,IPM,10,RAPTO,0.2,RTRCTO,1\nGOTO/0.393700787401575,0.78740157480315,0\nCYCLE/OFF\nFINI\n"
+        ));
+        assert!(mm.len() > 6, "{kind}: {mm:?}");
+        assert_eq!(mm, inch, "{kind}");
+        assert!(mm.iter().any(|l| l.contains("Z-4.5800")), "{kind}: {mm:?}");
+    }
+    let pecks = moves_of(
+        "UNITS/MM\nRAPID\nGOTO/10,20,5\nCYCLE/DEEP2,FEDTO,0.9,1STPECK,0.3,SUBPECK,0.2,MMPM,100,RAPTO,1\nGOTO/10,20,0\nCYCLE/OFF\nFINI\n",
+    );
+    let bottoms = pecks.iter().filter(|l| l.contains("Z-0.9000")).count();
+    assert_eq!(bottoms, 1, "{pecks:?}");
+}
