@@ -190,7 +190,15 @@ fn gcode_trajectory<R: BufRead>(
         let line = line.map_err(|e| Error::io(file, e))?;
         scratch.clear();
         arcs.apply(&line);
-        let Some(pending) = reader.begin(None, &line, &mut scratch)? else {
+        let begun = reader.begin(None, &line, &mut scratch)?;
+        if let Some((i, what)) = reader.take_unfollowed() {
+            return Err(Error::input_with(
+                Location::new(file, line.number, line.items[i].start + 1),
+                crate::program::unfollowed::message(&what, false),
+                line.text_lossy(),
+            ));
+        }
+        let Some(pending) = begun else {
             match reader.start() {
                 Start::Followed => {
                     // Only a line that moved the machine is a block (a

@@ -60,6 +60,9 @@ pub struct BlockReader<'a> {
     /// that pose was a block-delete one: the next pose's axis words are
     /// all written, also with `--modal-axes` ([`PendingPose::after_other`]).
     other_since_pose: bool,
+    /// What in the last line passed through outside pose mode the commands
+    /// that follow a program's motion refuse ([`BlockReader::take_unfollowed`]).
+    unfollowed: Option<(usize, String)>,
     /// Machine axis positions (output order, mm / deg) followed through
     /// blocks in machine coordinates (pose mode off); unknown axes are 0.
     machine_ext: Vec<f64>,
@@ -129,6 +132,7 @@ impl<'a> GcodeConverter<'a> {
                         .any(|(_, m)| m.tool_length_mm != 0.0),
                 previous: None,
                 other_since_pose: false,
+                unfollowed: None,
                 machine_ext: vec![0.0; machine.axes.len()],
                 machine_ext_stale: false,
                 words: Vec::with_capacity(16),
@@ -275,6 +279,8 @@ impl BlockReader<'_> {
             }
             if !self.modal.pose_mode {
                 self.follow_machine_words(line, &meaning);
+                self.unfollowed =
+                    crate::program::unfollowed::in_line(line, meaning.unfollowed.clone());
             } else if meaning.non_modal && goes_where_not_known(line) {
                 // `G28`, `G53 G0 Z0` between poses: the next pose starts
                 // where the program does not say, and must give X Y Z.
@@ -511,6 +517,14 @@ impl BlockReader<'_> {
         // `machine_ext` follows from `previous` when next needed.
         self.machine_ext_stale = true;
         self.start = Start::AtPose;
+    }
+
+    /// What in the line [`BlockReader::begin`] last passed through (outside
+    /// pose mode) moves the machine otherwise than its words say, with its
+    /// item ([`crate::program::unfollowed::in_line`]): `post` passes it on,
+    /// the commands that follow motion refuse it.
+    pub fn take_unfollowed(&mut self) -> Option<(usize, String)> {
+        self.unfollowed.take()
     }
 
     /// Where the machine is before the next pose: at the last pose, where

@@ -422,38 +422,8 @@ impl MachineAxisTracker {
                 line.text_lossy(),
             ));
         }
-        // A code or a transformation whose motion is not followed (a
-        // probing move, polar or cylindrical interpolation, TRANSMIT).
-        let unfollowed = meaning.unfollowed.clone().or_else(|| {
-            line.items.iter().enumerate().find_map(|(i, it)| {
-                let name = match &it.kind {
-                    ItemKind::Keyword(k) => k.clone(),
-                    ItemKind::Opaque => {
-                        super::opaque::call_name(&String::from_utf8_lossy(line.item_bytes(it)))?
-                    }
-                    _ => return None,
-                };
-                super::unfollowed::transformation(&name).map(|m| (i, m))
-            })
-        });
-        // A subprogram or macro call runs moves that stand elsewhere (and
-        // the moves of a subprogram stand where they are defined).
-        let call = line.items.iter().enumerate().find_map(|(i, it)| {
-            let name = match &it.kind {
-                ItemKind::Word(w)
-                    if (w.address == "M" && [97.0, 98.0, 198.0].contains(&w.value))
-                        || (w.address == "G" && [65.0, 66.0, 66.1].contains(&w.value)) =>
-                {
-                    String::from_utf8_lossy(line.item_bytes(it)).trim().to_string()
-                }
-                ItemKind::Keyword(k) if matches!(k.as_str(), "CALL" | "PCALL" | "MCALL" | "EXTCALL") => k.clone(),
-                ItemKind::Opaque => super::opaque::call_name(&String::from_utf8_lossy(line.item_bytes(it)))
-                    .filter(|n| n.ends_with(" call"))?,
-                _ => return None,
-            };
-            Some((i, format!("a subprogram or macro call ({name}): its moves stand elsewhere in the program or in another file")))
-        });
-        if let Some((i, what)) = unfollowed.or(call) {
+        let unfollowed = super::unfollowed::in_line(line, meaning.unfollowed.clone());
+        if let Some((i, what)) = unfollowed {
             return Err(Error::input_with(
                 Location::new(file, line.number, line.items[i].start + 1),
                 super::unfollowed::message(&what, false),

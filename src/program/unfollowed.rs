@@ -43,10 +43,11 @@ pub fn orientation_message(address: &str) -> String {
 /// `G64`, Haas `G103`, `G187`), spindle modes (`G96`, `G97`), canned-cycle
 /// return levels and Fanuc lathe feed modes (`G98`, `G99`), the cancels
 /// `G11`, `G13.1`, `G15`, `G23`, `G67`, `G100` (Haas mirror off), storing
-/// a position (`G28.1`, `G30.1`).
+/// a position (`G28.1`, `G30.1`), LinuxCNC's end of a NURBS block (`G5.3`)
+/// and additional tool length offset (`G43.2`), Mazak's `G69.5`.
 const LEAVES_AXES_ALONE: &[i64] = &[
-    80, 90, 110, 131, 170, 180, 190, 230, 281, 301, 430, 431, 440, 600, 610, 611, 620, 630, 640,
-    670, 901, 911, 960, 970, 980, 990, 1000, 1030, 1870,
+    53, 432, 695, 80, 90, 110, 131, 170, 180, 190, 230, 281, 301, 430, 431, 440, 600, 610, 611,
+    620, 630, 640, 670, 901, 911, 960, 970, 980, 990, 1000, 1030, 1870,
 ];
 
 /// What the G code `code` (ten times its value) does that kinpost does
@@ -58,6 +59,7 @@ pub fn g_code(code: i64) -> Option<String> {
         return None;
     }
     let what = match code {
+        685 => "an inclined work plane (Mazak G68.5): a frame",
         71 | 1070 => {
             "cylindrical interpolation (Fanuc G7.1, Haas G107): the rotary's words become lengths on a cylinder"
         }
@@ -120,6 +122,60 @@ pub fn transformation(name: &str) -> Option<String> {
         .then(|| format!("{upper} is a Sinumerik transformation (face, cylinder surface or inclined axis): the axis words after it are in another coordinate system"))
 }
 
+/// What in `line` makes the commands that follow a program's motion
+/// refuse it, with its item: `coded` (the modal state's
+/// [`BlockMeaning::unfollowed`](super::BlockMeaning::unfollowed)), a
+/// Sinumerik transformation written as a keyword or a call, or a
+/// subprogram or macro call (`M98`, Haas `M97`, `G65`, `G66`, `CALL`,
+/// `o100 call`), whose moves stand elsewhere (and a subprogram's moves
+/// where it is defined). Heidenhain's `TOOL CALL` is a tool change.
+pub fn in_line(
+    line: &crate::gcode::Line,
+    coded: Option<(usize, String)>,
+) -> Option<(usize, String)> {
+    use crate::gcode::ItemKind;
+    let bytes = |it| String::from_utf8_lossy(line.item_bytes(it)).into_owned();
+    coded.or_else(|| {
+        line.items.iter().enumerate().find_map(|(i, it)| {
+            let name = match &it.kind {
+                ItemKind::Keyword(k) => k.clone(),
+                ItemKind::Opaque => super::opaque::call_name(&bytes(it))?,
+                _ => return None,
+            };
+            transformation(&name).map(|m| (i, m))
+        })
+    })
+    .or_else(|| {
+        line.items.iter().enumerate().find_map(|(i, it)| {
+            let name = match &it.kind {
+                ItemKind::Word(w)
+                    if (w.address == "M" && [97.0, 98.0, 198.0].contains(&w.value))
+                        || (w.address == "G" && [65.0, 66.0, 66.1].contains(&w.value)) =>
+                {
+                    bytes(it).trim().to_string()
+                }
+                ItemKind::Keyword(k)
+                    if matches!(k.as_str(), "CALL" | "PCALL" | "MCALL" | "EXTCALL")
+                        && !String::from_utf8_lossy(&line.bytes[..it.start])
+                            .trim_end()
+                            .to_ascii_uppercase()
+                            .ends_with("TOOL") =>
+                {
+                    k.clone()
+                }
+                ItemKind::Opaque => {
+                    super::opaque::call_name(&bytes(it)).filter(|n| n.ends_with(" call"))?
+                }
+                _ => return None,
+            };
+            Some((
+                i,
+                format!("a subprogram or macro call ({name}): its moves stand elsewhere in the program or in another file"),
+            ))
+        })
+    })
+}
+
 /// The message of a block refused for `what` ([`g_code`],
 /// [`transformation`]): in pose mode (`post`, `compensate`) or where a
 /// program's motion in machine axes is followed.
@@ -149,10 +205,11 @@ mod tests {
                 .starts_with("G12.1 is polar coordinate interpolation")
         );
         assert!(
-            g_code(53)
+            g_code(54)
                 .unwrap()
-                .starts_with("G5.3 is a code kinpost does not know")
+                .starts_with("G5.4 is a code kinpost does not know")
         );
+        assert_eq!(g_code(53), None);
         assert!(g_code(383).unwrap().contains("probing"));
         assert!(
             transformation("tracyl")

@@ -424,7 +424,7 @@ fn codes_whose_motion_kinpost_does_not_follow_are_refused() {
         ("G12 I10 K20 Q5 Z-5", "G12 is circular pocket milling"),
         ("G7", "G7 is diameter mode"),
         ("G22 X100 Y100", "G22 is stored stroke limits"),
-        ("G5.3", "G5.3 is a code kinpost does not know"),
+        ("G5.4", "G5.4 is a code kinpost does not know"),
         ("TRANSMIT", "TRANSMIT is a Sinumerik transformation"),
         ("TRACYL(40)", "TRACYL is a Sinumerik transformation"),
         ("M97 P100", "a subprogram or macro call (M97)"),
@@ -521,4 +521,47 @@ fn a_pose_after_g28_or_g53_in_pose_mode_starts_where_the_program_does_not_say() 
             "{home}: {err}"
         );
     }
+}
+
+/// The same codes in the machine-axis part of a pose program (before TCP
+/// is switched on), which `analyze`, `simulate` and `linkage` read with
+/// `post`'s reader: a Mazak `G68.5 X0 Y0 Z0 I0 J1 K0` macro was read as a
+/// pose program with no pose in it ("no blocks", exit 0). Heidenhain's
+/// `TOOL CALL` is a tool change, not a subprogram call.
+#[test]
+fn codes_not_followed_before_pose_mode_are_refused_by_the_commands_that_follow_motion() {
+    let dir = tempfile::tempdir().unwrap();
+    let prog = dir.path().join("pp.ngc");
+    let text = "G21 G90 G94\nG0 X50 Y0 Z10 A0 C0\nG12.1\nG1 X20 C10 F100\nG13.1\nG43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1\nG49\nM30\n";
+    std::fs::write(&prog, text).unwrap();
+    refused_where_its_motion_is_read(
+        &prog,
+        &["pp.ngc:3:1:", "G12.1 is polar coordinate interpolation"],
+    );
+    let r = kinpost(&["post", "-m", "xyzac-trt", prog.to_str().unwrap()]);
+    assert!(r.status.success());
+    let frame = dir.path().join("g685.ngc");
+    std::fs::write(
+        &frame,
+        "G21 G90\nG0 X0 Y0 Z50 A0 C0\nG68.5 X0. Y0. Z0. I0 J1 K0\nG1 X10 F100\nM30\n",
+    )
+    .unwrap();
+    refused_where_its_motion_is_read(
+        &frame,
+        &["g685.ngc:3:1:", "G68.5 is an inclined work plane"],
+    );
+    let tool = dir.path().join("tool.ngc");
+    std::fs::write(
+        &tool,
+        "G21 G90\nG0 X0 Y0 Z50 A0 C0\nTOOL CALL 1 Z S3000\nG1 X10 F100\nM30\n",
+    )
+    .unwrap();
+    let r = kinpost(&[
+        "analyze",
+        "-m",
+        "xyzac-trt",
+        "--nonlinear",
+        tool.to_str().unwrap(),
+    ]);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
 }
