@@ -52,7 +52,7 @@ const LEAVES_AXES_ALONE: &[i64] = &[
 
 /// What the G code `code` (ten times its value) does that kinpost does
 /// not follow, or `None` when it is read or leaves the axes alone
-/// ([`LEAVES_AXES_ALONE`]). Codes the modal state reads itself never get
+/// (the list above). Codes the modal state reads itself never get
 /// here.
 pub fn g_code(code: i64) -> Option<String> {
     if LEAVES_AXES_ALONE.contains(&code) {
