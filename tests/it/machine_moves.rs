@@ -332,14 +332,7 @@ fn a_move_with_an_expression_or_an_axis_the_machine_lacks_is_refused_where_its_m
         "#1=5.\nG21 G90 G94\nG10 L2 P1 X#1\nG0 X0 Y0 Z50 A0 C0\nG1 X10 F600\nM30\n",
     )
     .unwrap();
-    let r = kinpost(&[
-        "analyze",
-        "-m",
-        "xyzac-trt",
-        "--nonlinear",
-        prog.to_str().unwrap(),
-    ]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    analyze_succeeds("xyzac-trt", &prog);
 }
 
 /// Found in session 18 (fourth hunt for real input): a program in machine
@@ -380,9 +373,7 @@ fn a_rotary_moved_beyond_its_limits_is_refused_where_its_motion_is_read() {
         std::fs::write(&prog, text).unwrap();
         if name == "inc.ngc" {
             // 110° is the limit itself: within.
-            let p = prog.to_str().unwrap();
-            let r = kinpost(&["analyze", "-m", "xyzac-trt", "--nonlinear", p]);
-            assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+            analyze_succeeds("xyzac-trt", &prog);
             std::fs::write(&prog, format!("{text}G1 A0.001\n")).unwrap();
             refused_where_its_motion_is_read(&prog, &["inc.ngc:5:4:", "A would move to 110.0010°"]);
             continue;
@@ -393,9 +384,7 @@ fn a_rotary_moved_beyond_its_limits_is_refused_where_its_motion_is_read() {
     // coordinates is left to the controller (a work offset shifts it).
     let prog = dir.path().join("ok.ngc");
     std::fs::write(&prog, "G90 G21\nG1 X0 Y0 Z50 B0 C0 F500\nG1 X900 C720\n").unwrap();
-    let p = prog.to_str().unwrap();
-    let r = kinpost(&["analyze", "-m", "xyzbc-trt", "--nonlinear", p]);
-    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    analyze_succeeds("xyzbc-trt", &prog);
 }
 
 /// Found in session 18: codes and transformations that make the axis
@@ -459,18 +448,7 @@ fn codes_whose_motion_kinpost_does_not_follow_are_refused() {
         let text =
             format!("G21 G90 G94\nG0 X50 Y0 Z10 A0 C0\n{code}\nG1 X20 Y5 Z5 C10 F100\nM30\n");
         std::fs::write(&prog, text).unwrap();
-        let r = kinpost(&[
-            "analyze",
-            "-m",
-            "xyzac-trt",
-            "--nonlinear",
-            prog.to_str().unwrap(),
-        ]);
-        assert!(
-            r.status.success(),
-            "{code}: {}",
-            String::from_utf8_lossy(&r.stderr)
-        );
+        analyze_succeeds("xyzac-trt", &prog);
     }
 }
 
@@ -556,12 +534,12 @@ fn codes_not_followed_before_pose_mode_are_refused_by_the_commands_that_follow_m
         "G21 G90\nG0 X0 Y0 Z50 A0 C0\nTOOL CALL 1 Z S3000\nG1 X10 F100\nM30\n",
     )
     .unwrap();
-    let r = kinpost(&[
-        "analyze",
-        "-m",
-        "xyzac-trt",
-        "--nonlinear",
-        tool.to_str().unwrap(),
-    ]);
+    analyze_succeeds("xyzac-trt", &tool);
+}
+
+/// `analyze --nonlinear` on `machine` reads `prog` and exits 0.
+fn analyze_succeeds(machine: &str, prog: &std::path::Path) {
+    let p = prog.to_str().unwrap();
+    let r = kinpost(&["analyze", "-m", machine, "--nonlinear", p]);
     assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
 }
