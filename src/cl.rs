@@ -727,14 +727,13 @@ pub fn looks_like_cl(first_bytes: &[u8]) -> bool {
         }
         // Blanks before `/` (`GOTO / 10 , 20 , 5`) do not count.
         let mut upper = Vec::with_capacity(line.len());
-        for (i, &b) in line.iter().enumerate() {
-            let before_slash = line[i..]
-                .iter()
-                .find(|&&c| !is_blank(c))
-                .is_some_and(|&c| c == b'/');
-            if !(is_blank(b) && before_slash) {
-                upper.push(b.to_ascii_uppercase());
+        for &b in line {
+            if b == b'/' {
+                while upper.last().is_some_and(|&c| is_blank(c)) {
+                    upper.pop();
+                }
             }
+            upper.push(b.to_ascii_uppercase());
         }
         if CL_MARKERS.iter().any(|m| upper.starts_with(m.as_bytes())) || upper == b"RAPID" {
             return true;

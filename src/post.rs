@@ -183,7 +183,7 @@ struct AxisWriter<'m> {
     /// The last block's words (output order, file units), for modal output
     /// and G91; empty before the first.
     last: Vec<AxisValue>,
-    /// The next block writes every axis word ([`AxisWriter::forget`]).
+    /// The next block writes every axis word ([`AxisWriter::write_all_next`]).
     write_all: bool,
     /// Scratch for the next block's (its allocation reused).
     next: Vec<AxisValue>,
@@ -242,9 +242,10 @@ impl<'m> AxisWriter<'m> {
         }
     }
 
-    /// Forgets the last block's words: the next block writes every axis
-    /// (the machine may have moved since, in a way kinpost did not write).
-    pub(crate) fn forget(&mut self) {
+    /// Makes the next block write every axis word, also with modal output
+    /// (the machine may have moved since, in a way kinpost did not write);
+    /// the last block's values stay the base of incremental words.
+    pub(crate) fn write_all_next(&mut self) {
         self.write_all = true;
     }
 

@@ -191,13 +191,7 @@ fn gcode_trajectory<R: BufRead>(
         scratch.clear();
         arcs.apply(&line);
         let begun = reader.begin(None, &line, &mut scratch)?;
-        if let Some((i, what)) = reader.take_unfollowed() {
-            return Err(Error::input_with(
-                Location::new(file, line.number, line.items[i].start + 1),
-                crate::program::unfollowed::message(&what, false),
-                line.text_lossy(),
-            ));
-        }
+        crate::program::unfollowed::check_line(&line, file, reader.take_unfollowed())?;
         let Some(pending) = begun else {
             match reader.start() {
                 Start::Followed => {

@@ -466,13 +466,11 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                     (ml, Some(b))
                 }
                 None => {
-                    if let Some((i, what)) = c.reader.take_unfollowed() {
-                        return Err(Error::input_with(
-                            Location::new(&opts.file_name, line.number, line.items[i].start + 1),
-                            crate::program::unfollowed::message(&what, false),
-                            line.text_lossy(),
-                        ));
-                    }
+                    crate::program::unfollowed::check_line(
+                        &line,
+                        &opts.file_name,
+                        c.reader.take_unfollowed(),
+                    )?;
                     // A block in machine coordinates (pose mode off) moves
                     // where the next pose's segment starts.
                     match c.reader.start() {

@@ -667,7 +667,7 @@ impl ClBack<'_> {
             _ => None,
         };
         if pending.after_other {
-            self.writer.forget();
+            self.writer.write_all_next();
         }
         let words = self
             .writer

@@ -60,8 +60,8 @@ pub struct BlockReader<'a> {
     /// that pose was a block-delete one: the next pose's axis words are
     /// all written, also with `--modal-axes` ([`PendingPose::after_other`]).
     other_since_pose: bool,
-    /// What in the last line passed through outside pose mode the commands
-    /// that follow a program's motion refuse ([`BlockReader::take_unfollowed`]).
+    /// The code or transformation kinpost does not follow in the last line
+    /// passed through outside pose mode ([`BlockReader::take_unfollowed`]).
     unfollowed: Option<(usize, String)>,
     /// Machine axis positions (output order, mm / deg) followed through
     /// blocks in machine coordinates (pose mode off); unknown axes are 0.
@@ -234,7 +234,7 @@ impl BlockReader<'_> {
         let applied = self.switch.apply(&mut self.modal, &words, &keywords, line);
         self.length_comp.block(&words, line);
         self.words = recycle(words);
-        let meaning = applied.map_err(|e| match e {
+        let mut meaning = applied.map_err(|e| match e {
             crate::program::block_delete_switch::Refused::Slash { at, message } => {
                 Error::input_with(
                     Location::new(&opts.file_name, at.line, at.col),
@@ -279,8 +279,7 @@ impl BlockReader<'_> {
             }
             if !self.modal.pose_mode {
                 self.follow_machine_words(line, &meaning);
-                self.unfollowed =
-                    crate::program::unfollowed::in_line(line, meaning.unfollowed.clone());
+                self.unfollowed = meaning.unfollowed.take();
             } else if meaning.non_modal && goes_where_not_known(line) {
                 // `G28`, `G53 G0 Z0` between poses: the next pose starts
                 // where the program does not say, and must give X Y Z.
@@ -427,7 +426,7 @@ impl BlockWriter<'_> {
         self.poses += 1;
         let sep = separator(line, &meaning.pose_items);
         if pending.after_other {
-            self.axes.forget();
+            self.axes.write_all_next();
         }
         let words_text = self
             .axes
@@ -519,9 +518,10 @@ impl BlockReader<'_> {
         self.start = Start::AtPose;
     }
 
-    /// What in the line [`BlockReader::begin`] last passed through (outside
-    /// pose mode) moves the machine otherwise than its words say, with its
-    /// item ([`crate::program::unfollowed::in_line`]): `post` passes it on,
+    /// The code or transformation kinpost does not follow, with its item,
+    /// in the line [`BlockReader::begin`] last passed through outside pose
+    /// mode (the modal state's part of
+    /// [`crate::program::unfollowed::check_line`]): `post` passes it on,
     /// the commands that follow motion refuse it.
     pub fn take_unfollowed(&mut self) -> Option<(usize, String)> {
         self.unfollowed.take()

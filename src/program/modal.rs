@@ -512,18 +512,12 @@ impl ModalState {
         if self.pose_mode {
             let call = words
                 .iter()
-                .find(|w| {
-                    (w.address == "M" && [97.0, 98.0, 198.0].contains(&w.value))
-                        || (w.address == "G"
-                            && [65.0, 66.0, 66.1]
-                                .iter()
-                                .any(|g| (w.value - g).abs() < 1e-9))
-                })
+                .find(|w| unfollowed::call_word(w.address, w.value))
                 .map(|w| (w.item, format!("{}{}", w.address, w.value)))
                 .or_else(|| {
                     keywords
                         .iter()
-                        .find(|(_, k)| matches!(*k, "CALL" | "PCALL" | "MCALL" | "EXTCALL"))
+                        .find(|(_, k)| unfollowed::CALL_KEYWORDS.contains(k))
                         .map(|(i, k)| (*i, k.to_string()))
                 });
             if let Some((item, what)) = call {

@@ -422,14 +422,7 @@ impl MachineAxisTracker {
                 line.text_lossy(),
             ));
         }
-        let unfollowed = super::unfollowed::in_line(line, meaning.unfollowed.clone());
-        if let Some((i, what)) = unfollowed {
-            return Err(Error::input_with(
-                Location::new(file, line.number, line.items[i].start + 1),
-                super::unfollowed::message(&what, false),
-                line.text_lossy(),
-            ));
-        }
+        super::unfollowed::check_line(line, file, meaning.unfollowed.clone())?;
         // A block that is not a move in program coordinates: data (G10,
         // G52, a frame, a pole, a dwell such as Fanuc's `G4 X1.5`) leaves
         // the position as it is; G92 says where the axes it names are now;

@@ -122,6 +122,34 @@ pub fn transformation(name: &str) -> Option<String> {
         .then(|| format!("{upper} is a Sinumerik transformation (face, cylinder surface or inclined axis): the axis words after it are in another coordinate system"))
 }
 
+/// Sinumerik keywords that call a subprogram.
+pub const CALL_KEYWORDS: &[&str] = &["CALL", "PCALL", "MCALL", "EXTCALL"];
+
+/// Whether the word `address``value` calls a subprogram or macro: Fanuc
+/// `M98`, `M198`, `G65`, `G66`, `G66.1`, Haas `M97`.
+pub fn call_word(address: &str, value: f64) -> bool {
+    (address == "M" && [97.0, 98.0, 198.0].contains(&value))
+        || (address == "G" && [65.0, 66.0, 66.1].iter().any(|g| (value - g).abs() < 1e-9))
+}
+
+/// Refuses `line` for the commands that follow a program's motion in
+/// machine axes (`analyze`, `simulate`, `linkage`) when it holds what they
+/// do not follow ([`in_line`]), naming file, line and column.
+pub fn check_line(
+    line: &crate::gcode::Line,
+    file: &str,
+    coded: Option<(usize, String)>,
+) -> crate::error::Result<()> {
+    match in_line(line, coded) {
+        None => Ok(()),
+        Some((i, what)) => Err(crate::error::Error::input_with(
+            crate::error::Location::new(file, line.number, line.items[i].start + 1),
+            message(&what, false),
+            line.text_lossy(),
+        )),
+    }
+}
+
 /// What in `line` makes the commands that follow a program's motion
 /// refuse it, with its item: `coded` (the modal state's
 /// [`BlockMeaning::unfollowed`](super::BlockMeaning::unfollowed)), a
@@ -148,14 +176,11 @@ pub fn in_line(
     .or_else(|| {
         line.items.iter().enumerate().find_map(|(i, it)| {
             let name = match &it.kind {
-                ItemKind::Word(w)
-                    if (w.address == "M" && [97.0, 98.0, 198.0].contains(&w.value))
-                        || (w.address == "G" && [65.0, 66.0, 66.1].contains(&w.value)) =>
-                {
+                ItemKind::Word(w) if call_word(&w.address, w.value) => {
                     bytes(it).trim().to_string()
                 }
                 ItemKind::Keyword(k)
-                    if matches!(k.as_str(), "CALL" | "PCALL" | "MCALL" | "EXTCALL")
+                    if CALL_KEYWORDS.contains(&k.as_str())
                         && !String::from_utf8_lossy(&line.bytes[..it.start])
                             .trim_end()
                             .to_ascii_uppercase()
