@@ -77,6 +77,39 @@ fn assert_lands(m: &Machine, q: &[f64], pose: &Pose) -> Result<(), TestCaseError
     Ok(())
 }
 
+/// Below this smallest singular value of the tool axis's Jacobian with
+/// respect to the rotaries (rad/rad), a pose counts as singular in the tests.
+/// The solver's own tolerance is 1e-9 rad; this is well above it, so the
+/// poses tested as regular are regular for the solver too.
+const SINGULAR_CONDITIONING: f64 = 1e-4;
+
+/// Smallest singular value of d(tool axis)/d(rotary joints) at `q`, by
+/// central differences of the chain: 0 where a rotary no longer turns the
+/// tool (the tool along its axis, or a nutating head at full tilt). Machines
+/// without rotaries give infinity. An evaluation independent of the solver.
+fn orientation_conditioning(m: &Machine, q: &[f64]) -> f64 {
+    const H: f64 = 1e-6;
+    let rotaries: Vec<usize> = (0..q.len())
+        .filter(|&j| m.chain.joints()[j].kind == JointKind::Revolute)
+        .collect();
+    if rotaries.is_empty() {
+        return f64::INFINITY;
+    }
+    let columns: Vec<Vector3<f64>> = rotaries
+        .iter()
+        .map(|&j| {
+            let mut plus = q.to_vec();
+            let mut minus = q.to_vec();
+            plus[j] += H;
+            minus[j] -= H;
+            (m.chain.pose(&plus, &NoErrors).axis - m.chain.pose(&minus, &NoErrors).axis) / (2.0 * H)
+        })
+        .collect();
+    nalgebra::Matrix3xX::from_columns(&columns)
+        .singular_values()
+        .min()
+}
+
 /// A unit vector from three samples in [0, 1).
 fn unit(u: &[f64]) -> Vector3<f64> {
     let z = 2.0 * u[0] - 1.0;
@@ -107,7 +140,9 @@ proptest! {
 
     /// With the generating joints (slightly disturbed) as the previous block,
     /// the solver returns exactly the generating joints: the nearest branch,
-    /// rotaries unwound to the generating turn.
+    /// rotaries unwound to the generating turn. At a singular pose (judged
+    /// from the chain, not by the solver) other joints land as well; there
+    /// only landing is asserted.
     #[test]
     fn nearest_branch_is_the_generating_one(
         u in prop::collection::vec(0.0f64..1.0, 7),
@@ -129,6 +164,13 @@ proptest! {
                 .collect();
             let sol = s.solve(&pose, Some(&prev)).map_err(|e| TestCaseError::fail(format!("{name}: {e}")))?;
             assert_lands(&m, &sol.q, &pose)?;
+            let conditioning = orientation_conditioning(&m, &q);
+            if conditioning < SINGULAR_CONDITIONING {
+                // Singular (the tool along a rotary axis, or a nutating head
+                // at its largest tilt): the generating joints are not the
+                // only ones that land, and landing is checked above.
+                continue;
+            }
             for (j, (got, want)) in sol.q.iter().zip(&q).enumerate() {
                 prop_assert!(
                     same_joint(&m, j, *got, *want),
@@ -136,7 +178,7 @@ proptest! {
                     m.chain.joints()[j].name
                 );
             }
-            prop_assert!(!sol.singular);
+            prop_assert!(!sol.singular, "{name}: regular pose (conditioning {conditioning:.2e}) reported singular");
         }
     }
 
