@@ -21,6 +21,12 @@ pub fn describe_opaque(bytes: &[u8]) -> String {
             quote(&crate::error::visible(text))
         );
     }
+    if sinumerik_at_instruction(token(text)) && !text.contains('^') {
+        return format!(
+            "`{}` in pose mode: a Sinumerik 840/840C `@` instruction (its parameter arithmetic, tests and jumps), or LinuxCNC's polar radius `@`; kinpost evaluates neither, so it cannot know what the blocks after it do; keep it outside TCP, or have the CAM system write the moves",
+            quote(token(text))
+        );
+    }
     if token(text).starts_with(['@', '^']) {
         return format!(
             "polar coordinates (`{}`: LinuxCNC `@` radius, `^` angle) in pose mode are not converted: tool poses must be given as X Y Z; write Cartesian coordinates in the CAM post",
@@ -205,6 +211,15 @@ fn o_word_statement(text: &str) -> Option<String> {
 }
 
 /// The first blank-separated token of `text` (comments cut off).
+/// `@` and three digits (`@136`): the form of the Sinumerik 840/840C `@`
+/// language's instructions (`@136 R102 K5 K900`), which LinuxCNC would read
+/// as a polar radius.
+fn sinumerik_at_instruction(token: &str) -> bool {
+    token
+        .strip_prefix('@')
+        .is_some_and(|n| n.len() == 3 && n.bytes().all(|b| b.is_ascii_digit()))
+}
+
 fn token(text: &str) -> &str {
     let t = text.trim_start();
     let end = t

@@ -397,6 +397,11 @@ fn polar_coordinates_scaling_and_swivels_are_refused() {
             "at.ngc:3:4: polar coordinates (`@10`",
         ),
         (
+            "at840c.mpf",
+            format!("{fanuc}G1 @136 R102 K5 K900\nG49\nM30\n"),
+            "at840c.mpf:3:4: `@136` in pose mode: a Sinumerik 840/840C `@` instruction",
+        ),
+        (
             "g16before.ngc",
             format!("G16\n{fanuc}G49\nM30\n"),
             "g16before.ngc:2:1: pose mode starts while a frame",
