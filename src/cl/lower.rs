@@ -73,7 +73,15 @@ pub const MOTION_MAJORS: &[&str] = &[
 /// these were kept as comments and the file run from top to bottom: a
 /// loop body once, a skipped branch run, a macro's motions where it is
 /// defined. Refused.
-pub const FLOW_MAJORS: &[&str] = &["JUMPTO", "IF", "LOOPST", "LOOPND", "DO", "TERMAC", "MACRO"];
+/// CATIA's `LOOP/START,n` … `LOOP/END` (a post-processor word some sites
+/// add) is a loop too.
+pub const FLOW_MAJORS: &[&str] = &[
+    "JUMPTO", "IF", "LOOPST", "LOOPND", "DO", "TERMAC", "MACRO", "LOOP",
+];
+
+/// The minor words naming a tool's length-offset register in `LOADTL` and
+/// `LOAD/TOOL`: `ADJUST` (APT), `OFFSET` (NCL), `OSETNO` (Creo).
+pub const LENGTH_REGISTER: [&str; 3] = ["ADJUST", "OFFSET", "OSETNO"];
 
 /// Whether the text after a major word defines a macro (`M1=MACRO/…`).
 fn is_macro_definition(text: &str) -> bool {
@@ -348,7 +356,7 @@ impl<R: BufRead> Lowered<R> {
                     self.block(r, format!("T{n}"));
                 } else {
                     let mut h = n;
-                    if a(2) == "ADJUST"
+                    if LENGTH_REGISTER.contains(&a(2).as_str())
                         && let Some(x) = args.get(3).and_then(|x| x.number())
                     {
                         h = x.max(0.0) as u32;
@@ -432,6 +440,11 @@ impl<R: BufRead> Lowered<R> {
                     }
                 };
                 self.goto(r, add(p, d), None)?;
+            }
+            // A site's word for inverse-time feeds (CATIA `INVERSE/ON`):
+            // the FEDRATs after it are no feeds per minute.
+            "INVERSE" if a(0) != "OFF" => {
+                return Err(self.err(r, format!("INVERSE/{}: inverse-time feeds by a post-processor word kinpost does not read; the feeds after it would be written as mm/min: refused rather than kept as a comment; write FEDRAT/INVERS,f in the CAM system, or give feeds per minute", a(0))));
             }
             "NURBS" | "KNOT" | "CNTRL" => {
                 return Err(self.err(r, format!("{major}: a NURBS spline (the path between two GOTO points) is not converted; refused rather than kept as a comment, which would move the tool straight past it; have the CAM system write the path as GOTO points")));

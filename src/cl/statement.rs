@@ -124,13 +124,14 @@ pub(super) fn parse_statement(text: &[u8]) -> Result<ClStatement, StatementError
             };
             match first.number() {
                 Some(n) if n >= 0.0 && n.fract() == 0.0 && n <= f64::from(u32::MAX) => {
-                    let adjust = match args.iter().position(|a| a.is("ADJUST")) {
+                    let register = |a: &Arg| super::lower::LENGTH_REGISTER.iter().any(|w| a.is(w));
+                    let adjust = match args.iter().position(register) {
                         None => None,
                         Some(k) => match args.get(k + 1).and_then(|h| h.number()) {
                             Some(h) if h >= 0.0 && h.fract() == 0.0 && h < 1e9 => Some(h as u32),
                             _ => {
                                 return Err(args[k].err(
-                                    "expected a whole register number after ADJUST (LOADTL/n,ADJUST,h)",
+                                    "expected a whole register number after ADJUST, OFFSET or OSETNO (LOADTL/n,ADJUST,h)",
                                 ));
                             }
                         },

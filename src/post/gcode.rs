@@ -232,7 +232,8 @@ impl BlockReader<'_> {
         let has_words = !words.is_empty() || !keywords.is_empty();
         let start_tip = self.modal.tip;
         let applied = self.switch.apply(&mut self.modal, &words, &keywords, line);
-        self.length_comp.block(&words, line);
+        let traori = keywords.iter().any(|(_, k)| k.starts_with("TRAORI"));
+        self.length_comp.block(&words, line, traori);
         self.words = recycle(words);
         let mut meaning = applied.map_err(|e| match e {
             crate::program::block_delete_switch::Refused::Slash { at, message } => {
@@ -322,12 +323,12 @@ impl BlockReader<'_> {
         // The chain ends at the tool's tip: a G43 of the program's own
         // would add the tool's length to axis words that include it.
         if self.tool_in_chain
-            && let Some(at) = self.length_comp.on()
+            && let Some((at, what)) = self.length_comp.on()
         {
             return Err(Error::input_with(
                 Location::new(&opts.file_name, at.line, at.col),
                 format!(
-                    "tool length compensation (G43/G43.1/G44) is on while the pose at line {} is converted, and the machine's chain ends at the tool's tip (--tool-length, --tool-table or the machine file's tool_length): the axis words include the tool, and the controller would add its length again; switch it off (G49) before the poses, or start them with G43.4 (written as G49)",
+                    "{what} while the pose at line {} is converted, and the machine's chain ends at the tool's tip (--tool-length, --tool-table or the machine file's tool_length): the axis words include the tool, and the controller would add its length again; switch it off (G49; on a Sinumerik D0) before the poses, or start them with G43.4 (written as G49)",
                     line.number
                 ),
                 at.text.clone(),
@@ -618,15 +619,16 @@ fn machine_at<'m>(machine: &'m Machine, opts: &'m PostOptions, line: usize) -> &
 }
 
 /// Whether `line` sends the machine somewhere its program coordinates do
-/// not say: home (`G28`, `G30`), machine coordinates (`G53`), the offsets
-/// reset (`G92.1`–`G92.3`).
+/// not say: home (`G28`, `G30`), machine coordinates (`G53`, Sinumerik
+/// `G153`, `SUPA`), the offsets reset (`G92.1`–`G92.3`).
 fn goes_where_not_known(line: &Line) -> bool {
-    line.words().any(|w| {
-        w.address == "G"
-            && [28.0, 30.0, 53.0, 92.1, 92.2, 92.3]
-                .iter()
-                .any(|v| (w.value - v).abs() < 1e-9)
-    })
+    line.keywords().any(|k| k == "SUPA")
+        || line.words().any(|w| {
+            w.address == "G"
+                && [28.0, 30.0, 53.0, 153.0, 92.1, 92.2, 92.3]
+                    .iter()
+                    .any(|v| (w.value - v).abs() < 1e-9)
+        })
 }
 
 /// A pose block between [`BlockReader::begin`] and

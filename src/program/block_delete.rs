@@ -8,6 +8,9 @@ use nalgebra::Vector3;
 /// modal state at one moment.
 pub type TipAndAxis = ([Option<f64>; 3], Vector3<f64>);
 
+/// Why a block-delete pose block under `G91` is refused.
+pub const UNDER_G91: &str = "a block-delete (`/`) pose block under G91 (incremental) is not converted: with the block delete switch on the controller skips it, and the machine-axis increments kinpost writes for the blocks after it (computed from this pose, its rotary axes turned) would no longer add up to the programmed poses; program the poses in G90 (absolute), or without `/`";
+
 /// What one pose block gives: each of X, Y, Z, any and all three
 /// components of the tool vector.
 #[derive(Debug, Clone, Copy)]

@@ -18,6 +18,7 @@ struct Modes {
     /// converted.
     motion: Motion,
     frame: bool,
+    interpolation_mode: bool,
     cutter_comp: bool,
     machine_orientation: bool,
     /// Feed mode and feed, when feeds are converted (else `None`).
@@ -35,6 +36,7 @@ impl Modes {
                 other => other,
             },
             frame: m.frame_seen,
+            interpolation_mode: m.interpolation_mode,
             cutter_comp: m.cutter_comp,
             machine_orientation: m.machine_orientation,
             feed: converts_feeds.then_some((m.feed_mode, m.feed)),
@@ -68,6 +70,10 @@ impl Modes {
         add(
             self.frame != other.frame,
             "a frame (G68…, G51, G51.1, G16, G254, TRANS, ROT, CYCLE800 and their cancels)",
+        );
+        add(
+            self.interpolation_mode != other.interpolation_mode,
+            "an interpolation mode (G12.1/G13.1, G7.1, G107, Okuma G169/G168)",
         );
         add(
             self.cutter_comp != other.cutter_comp,

@@ -24,6 +24,7 @@
 //!   (`/`) pose block. The modes a `/` block changes are checked beside
 //!   this state (`block_delete_switch::BlockDeleteSwitch`).
 
+use super::frames;
 use super::ijk;
 use super::unfollowed;
 use nalgebra::Vector3;
@@ -188,6 +189,10 @@ pub struct ModalState {
     /// the controller, where it would move the machine axis words kinpost
     /// writes, so pose mode may not start after it.
     pub frame_seen: bool,
+    /// An interpolation mode that changes what later axis words mean
+    /// (`unfollowed::interpolation_mode`: Fanuc G12.1, G7.1, Okuma G169) is
+    /// on: pose mode may not start under it.
+    pub interpolation_mode: bool,
     /// Cutter radius compensation (`G41`, `G42`, `G41.1`–`G42.2`) is on,
     /// until `G40`: the controller would offset kinpost's machine axis
     /// words by the tool radius, so pose mode may not start under it.
@@ -218,6 +223,7 @@ impl ModalState {
             feed: None,
             pose_mode: start == PoseStart::On,
             frame_seen: false,
+            interpolation_mode: false,
             cutter_comp: false,
             machine_orientation: false,
             tip: [None; 3],
@@ -280,20 +286,22 @@ impl ModalState {
                         // I J K are not a tool axis (`program::ijk`).
                         c if ijk::other_motion(c, pairs(words)) => self.motion = Motion::Other,
                         50 | 51 => {} // Fanuc G05 P…, G05.1 Q…: a mode, not a motion.
-                        // A tilted or rotated work plane (G68.2, G68.3,
-                        // G68.4, G68, G51.1 mirroring): its I J K are angles.
-                        // It changes how every later move lands, so it is
-                        // refused in pose mode (below) and passes through
-                        // outside it.
-                        // G51 scaling (its X Y Z are the centre, P or
-                        // I J K the factors) and G16 polar coordinates (X
-                        // the radius, Y the angle) change how later moves
-                        // land in the same way.
-                        // Haas G254 (dynamic work offset) moves the work
-                        // offset with the rotaries: a frame too.
+                        // Frames change how every later move lands (refused
+                        // in pose mode, passed through outside it): a tilted
+                        // or rotated plane (G68…, its I J K angles), G51.1
+                        // mirroring, G51 scaling, G16 polar coordinates, Haas
+                        // G254 (a work offset that moves with the rotaries).
                         680 | 682 | 683 | 684 | 511 | 510 | 160 | 2540 => frame = Some(w.item),
                         // G69, G50 (scaling off), G50.1 (mirror off), G15
                         // (polar off), Haas G255 (dynamic work offset off).
+                        // Fanuc lathe `G50 X Z`: a coordinate system, as G92.
+                        500 if words.iter().any(|o| matches!(o.address, "X" | "Y" | "Z")) => {
+                            (non_modal, self.frame_seen) = (true, false);
+                            setup = setup.or(Some((
+                                w.item,
+                                "sets the coordinate system (lathe G50 X Z, as G92)",
+                            )));
+                        }
                         690 | 500 | 501 | 150 | 2550 => self.frame_seen = false,
                         // Sinumerik G110–G112 set the pole of polar
                         // coordinates: their X Y are the pole, not a move.
@@ -349,8 +357,14 @@ impl ModalState {
                                 setup = setup.or(Some((w.item, "moves home through an intermediate point (G28/G30 with axis words) that kinpost would have to convert")));
                             }
                         }
-                        40 | 530 => non_modal = true,
-                        c => unfollowed = unfollowed.or(unfollowed::g_code(c).map(|m| (w.item, m))),
+                        40 | 530 | 1530 => non_modal = true,
+                        c => {
+                            let radius = words.iter().any(|w| w.address == "C" && w.value != 0.0);
+                            if let Some(on) = unfollowed::interpolation_mode(c, radius) {
+                                self.interpolation_mode = on;
+                            }
+                            unfollowed = unfollowed.or(unfollowed::g_code(c).map(|m| (w.item, m)));
+                        }
                     }
                 }
                 "F" => {
@@ -364,6 +378,9 @@ impl ModalState {
         if fanuc_tcp_here {
             tcp_offset_items.extend(words.iter().filter(|w| w.address == "H").map(|w| w.item));
         }
+        let frame_values = words
+            .iter()
+            .any(|w| matches!(w.address, "X" | "Y" | "Z" | "RPL"));
         for (item, k) in keywords {
             match *k {
                 "TRAORI" => {
@@ -376,32 +393,30 @@ impl ModalState {
                     orimks = Some(*item);
                 }
                 "ORIWKS" => self.machine_orientation = false,
-                // `CYCLE800(…)` swivels the work plane (a frame the
-                // controller keeps); `CYCLE800()` resets it. Both reach
-                // here as pseudo-keywords of the call
-                // (`opaque::known_call`).
-                "CYCLE800" => frame = frame.or(Some(*item)),
-                "CYCLE800()" => self.frame_seen = false,
+                // `TRAORI(1,0,1,0)`: TCP on, with a basic tool orientation
+                // or rotary offsets kinpost does not apply.
+                "TRAORI(…)" => {
+                    self.pose_mode = true;
+                    tcp_codes.push(TcpCode::SiemensOn(*item));
+                    unfollowed =
+                        unfollowed.or(Some((*item, super::opaque::TRAORI_ARGUMENTS.into())));
+                }
+                // Sinumerik's `G53` (also suppressing the other offsets).
+                "SUPA" => non_modal = true,
                 // Sinumerik motion modes of group 1 besides G0–G3: circles
                 // through an intermediate point or tangential, and splines.
                 // Modal, like G2: later blocks move along them too.
                 "CIP" | "CT" => self.motion = Motion::Arc,
                 "ASPLINE" | "BSPLINE" | "CSPLINE" | "POLY" => self.motion = Motion::Other,
-                // Sinumerik frames: their X Y Z are offsets, angles or
-                // factors, never a tool tip. Under TRAORI they would move
-                // every later pose, which kinpost does not fold in: refused
-                // in pose mode (below), passed through outside it.
-                // `TRANS`, `ROT`, `SCALE`, `MIRROR` alone delete the
-                // programmable frame.
-                "TRANS" | "ROT" | "SCALE" | "MIRROR"
-                    if !words.iter().any(|w| matches!(w.address, "X" | "Y" | "Z")) =>
-                {
-                    self.frame_seen = false;
-                }
-                "TRANS" | "ATRANS" | "ROT" | "AROT" | "SCALE" | "ASCALE" | "MIRROR" | "AMIRROR"
-                | "ROTS" | "AROTS" | "CROTS" => {
-                    frame = frame.or(Some(*item));
-                }
+                // Sinumerik frames (`program::frames`): their X Y Z are
+                // offsets, angles or factors, never a tool tip. Under
+                // TRAORI they would move every later pose, which kinpost
+                // does not fold in: refused in pose mode (below), passed
+                // through outside it.
+                k if let Some(change) = frames::change(k, frame_values) => match change {
+                    frames::FrameChange::Set => frame = frame.or(Some(*item)),
+                    frames::FrameChange::Delete => self.frame_seen = false,
+                },
                 k if unfollowed.is_none() => {
                     unfollowed = unfollowed::transformation(k).map(|m| (*item, m));
                 }
@@ -424,14 +439,6 @@ impl ModalState {
                 ),
             });
         }
-        if let Some(item) = polar
-            && self.pose_mode
-        {
-            return Err(BlockError {
-                item: Some(item),
-                message: "polar coordinates (Sinumerik G110–G112 pole, AP= angle, RP= radius) in pose mode are not converted: tool poses must be given as X Y Z; write Cartesian coordinates in the CAM post".into(),
-            });
-        }
         // Where pose mode starts: the TCP code, else the block's first word.
         let start_item = || {
             tcp_codes
@@ -441,20 +448,19 @@ impl ModalState {
                 })
                 .or_else(|| words.first().map(|w| w.item))
         };
-        if let Some(item) = orimks.or(start_item().filter(|_| self.machine_orientation))
-            && self.pose_mode
+        let orimks = orimks.or(start_item().filter(|_| self.machine_orientation));
+        if self.pose_mode
+            && let Some((item, message)) = [
+                (polar, unfollowed::POLAR),
+                (orimks, unfollowed::ORIMKS),
+                (cutter_comp, unfollowed::CUTTER_COMP),
+            ]
+            .into_iter()
+            .find_map(|(item, message)| Some((item?, message)))
         {
             return Err(BlockError {
                 item: Some(item),
-                message: "Sinumerik ORIMKS in pose mode: the tool vectors (A3 B3 C3) are then in machine coordinates, not in the workpiece frame kinpost converts from; program ORIWKS (the default) with TRAORI".into(),
-            });
-        }
-        if let Some(item) = cutter_comp
-            && self.pose_mode
-        {
-            return Err(BlockError {
-                item: Some(item),
-                message: "cutter radius compensation (G41, G42, G41.1, G42.1, G41.2, G42.2) in pose mode is not converted: the controller would offset kinpost's machine axis words by the tool radius; give the poses of the tool tip with the radius applied in the CAM system (G40 cancels it)".into(),
+                message: message.into(),
             });
         }
         if let Some(item) = frame {
@@ -462,7 +468,7 @@ impl ModalState {
             if self.pose_mode {
                 return Err(BlockError {
                     item: Some(item),
-                    message: "a frame (G68, G68.2–G68.4, G51 scaling, G51.1 mirroring, G16 polar coordinates, Haas G254 dynamic work offset; Sinumerik TRANS, ATRANS, ROT, AROT, SCALE, MIRROR, CYCLE800) in pose mode is not converted: the poses must be in the machine's workpiece frame; apply the frame in the CAM system".into(),
+                    message: frames::IN_POSE_MODE.into(),
                 });
             }
             non_modal = true;
@@ -472,10 +478,15 @@ impl ModalState {
         if straight && has_axis && !non_modal && !owned {
             self.pose_mode = true;
         }
-        if self.pose_mode && self.frame_seen {
+        if self.pose_mode && (self.frame_seen || self.interpolation_mode) {
             return Err(BlockError {
                 item: start_item(),
-                message: "pose mode starts while a frame set earlier in the program (G68…, G51, G51.1, G16, G254, TRANS, ROT, AROT, SCALE, MIRROR, CYCLE800) is active: the controller would move kinpost's machine axis words by it; cancel the frame before, or apply it in the CAM system".into(),
+                message: if self.frame_seen {
+                    frames::AT_POSE_START
+                } else {
+                    unfollowed::MODE_AT_POSE_START
+                }
+                .into(),
             });
         }
         if self.pose_mode && self.cutter_comp {
@@ -541,13 +552,13 @@ impl ModalState {
         }
         if self.pose_mode
             && !non_modal
-            && let Some(w) = words
+            && let Some((w, message)) = words
                 .iter()
-                .find(|w| unfollowed::ORIENTATION_WORDS.contains(&w.address))
+                .find_map(|w| unfollowed::pose_word(w.address).map(|m| (w, m)))
         {
             return Err(BlockError {
                 item: Some(w.item),
-                message: unfollowed::orientation_message(w.address),
+                message,
             });
         }
 
@@ -568,15 +579,7 @@ impl ModalState {
         {
             return Err(BlockError {
                 item: Some(w.item),
-                message: format!(
-                    "`{}` in pose mode: {} would move the tool off the converted pose; not converted; leave it out of the blocks between G43.4 / TRAORI and G49 / TRAFOOF",
-                    w.address,
-                    if w.address == "E" {
-                        "E: an extruder or seventh axis in some dialects"
-                    } else {
-                        "U/V/W: a secondary linear axis (a quill, a second slide)"
-                    }
-                ),
+                message: unfollowed::secondary_axis_message(w.address),
             });
         }
 
@@ -649,7 +652,7 @@ impl ModalState {
         {
             return Err(BlockError {
                 item: Some(item),
-                message: "a block-delete (`/`) pose block under G91 (incremental) is not converted: with the block delete switch on the controller skips it, and the machine-axis increments kinpost writes for the blocks after it (computed from this pose, its rotary axes turned) would no longer add up to the programmed poses; program the poses in G90 (absolute), or without `/`".into(),
+                message: super::block_delete::UNDER_G91.into(),
             });
         }
 

@@ -4,6 +4,9 @@
 
 use crate::gcode::{ItemKind, Line};
 
+/// Why `TRAORI(…)` with more than the transformation's number is refused.
+pub const TRAORI_ARGUMENTS: &str = "TRAORI with a basic tool orientation or rotary offsets (`TRAORI(1,0,1,0)`: the tool along Y) is not converted: kinpost converts with the machine file's tool direction and no offsets; give the tool direction in the machine file and program TRAORI or TRAORI(1)";
+
 /// The longest piece of offending text quoted in a message.
 const QUOTE_MAX: usize = 48;
 
@@ -27,6 +30,12 @@ pub fn describe_opaque(bytes: &[u8]) -> String {
             quote(token(text))
         );
     }
+    if token(text).starts_with(',') {
+        return format!(
+            "`{}`: a corner rounding or chamfer (Fanuc, Haas `,R` / `,C`): the controller inserts an arc or a chamfer at the corner, a path kinpost does not convert; have the CAM system write the corner",
+            quote(token(text))
+        );
+    }
     if token(text).starts_with(['@', '^']) {
         return format!(
             "polar coordinates (`{}`: LinuxCNC `@` radius, `^` angle) in pose mode are not converted: tool poses must be given as X Y Z; write Cartesian coordinates in the CAM post",
@@ -34,6 +43,9 @@ pub fn describe_opaque(bytes: &[u8]) -> String {
         );
     }
     if let Some(name) = call_name(text) {
+        if known_call(text) == Some("TRAORI(…)") {
+            return TRAORI_ARGUMENTS.into();
+        }
         if name.eq_ignore_ascii_case("TRAORI") {
             return format!(
                 "`{}` is followed by more text on its line: kinpost converts TRAORI(…) on a line of its own (a comment may follow); put the rest on the next line",
@@ -92,6 +104,11 @@ pub fn describe_opaque(bytes: &[u8]) -> String {
     let value = rest.trim_start_matches([' ', '\t', '=']);
     if let Some(m) = sinumerik_value(token, text) {
         return m;
+    }
+    if value.is_empty() && address.len() >= 3 {
+        return format!(
+            "`{quoted}` is a keyword kinpost does not read (such as Sinumerik ORIVIRT1, ORIRPY2 or DIAM90, modes that change what later words mean); expected plain numeric words such as X12.5"
+        );
     }
     if value.is_empty() {
         return format!(
@@ -173,7 +190,7 @@ fn sinumerik_value(token: &str, text: &str) -> Option<String> {
 /// A LinuxCNC o-word control statement at the start of `text` (`o100 if`,
 /// `o<loop> while`, `o100 endsub`), as `o100 if`: kinpost does not
 /// evaluate flow control. `o100 call` is a call ([`call_name`]).
-fn o_word_statement(text: &str) -> Option<String> {
+pub fn o_word_statement(text: &str) -> Option<String> {
     let t = text.trim_start();
     let rest = t.strip_prefix(['o', 'O'])?;
     let name_len = if rest.starts_with('<') {
@@ -210,7 +227,6 @@ fn o_word_statement(text: &str) -> Option<String> {
         .then(|| format!("o{} {}", &rest[..name_len], keyword))
 }
 
-/// The first blank-separated token of `text` (comments cut off).
 /// `@` and three digits (`@136`): the form of the Sinumerik 840/840C `@`
 /// language's instructions (`@136 R102 K5 K900`), which LinuxCNC would read
 /// as a polar radius.
@@ -220,6 +236,7 @@ fn sinumerik_at_instruction(token: &str) -> bool {
         .is_some_and(|n| n.len() == 3 && n.bytes().all(|b| b.is_ascii_digit()))
 }
 
+/// The first blank-separated token of `text` (comments cut off).
 fn token(text: &str) -> &str {
     let t = text.trim_start();
     let end = t
@@ -328,6 +345,9 @@ pub fn known_call(text: &str) -> Option<&'static str> {
         .trim()
         .is_empty();
     match name.to_ascii_uppercase().as_str() {
+        // `TRAORI(1)`: the transformation's number alone; more arguments
+        // set a basic tool orientation or rotary offsets.
+        "TRAORI" if args.contains(',') => Some("TRAORI(…)"),
         "TRAORI" => Some("TRAORI"),
         "MSG" => Some("MSG"),
         "CYCLE800" if empty => Some("CYCLE800()"),

@@ -255,12 +255,62 @@ pub struct MachineBlock {
     pub measurable: bool,
 }
 
-/// Sinumerik frame instructions: their X Y Z are offsets, angles or
-/// factors, not a position.
-const FRAME_KEYWORDS: [&str; 11] = [
-    "TRANS", "ATRANS", "ROT", "AROT", "SCALE", "ASCALE", "MIRROR", "AMIRROR", "ROTS", "AROTS",
-    "CROTS",
-];
+/// Whether the unreadable text `text` of a block may hold where an axis
+/// goes: a motion address followed by what is not a plain number (`Y#1`,
+/// `Y [2]`, `Y sqrt[2]`, `X=R1`: a parameter, an expression or a
+/// function), or digits that continue a number cut by a blank (`Y50 0`,
+/// which LinuxCNC reads as Y500) or a malformed one (`after_word`: the
+/// text follows a word of the block; Heidenhain's block numbers start
+/// their lines).
+fn unreadable_motion(text: &str, after_word: bool) -> bool {
+    let mut chars = text.chars();
+    let Some(first) = chars.next() else {
+        return false;
+    };
+    // A number cut by a blank or malformed; a letter alone (`Y5O`).
+    if after_word
+        && (first.is_ascii_digit()
+            || "+-.".contains(first)
+            || (first.is_ascii_alphabetic() && chars.as_str().is_empty()))
+    {
+        return true;
+    }
+    if !"XYZABCUVWIJKF".contains(first.to_ascii_uppercase()) {
+        return false;
+    }
+    let after = chars.as_str();
+    let rest = after.trim_start();
+    let blank = rest.len() < after.len();
+    let name_len = rest.bytes().take_while(u8::is_ascii_alphabetic).count();
+    let applied = rest[name_len..].trim_start();
+    match rest.chars().next() {
+        None => false,
+        // Letters after the axis letter: a function applied to it
+        // (LinuxCNC `Y sqrt[2]`, `Ysqrt[2]`, `Y sin (…)` after a blank);
+        // else a keyword or a call that starts with an axis letter
+        // (`CYCLE81(…)`, `XOR`).
+        Some(c) if c.is_ascii_alphabetic() => {
+            applied.starts_with('[') || (blank && applied.starts_with('('))
+        }
+        Some(_) => true,
+    }
+}
+
+/// Whether `line` is a full circle given by its centre alone (`G2 I-10`):
+/// a move without axis words.
+fn full_circle_words(line: &crate::gcode::Line, meaning: &super::BlockMeaning) -> bool {
+    meaning.motion == Motion::Arc
+        && line
+            .words()
+            .any(|w| ["I", "J", "K"].iter().any(|a| w.is(a)))
+}
+
+/// Whether `words` hold the G code `code`.
+fn g_word(words: &[WordRef<'_>], code: f64) -> bool {
+    words
+        .iter()
+        .any(|w| w.address == "G" && (w.value - code).abs() < 1e-6)
+}
 
 /// The addresses of axis words: a block's motion.
 const MOTION_AXES: [&str; 9] = ["X", "Y", "Z", "A", "B", "C", "U", "V", "W"];
@@ -271,6 +321,12 @@ const MOTION_AXES: [&str; 9] = ["X", "Y", "Z", "A", "B", "C", "U", "V", "W"];
 #[derive(Debug, Clone)]
 pub struct MachineAxisTracker {
     modal: ModalState,
+    /// Where a Sinumerik frame that turns, scales or mirrors the
+    /// coordinates, or a LinuxCNC rotated coordinate system, was set, while
+    /// it is active: the line and what it is. Moves under it are refused.
+    frame: Option<(usize, String)>,
+    /// The line of the G-code frame the modal state has active.
+    gcode_frame: Option<usize>,
     ext: Vec<f64>,
     /// Axes whose position in program coordinates is not known (after a
     /// move to the reference point or in machine coordinates).
@@ -282,6 +338,8 @@ impl MachineAxisTracker {
     pub fn new(machine: &crate::machine::Machine) -> Self {
         MachineAxisTracker {
             modal: ModalState::new(PoseStart::Off),
+            frame: None,
+            gcode_frame: None,
             ext: vec![0.0; machine.axes.len()],
             unknown: vec![false; machine.axes.len()],
         }
@@ -306,7 +364,7 @@ impl MachineAxisTracker {
                 line.text_lossy(),
             ))
         };
-        for item in &line.items {
+        for (index, item) in line.items.iter().enumerate() {
             match &item.kind {
                 ItemKind::Word(w)
                     if MOTION_AXES.contains(&w.address.as_str())
@@ -324,16 +382,38 @@ impl MachineAxisTracker {
                         ),
                     );
                 }
+                // (`CR=`, an arc's radius, and `AR=` are `program::arc`'s.)
+                ItemKind::Word(w)
+                    if super::unfollowed::PATH_WORDS.contains(&w.address.as_str())
+                        && !matches!(w.address.as_str(), "CR" | "AR") =>
+                {
+                    return refuse(
+                        item,
+                        format!(
+                            "`{}=` {}: this command follows the axis words as straight moves and arcs, and would not follow it; have the CAM system write the path",
+                            w.address,
+                            super::unfollowed::path_word(&w.address)
+                        ),
+                    );
+                }
                 ItemKind::Opaque => {
                     let text = String::from_utf8_lossy(line.item_bytes(item));
                     let text = text.trim();
-                    let mut chars = text.chars();
-                    let first = chars.next().map(|c| c.to_ascii_uppercase());
-                    let motion = first.is_some_and(|c| "XYZABCUVWIJKF".contains(c))
-                        && chars
-                            .next()
-                            .is_some_and(|c| c.is_ascii_digit() || "#[=-+.".contains(c));
-                    if motion {
+                    if text.starts_with(',') {
+                        return refuse(item, super::opaque::describe_opaque(text.as_bytes()));
+                    }
+                    if text.starts_with(['@', '^']) {
+                        return refuse(
+                            item,
+                            format!(
+                                "polar coordinates (`{}`: LinuxCNC `@` radius, `^` angle; or a Sinumerik 840C `@` instruction): this command follows X Y Z as Cartesian axis words and would not follow it; write Cartesian coordinates in the CAM post",
+                                crate::error::visible(text)
+                            ),
+                        );
+                    }
+                    let after_word =
+                        index > 0 && matches!(line.items[index - 1].kind, ItemKind::Word(_));
+                    if unreadable_motion(text, after_word) {
                         return refuse(
                             item,
                             format!(
@@ -347,6 +427,64 @@ impl MachineAxisTracker {
             }
         }
         Ok(())
+    }
+
+    /// Follows the frames `line` sets or cancels: the G codes the modal
+    /// state reads (`G68`…, `G51`, `G51.1`, `G16`, `G254`, their cancels),
+    /// LinuxCNC's rotation of a coordinate system (`G10 L2`/`L20` with
+    /// `R`), and the Sinumerik frame keywords (`program::frames`) but
+    /// translations alone (`TRANS`, `ATRANS`), which move the program's
+    /// origin as a work offset does, which this command leaves to
+    /// `--work-offset`.
+    fn follow_frames(&mut self, line: &crate::gcode::Line, modal_words: &[WordRef<'_>]) {
+        let word = |a: &str| line.words().find(|w| w.address == a).map(|w| w.value);
+        let rotation = g_word(modal_words, 10.0)
+            && matches!(word("L"), Some(l) if l == 2.0 || l == 20.0)
+            && word("R").is_some();
+        let values = line
+            .words()
+            .any(|w| matches!(w.address.as_str(), "X" | "Y" | "Z" | "RPL"));
+        let mut set = None;
+        for k in line.keywords() {
+            match super::frames::change(k, values) {
+                Some(super::frames::FrameChange::Delete) => self.frame = None,
+                Some(super::frames::FrameChange::Set) if !["TRANS", "ATRANS"].contains(&k) => {
+                    set = Some(format!("the Sinumerik frame {k}"));
+                }
+                _ => {}
+            }
+        }
+        if rotation {
+            if word("R") == Some(0.0) {
+                self.frame = None;
+            } else {
+                set = Some("a rotated coordinate system (G10 L2 R)".into());
+            }
+        }
+        if let Some(what) = set {
+            self.frame = Some((line.number, what));
+        }
+        // The G-code frames, from the modal state: where the first of them
+        // was set, while any is active.
+        self.gcode_frame = match (self.modal.frame_seen, self.gcode_frame) {
+            (false, _) => None,
+            (true, None) => Some(line.number),
+            (true, at) => at,
+        };
+    }
+
+    /// The active frame a move may not be made under: where it was set and
+    /// what it is.
+    fn active_frame(&self) -> Option<(usize, String)> {
+        self.gcode_frame
+            .map(|at| {
+                (
+                    at,
+                    "a frame (G68 rotation, G51 scaling, G51.1 mirroring, G16 polar coordinates, G254)"
+                        .to_string(),
+                )
+            })
+            .or_else(|| self.frame.clone())
     }
 
     /// Applies one line; returns the block when it carries machine-axis words.
@@ -410,7 +548,7 @@ impl MachineAxisTracker {
                     ItemKind::Keyword(k) => k == "TRAORI",
                     ItemKind::Opaque => {
                         super::opaque::known_call(&String::from_utf8_lossy(line.item_bytes(it)))
-                            == Some("TRAORI")
+                            .is_some_and(|c| c.starts_with("TRAORI"))
                     }
                     _ => false,
                 })
@@ -429,14 +567,20 @@ impl MachineAxisTracker {
         // after G28, G30 or G53 the axes they move (G28/G30 alone: all),
         // after G92.1–G92.3 all axes, are somewhere the program's
         // coordinates do not say, until programmed again.
+        self.follow_frames(line, &modal_words);
         let frame = line.items.iter().any(
-            |it| matches!(&it.kind, ItemKind::Keyword(k) if FRAME_KEYWORDS.contains(&k.as_str())),
+            |it| matches!(&it.kind, ItemKind::Keyword(k) if super::frames::SETTING.contains(&k.as_str())),
         );
-        if meaning.non_modal || frame {
+        // Sinumerik `SUPA` (and `G153`): machine coordinates, as `G53`.
+        let supa = line.keywords().any(|k| k == "SUPA");
+        // Fanuc lathe `G50 X Z` sets the coordinate system, as `G92`.
+        let lathe_g50 = g_word(&modal_words, 50.0) && !axis_items.is_empty();
+        if meaning.non_modal || frame || supa || lathe_g50 {
             let g = |c: f64| {
                 modal_words
                     .iter()
                     .any(|w| w.address == "G" && (w.value - c).abs() < 1e-6)
+                    || (c == 53.0 && (supa || g_word(&modal_words, 153.0)))
             };
             let named = |k: usize| {
                 axis_items.iter().any(|&i| {
@@ -467,7 +611,7 @@ impl MachineAxisTracker {
                     self.unknown[k] |= all || named(k);
                 }
             }
-            if g(92.0) {
+            if g(92.0) || lathe_g50 {
                 self.set_axes(machine, line, &axis_items, &meaning, true);
             } else if g(53.0) {
                 let rotaries: Vec<usize> = axis_items
@@ -486,6 +630,21 @@ impl MachineAxisTracker {
             return Ok(None);
         }
         self.check_motion_words(machine, line, file)?;
+        if let Some((at, what)) = self.active_frame()
+            && (!axis_items.is_empty() || full_circle_words(line, &meaning))
+        {
+            return Err(Error::input_with(
+                Location::new(
+                    file,
+                    line.number,
+                    line.items[axis_items.first().copied().unwrap_or(0)].start + 1,
+                ),
+                format!(
+                    "a move under {what} (line {at}): the controller moves the axes otherwise than its words say, and this command follows the words as they stand; cancel the frame before the moves, or apply it in the CAM system"
+                ),
+                line.text_lossy(),
+            ));
+        }
         // A full circle may give its centre alone (`G2 I-10`): it ends
         // where it starts.
         let full_circle = meaning.motion == Motion::Arc
@@ -714,7 +873,7 @@ pub fn looks_like_poses(head: &[u8]) -> bool {
             || line.items.iter().any(|it| {
                 it.kind == ItemKind::Opaque
                     && super::opaque::known_call(&String::from_utf8_lossy(line.item_bytes(it)))
-                        == Some("TRAORI")
+                        .is_some_and(|c| c.starts_with("TRAORI"))
             })
         {
             return true;

@@ -13,8 +13,60 @@
 /// pose block other than a tool vector; refused in pose mode.
 pub const ORIENTATION_WORDS: &[&str] = &[
     "A", "B", "C", "A2", "B2", "C2", "A4", "B4", "C4", "A5", "B5", "C5", "A6", "B6", "C6", "A7",
-    "B7", "C7", "XH", "YH", "ZH", "LEAD", "TILT", "THETA",
+    "B7", "C7", "A8", "B8", "C8", "XH", "YH", "ZH", "LEAD", "TILT", "THETA",
 ];
+
+/// Sinumerik words that add motion between a block and the next, or
+/// define a contour otherwise than by its end point: a rounding (`RND`,
+/// modal `RNDM`), a chamfer (`CHF`, `CHR`), a contour angle (`ANG`), an
+/// arc's opening angle or radius (`AR`, `CR`), polar coordinates (`AP`,
+/// `RP`).
+pub const PATH_WORDS: &[&str] = &["RND", "RNDM", "CHF", "CHR", "ANG", "AR", "CR", "AP", "RP"];
+
+/// Why a word with `address` is refused in a pose block: one of
+/// [`ORIENTATION_WORDS`] or [`PATH_WORDS`]; `None` for any other.
+pub fn pose_word(address: &str) -> Option<String> {
+    if ORIENTATION_WORDS.contains(&address) {
+        return Some(orientation_message(address));
+    }
+    PATH_WORDS
+        .contains(&address)
+        .then(|| format!("`{address}=` {}: not converted in pose mode; have the CAM system write the path as straight G1 poses", path_word(address)))
+}
+
+/// What the Sinumerik word `address` (one of [`PATH_WORDS`]) does.
+pub fn path_word(address: &str) -> &'static str {
+    match address {
+        "RND" | "RNDM" | "CHF" | "CHR" => {
+            "makes the controller insert a rounding or a chamfer at the corner (Sinumerik RND, RNDM, CHF, CHR), a path kinpost does not follow"
+        }
+        "AP" | "RP" => "is a polar coordinate (Sinumerik AP= angle, RP= radius)",
+        _ => {
+            "defines the contour by an angle or an arc's radius or opening (Sinumerik ANG, AR, CR)"
+        }
+    }
+}
+
+/// Why polar coordinates are refused in pose mode.
+pub const POLAR: &str = "polar coordinates (Sinumerik G110–G112 pole, AP= angle, RP= radius) in pose mode are not converted: tool poses must be given as X Y Z; write Cartesian coordinates in the CAM post";
+
+/// Why Sinumerik `ORIMKS` is refused in pose mode.
+pub const ORIMKS: &str = "Sinumerik ORIMKS in pose mode: the tool vectors (A3 B3 C3) are then in machine coordinates, not in the workpiece frame kinpost converts from; program ORIWKS (the default) with TRAORI";
+
+/// Why cutter radius compensation is refused in pose mode.
+pub const CUTTER_COMP: &str = "cutter radius compensation (G41, G42, G41.1, G42.1, G41.2, G42.2) in pose mode is not converted: the controller would offset kinpost's machine axis words by the tool radius; give the poses of the tool tip with the radius applied in the CAM system (G40 cancels it)";
+
+/// Why a secondary axis word (`U`, `V`, `W`, `E`) is refused in pose mode.
+pub fn secondary_axis_message(address: &str) -> String {
+    format!(
+        "`{address}` in pose mode: {} would move the tool off the converted pose; not converted; leave it out of the blocks between G43.4 / TRAORI and G49 / TRAFOOF",
+        if address == "E" {
+            "E: an extruder or seventh axis in some dialects"
+        } else {
+            "U/V/W: a secondary linear axis (a quill, a second slide)"
+        }
+    )
+}
 
 /// Why `address` (one of [`ORIENTATION_WORDS`]) is refused in pose mode.
 pub fn orientation_message(address: &str) -> String {
@@ -28,6 +80,7 @@ pub fn orientation_message(address: &str) -> String {
                 "a rotation or cone axis, or an intermediate orientation (Sinumerik ORICONxx, ORIPLANE)"
             }
             "XH" | "YH" | "ZH" => "a second point of the tool (Sinumerik ORICURVE)",
+            "A8" | "B8" | "C8" => "a direction of the tool's retract (Sinumerik A8 B8 C8)",
             "LEAD" | "TILT" => "lead and tilt angles",
             "THETA" => "a rotation of the tool about itself",
             _ => "a surface normal for 3-D tool compensation",
@@ -44,10 +97,15 @@ pub fn orientation_message(address: &str) -> String {
 /// return levels and Fanuc lathe feed modes (`G98`, `G99`), the cancels
 /// `G11`, `G13.1`, `G15`, `G23`, `G67`, `G100` (Haas mirror off), storing
 /// a position (`G28.1`, `G30.1`), LinuxCNC's end of a NURBS block (`G5.3`)
-/// and additional tool length offset (`G43.2`), Mazak's `G69.5`.
+/// and additional tool length offset (`G43.2`), Mazak's `G69.5`,
+/// Sinumerik's exact-stop windows (`G601`–`G603`), corner deceleration
+/// (`G621`) and continuous-path modes with corner rounding (`G641`–`G645`,
+/// the forms of `G64` its high-speed programs set), Okuma's `G168` (its
+/// tool centre point control off).
 const LEAVES_AXES_ALONE: &[i64] = &[
     53, 432, 695, 80, 90, 110, 131, 170, 180, 190, 230, 281, 301, 430, 431, 440, 600, 610, 611,
-    620, 630, 640, 670, 901, 911, 960, 970, 980, 990, 1000, 1030, 1870,
+    620, 630, 640, 670, 901, 911, 960, 970, 980, 990, 1000, 1030, 1870, 6010, 6020, 6030, 6210,
+    6410, 6420, 6430, 6440, 6450, 1680,
 ];
 
 /// What the G code `code` (ten times its value) does that kinpost does
@@ -104,6 +162,25 @@ pub fn g_code(code: i64) -> Option<String> {
     })
 }
 
+/// Whether the G code `code` (ten times its value) switches on (`Some(true)`) or off an interpolation mode that
+/// changes what later axis words mean: Fanuc polar coordinate
+/// interpolation `G12.1` (off: `G13.1`), cylindrical interpolation `G7.1`
+/// and Haas `G107` with a radius (`radius`: the block has a `C` other
+/// than 0; off: with `C0`), Okuma's tool centre
+/// point control `G169` (off: `G168`), which would transform kinpost's
+/// machine axis words a second time.
+pub fn interpolation_mode(code: i64, radius: bool) -> Option<bool> {
+    match code {
+        121 | 1690 => Some(true),
+        131 | 1680 => Some(false),
+        71 | 1070 => Some(radius),
+        _ => None,
+    }
+}
+
+/// Why pose mode may not start under an [`interpolation_mode`].
+pub const MODE_AT_POSE_START: &str = "pose mode starts while an interpolation mode set earlier in the program (Fanuc G12.1 polar coordinate interpolation, G7.1 or Haas G107 cylindrical interpolation, Okuma G169 tool centre point control) is on: the controller would read kinpost's machine axis words in it; switch it off before (G13.1, G7.1 C0, G107 C0, G168)";
+
 /// `G` code ten times `code` as written: `12.1`, `154`.
 fn g_name(code: i64) -> String {
     match code % 10 {
@@ -117,10 +194,30 @@ fn g_name(code: i64) -> String {
 /// words are then in another coordinate system); `None` for any other.
 pub fn transformation(name: &str) -> Option<String> {
     let upper = name.to_ascii_uppercase();
+    if ["DIAMON", "DIAM90"].contains(&upper.as_str()) {
+        return Some(format!(
+            "{upper} is Sinumerik diameter programming: the X words after it are diameters"
+        ));
+    }
     ["TRANSMIT", "TRACYL", "TRAANG", "TRACON"]
         .contains(&upper.as_str())
         .then(|| format!("{upper} is a Sinumerik transformation (face, cylinder surface or inclined axis): the axis words after it are in another coordinate system"))
 }
+
+/// Sinumerik calls that move nothing: a message, the high-speed settings
+/// cycle, the blank for the simulation, the master spindle, feed groups,
+/// waits and the piece counter.
+const HARMLESS_CALLS: &[&str] = &[
+    "MSG",
+    "CYCLE832",
+    "WORKPIECE",
+    "SETMS",
+    "FGROUP",
+    "WAITM",
+    "WAITMC",
+    "WAITS",
+    "SETPIECE",
+];
 
 /// Sinumerik keywords that call a subprogram.
 pub const CALL_KEYWORDS: &[&str] = &["CALL", "PCALL", "MCALL", "EXTCALL"];
@@ -189,17 +286,72 @@ pub fn in_line(
                     k.clone()
                 }
                 ItemKind::Opaque => {
-                    super::opaque::call_name(&bytes(it)).filter(|n| n.ends_with(" call"))?
+                    let name = super::opaque::call_name(&bytes(it))?;
+                    let upper = name.to_ascii_uppercase();
+                    if name.ends_with(" call") {
+                        name
+                    } else if HARMLESS_CALLS.contains(&upper.as_str())
+                        || ["TRAORI", "CYCLE800"].contains(&upper.as_str())
+                        || transformation(&name).is_some()
+                    {
+                        return None;
+                    } else {
+                        format!("{name}(…)")
+                    }
+                }
+                // Sinumerik `L100` on a block of its own (but its N): a
+                // subprogram called by its number.
+                ItemKind::Word(w)
+                    if w.address == "L"
+                        && line.words().all(|o| o.address == "L" || o.address == "N") =>
+                {
+                    bytes(it).trim().to_string()
                 }
                 _ => return None,
             };
             Some((
                 i,
-                format!("a subprogram or macro call ({name}): its moves stand elsewhere in the program or in another file"),
+                format!("a subprogram or macro call ({name}): its moves stand elsewhere in the program or in another file (or, for a cycle, are the controller's own)"),
             ))
         })
     })
+    .or_else(|| {
+        line.items.iter().enumerate().find_map(|(i, it)| {
+            let name = match &it.kind {
+                ItemKind::Keyword(k) => k.to_ascii_uppercase(),
+                ItemKind::Opaque => {
+                    let text = bytes(it);
+                    match super::opaque::o_word_statement(&text) {
+                        Some(statement) => statement,
+                        None => text
+                            .trim_start()
+                            .chars()
+                            .take_while(char::is_ascii_alphabetic)
+                            .collect::<String>()
+                            .to_ascii_uppercase(),
+                    }
+                }
+                _ => return None,
+            };
+            let o_word = name.starts_with(['o', 'O']) && name.contains(' ');
+            (o_word || FLOW_KEYWORDS.contains(&name.as_str())).then(|| {
+                (
+                    i,
+                    format!("flow control (`{name}`: a jump, a loop, a condition or a subprogram's definition), which kinpost does not evaluate: it follows the blocks once, top to bottom, so it cannot know which of them run, or how often"),
+                )
+            })
+        })
+    })
 }
+
+/// Keywords of flow control: Fanuc and Haas macro B (`GOTO`, `IF`,
+/// `WHILE`), Sinumerik (`GOTOF`, `GOTOB`, `GOTOC`, `IF`/`ELSE`/`ENDIF`,
+/// `WHILE`, `FOR`, `LOOP`, `REPEAT`, `REPEATB`, `UNTIL`, `CASE`, and their
+/// ends).
+const FLOW_KEYWORDS: &[&str] = &[
+    "GOTO", "GOTOF", "GOTOB", "GOTOC", "IF", "ELSE", "ENDIF", "WHILE", "ENDWHILE", "FOR", "ENDFOR",
+    "LOOP", "ENDLOOP", "REPEAT", "REPEATB", "UNTIL", "CASE",
+];
 
 /// The message of a block refused for `what` ([`g_code`],
 /// [`transformation`]): in pose mode (`post`, `compensate`) or where a
