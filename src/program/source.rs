@@ -411,8 +411,11 @@ impl MachineAxisTracker {
                             ),
                         );
                     }
-                    let after_word =
-                        index > 0 && matches!(line.items[index - 1].kind, ItemKind::Word(_));
+                    let after_word = line.items[..index]
+                        .iter()
+                        .rev()
+                        .find(|it| it.kind != ItemKind::Space)
+                        .is_some_and(|it| matches!(it.kind, ItemKind::Word(_)));
                     if unreadable_motion(text, after_word) {
                         return refuse(
                             item,

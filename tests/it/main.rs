@@ -40,6 +40,7 @@ mod diagnose_report;
 mod diagnose_thermal;
 mod diagnose_untidy;
 mod diagnose_vibration;
+mod fifth_hunt;
 mod filter_corpus;
 mod fit;
 mod fit_cache;
