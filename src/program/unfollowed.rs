@@ -288,7 +288,13 @@ pub fn in_line(
                 ItemKind::Opaque => {
                     let name = super::opaque::call_name(&bytes(it))?;
                     let upper = name.to_ascii_uppercase();
-                    if name.ends_with(" call") {
+                    // `O1200(NAME)`: a program number and its comment.
+                    let program_number = upper.starts_with('O')
+                        && upper.len() > 1
+                        && upper[1..].bytes().all(|b| b.is_ascii_digit());
+                    if program_number {
+                        return None;
+                    } else if name.ends_with(" call") {
                         name
                     } else if HARMLESS_CALLS.contains(&upper.as_str())
                         || ["TRAORI", "CYCLE800"].contains(&upper.as_str())
