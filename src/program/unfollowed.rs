@@ -26,6 +26,10 @@ pub const PATH_WORDS: &[&str] = &["RND", "RNDM", "CHF", "CHR", "ANG", "AR", "CR"
 /// Why a word with `address` is refused in a pose block: one of
 /// [`ORIENTATION_WORDS`] or [`PATH_WORDS`]; `None` for any other.
 pub fn pose_word(address: &str) -> Option<String> {
+    // Of the one-letter addresses only A B C are among them.
+    if address.len() == 1 && !matches!(address, "A" | "B" | "C") {
+        return None;
+    }
     if ORIENTATION_WORDS.contains(&address) {
         return Some(orientation_message(address));
     }
