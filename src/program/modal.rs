@@ -297,14 +297,10 @@ impl ModalState {
                         // Fanuc lathe `G50 X Z`: a coordinate system, as G92.
                         500 if words.iter().any(|o| matches!(o.address, "X" | "Y" | "Z")) => {
                             (non_modal, self.frame_seen) = (true, false);
-                            setup = setup.or(Some((
-                                w.item,
-                                "sets the coordinate system (lathe G50 X Z, as G92)",
-                            )));
+                            setup = setup.or(Some((w.item, unfollowed::LATHE_G50)));
                         }
                         690 | 500 | 501 | 150 | 2550 => self.frame_seen = false,
-                        // Sinumerik G110–G112 set the pole of polar
-                        // coordinates: their X Y are the pole, not a move.
+                        // Sinumerik G110–G112: X Y are the polar pole.
                         1100 | 1110 | 1120 => {
                             non_modal = true;
                             polar = polar.or(Some(w.item));
@@ -372,6 +368,10 @@ impl ModalState {
                     feed_item = Some(w.item);
                 }
                 "AP" | "RP" => polar = polar.or(Some(w.item)),
+                // Heidenhain ISO's tool centre point management (M128/M129).
+                "M" if w.value == 128.0 || w.value == 129.0 => {
+                    self.interpolation_mode = w.value == 128.0
+                }
                 _ => {}
             }
         }
@@ -404,9 +404,8 @@ impl ModalState {
                 }
                 // Sinumerik's `G53` (also suppressing the other offsets).
                 "SUPA" => non_modal = true,
-                // Sinumerik motion modes of group 1 besides G0–G3: circles
-                // through an intermediate point or tangential, and splines.
-                // Modal, like G2: later blocks move along them too.
+                // Sinumerik motion modes besides G0–G3 (modal, like G2):
+                // circles through a point or tangential, and splines.
                 "CIP" | "CT" => self.motion = Motion::Arc,
                 "ASPLINE" | "BSPLINE" | "CSPLINE" | "POLY" => self.motion = Motion::Other,
                 // Sinumerik frames (`program::frames`): their X Y Z are

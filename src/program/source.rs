@@ -553,13 +553,15 @@ impl MachineAxisTracker {
                         super::opaque::known_call(&String::from_utf8_lossy(line.item_bytes(it)))
                             .is_some_and(|c| c.starts_with("TRAORI"))
                     }
+                    // Heidenhain ISO's tool centre point management.
+                    ItemKind::Word(w) => w.address == "M" && w.value == 128.0,
                     _ => false,
                 })
             });
         if let Some(i) = tcp {
             return Err(Error::input_with(
                 Location::new(file, line.number, line.items[i].start + 1),
-                "tool centre point control (G43.4, G43.5, G234, TRAORI) in a program read as machine axes: from here its X Y Z are tool-tip positions, which this command does not read as axes; convert the program with `kinpost post` first, or give a program that switches TCP on at its start",
+                "tool centre point control (G43.4, G43.5, G234, TRAORI, Heidenhain ISO M128) in a program read as machine axes: from here its X Y Z are tool-tip positions, which this command does not read as axes; convert the program with `kinpost post` first, or give a program that switches TCP on at its start",
                 line.text_lossy(),
             ));
         }

@@ -51,6 +51,9 @@ pub fn path_word(address: &str) -> &'static str {
     }
 }
 
+/// What a Fanuc lathe's `G50 X Z` does (a set-up, refused in pose mode).
+pub const LATHE_G50: &str = "sets the coordinate system (lathe G50 X Z, as G92)";
+
 /// Why polar coordinates are refused in pose mode.
 pub const POLAR: &str = "polar coordinates (Sinumerik G110–G112 pole, AP= angle, RP= radius) in pose mode are not converted: tool poses must be given as X Y Z; write Cartesian coordinates in the CAM post";
 
@@ -183,7 +186,7 @@ pub fn interpolation_mode(code: i64, radius: bool) -> Option<bool> {
 }
 
 /// Why pose mode may not start under an [`interpolation_mode`].
-pub const MODE_AT_POSE_START: &str = "pose mode starts while an interpolation mode set earlier in the program (Fanuc G12.1 polar coordinate interpolation, G7.1 or Haas G107 cylindrical interpolation, Okuma G169 tool centre point control) is on: the controller would read kinpost's machine axis words in it; switch it off before (G13.1, G7.1 C0, G107 C0, G168)";
+pub const MODE_AT_POSE_START: &str = "pose mode starts while an interpolation mode set earlier in the program (Fanuc G12.1 polar coordinate interpolation, G7.1 or Haas G107 cylindrical interpolation, the controller's own tool centre point control: Okuma G169, Heidenhain ISO M128) is on: the controller would read kinpost's machine axis words in it; switch it off before (G13.1, G7.1 C0, G107 C0, G168, M129)";
 
 /// `G` code ten times `code` as written: `12.1`, `154`.
 fn g_name(code: i64) -> String {

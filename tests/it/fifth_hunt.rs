@@ -153,9 +153,10 @@ fn supa_and_g153_are_machine_coordinates() {
 
 /// Modes that change what axis words mean, set before the poses start,
 /// stayed on under the converted poses: Fanuc polar coordinate (`G12.1`)
-/// and cylindrical interpolation (`G7.1 C57.3`), Okuma's own tool centre
-/// point control (`G169`). Pose mode may not start under them now; their
-/// cancels let it.
+/// and cylindrical interpolation (`G7.1 C57.3`), the controller's own tool
+/// centre point control (Okuma `G169`, Heidenhain ISO `M128`). Pose mode
+/// may not start under them now; their cancels let it. Where a program in
+/// machine axes is followed, `M128` is refused as `G43.4` is.
 #[test]
 fn pose_mode_does_not_start_under_an_interpolation_mode() {
     let dir = tempfile::tempdir().unwrap();
@@ -164,6 +165,7 @@ fn pose_mode_does_not_start_under_an_interpolation_mode() {
         ("G12.1", "G13.1"),
         ("G7.1 C57.3", "G7.1 C0"),
         ("G169 H1", "G168"),
+        ("M128", "M129"),
     ] {
         let text = format!("G0 X0 Y0 Z100 B0 C0\n{on}\n{poses}");
         let (code, _, err) = post(dir.path(), "mode.nc", &text, &[]);
@@ -176,6 +178,17 @@ fn pose_mode_does_not_start_under_an_interpolation_mode() {
         let (code, _, err) = post(dir.path(), "mode.nc", &text, &[]);
         assert_eq!(code, 0, "{on} {off}: {err}");
     }
+    refused_where_followed(
+        dir.path(),
+        &format!(
+            "{START}M128
+G1 X10 Y0 Z5 A10
+M129
+M2
+"
+        ),
+        "m.ngc:3:1: tool centre point control",
+    );
 }
 
 /// The commands that follow a program in machine axes, on `text` (a
