@@ -28,6 +28,20 @@ fn post(dir: &std::path::Path, name: &str, text: &str, extra: &[&str]) -> (i32, 
     run(dir, name, text, &args)
 }
 
+/// `post` on `text` must refuse it (exit 1) with `want` in its message.
+fn post_refuses(dir: &std::path::Path, name: &str, text: &str, extra: &[&str], want: &str) {
+    let (code, _, err) = post(dir, name, text, extra);
+    assert_eq!(code, 1, "{name}: {err}");
+    assert!(err.contains(want), "{name}: {err}");
+}
+
+/// `post` on `text` must convert it; its output.
+fn post_converts(dir: &std::path::Path, name: &str, text: &str, extra: &[&str]) -> String {
+    let (code, out, err) = post(dir, name, text, extra);
+    assert_eq!(code, 0, "{name}: {err}");
+    out
+}
+
 const TRAORI: &str = "G0 X0 Y0 Z100 B0 C0\nTRAORI\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\n";
 
 /// On a Sinumerik, `TRAFOOF` (which kinpost writes for `TRAORI`) leaves
@@ -39,22 +53,28 @@ const TRAORI: &str = "G0 X0 Y0 Z100 B0 C0\nTRAORI\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1 F
 fn a_sinumerik_tool_offset_left_on_is_refused_with_a_tool_in_the_chain() {
     let dir = tempfile::tempdir().unwrap();
     let d1 = format!("T1 D1 M6\n{TRAORI}TRAFOOF\nM30\n");
-    let (code, _, err) = post(dir.path(), "d1.mpf", &d1, &["--tool-length", "50"]);
-    assert_eq!(code, 1, "{err}");
-    assert!(err.contains("d1.mpf:1:4: a Sinumerik tool offset"), "{err}");
+    post_refuses(
+        dir.path(),
+        "d1.mpf",
+        &d1,
+        &["--tool-length", "50"],
+        "d1.mpf:1:4: a Sinumerik tool offset",
+    );
     // A tool change alone selects D1.
     let t = format!("T1 M6\n{TRAORI}TRAFOOF\nM30\n");
-    let (code, _, err) = post(dir.path(), "t.mpf", &t, &["--tool-length", "50"]);
-    assert_eq!(code, 1, "{err}");
-    assert!(err.contains("t.mpf:1:1: a Sinumerik tool offset"), "{err}");
+    post_refuses(
+        dir.path(),
+        "t.mpf",
+        &t,
+        &["--tool-length", "50"],
+        "t.mpf:1:1: a Sinumerik tool offset",
+    );
     // D0 switches it off; without a tool in the chain the controller's D1
     // is the tool length.
     let d0 = format!("T1 D1 M6\nD0\n{TRAORI}TRAFOOF\nM30\n");
-    let (code, out, err) = post(dir.path(), "d0.mpf", &d0, &["--tool-length", "50"]);
-    assert_eq!(code, 0, "{err}");
+    let out = post_converts(dir.path(), "d0.mpf", &d0, &["--tool-length", "50"]);
     assert!(out.contains("Z55.0000"), "{out}");
-    let (code, out, err) = post(dir.path(), "d1.mpf", &d1, &[]);
-    assert_eq!(code, 0, "{err}");
+    let out = post_converts(dir.path(), "d1.mpf", &d1, &[]);
     assert!(out.contains("G1 X10.0000 Y0.0000 Z5.0000"), "{out}");
 }
 
@@ -88,23 +108,26 @@ fn sinumerik_frames_orientation_and_corner_words_are_refused_in_pose_mode() {
         ),
     ] {
         let text = format!("{TRAORI}{block}\nG1 X11 Y0 Z5 A3=0 B3=0 C3=1\nTRAFOOF\nM30\n");
-        let (code, _, err) = post(dir.path(), name, &text, &[]);
-        assert_eq!(code, 1, "{name}: {err}");
-        assert!(err.contains(want), "{name}: {err}");
+        post_refuses(dir.path(), name, &text, &[], want);
     }
     // `TRAORI(1,0,1,0)`: the tool along Y, which kinpost does not apply.
     let text = "G0 X0 Y0 Z100 B0 C0\nTRAORI(1,0,1,0)\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\n";
-    let (code, _, err) = post(dir.path(), "traori.mpf", text, &[]);
-    assert_eq!(code, 1, "{err}");
-    assert!(
-        err.contains("traori.mpf:2:1: TRAORI with a basic tool orientation"),
-        "{err}"
+    post_refuses(
+        dir.path(),
+        "traori.mpf",
+        text,
+        &[],
+        "traori.mpf:2:1: TRAORI with a basic tool orientation",
     );
     // Fanuc's corner rounding is named as such.
     let text = "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\nG1 X12 ,R2.\nG49\nM30\n";
-    let (code, _, err) = post(dir.path(), "r.nc", text, &[]);
-    assert_eq!(code, 1, "{err}");
-    assert!(err.contains("r.nc:3:8: `,R2.`: a corner rounding"), "{err}");
+    post_refuses(
+        dir.path(),
+        "r.nc",
+        text,
+        &[],
+        "r.nc:3:8: `,R2.`: a corner rounding",
+    );
 }
 
 /// Sinumerik's continuous-path modes with corner rounding (`G641`–`G645`,
@@ -121,8 +144,7 @@ fn sinumerik_path_modes_and_deleted_frames_pass() {
         ("torotof.mpf", "TOROT\nTOROTOF\n", "G64"),
     ] {
         let text = format!("{before}{TRAORI}{block}\nG1 X11 Y0 Z5 A3=0 B3=0 C3=1\nTRAFOOF\nM30\n");
-        let (code, out, err) = post(dir.path(), name, &text, &[]);
-        assert_eq!(code, 0, "{name}: {err}");
+        let out = post_converts(dir.path(), name, &text, &[]);
         assert!(out.contains(&format!("\n{block}\n")), "{name}: {out}");
         assert!(out.contains("G1 X11.0000 Y0.0000 Z5.0000"), "{name}: {out}");
     }
@@ -137,16 +159,16 @@ fn supa_and_g153_are_machine_coordinates() {
     let dir = tempfile::tempdir().unwrap();
     for block in ["SUPA G0 Z0 D0", "G153 G0 Z0"] {
         let text = format!("{TRAORI}{block}\nG0 X12 Y0 Z5 A3=0 B3=0 C3=1\nTRAFOOF\nM30\n");
-        let (code, out, err) = post(dir.path(), "supa.mpf", &text, &[]);
-        assert_eq!(code, 0, "{block}: {err}");
+        let out = post_converts(dir.path(), "supa.mpf", &text, &[]);
         assert!(out.contains(&format!("\n{block}\n")), "{block}: {out}");
         // Without Z the next pose's tip is not known.
         let text = format!("{TRAORI}{block}\nG0 X12 Y0 A3=0 B3=0 C3=1\nTRAFOOF\nM30\n");
-        let (code, _, err) = post(dir.path(), "supa.mpf", &text, &[]);
-        assert_eq!(code, 1, "{block}: {err}");
-        assert!(
-            err.contains("the tool tip Z is not known"),
-            "{block}: {err}"
+        post_refuses(
+            dir.path(),
+            "supa.mpf",
+            &text,
+            &[],
+            "the tool tip Z is not known",
         );
     }
 }
@@ -168,25 +190,19 @@ fn pose_mode_does_not_start_under_an_interpolation_mode() {
         ("M128", "M129"),
     ] {
         let text = format!("G0 X0 Y0 Z100 B0 C0\n{on}\n{poses}");
-        let (code, _, err) = post(dir.path(), "mode.nc", &text, &[]);
-        assert_eq!(code, 1, "{on}: {err}");
-        assert!(
-            err.contains("pose mode starts while an interpolation mode"),
-            "{on}: {err}"
+        post_refuses(
+            dir.path(),
+            "mode.nc",
+            &text,
+            &[],
+            "pose mode starts while an interpolation mode",
         );
         let text = format!("G0 X0 Y0 Z100 B0 C0\n{on}\n{off}\n{poses}");
-        let (code, _, err) = post(dir.path(), "mode.nc", &text, &[]);
-        assert_eq!(code, 0, "{on} {off}: {err}");
+        post_converts(dir.path(), "mode.nc", &text, &[]);
     }
     refused_where_followed(
         dir.path(),
-        &format!(
-            "{START}M128
-G1 X10 Y0 Z5 A10
-M129
-M2
-"
-        ),
+        &format!("{START}M128\nG1 X10 Y0 Z5 A10\nM129\nM2\n"),
         "m.ngc:3:1: tool centre point control",
     );
 }
