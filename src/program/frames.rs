@@ -32,8 +32,15 @@ pub enum FrameChange {
     Delete,
 }
 
-/// What `keyword` does to the frame; `values`: the block has values for
-/// it (`X`, `Y`, `Z` or `RPL` words). `None` for a keyword that is no
+/// Whether a block with words of `addresses` gives a frame instruction
+/// values: `X`, `Y`, `Z` (offsets, angles, factors) or `RPL` (a rotation
+/// in the plane).
+pub fn has_values<'a>(mut addresses: impl Iterator<Item = &'a str>) -> bool {
+    addresses.any(|a| matches!(a, "X" | "Y" | "Z" | "RPL"))
+}
+
+/// What `keyword` does to the frame; `values`: [`has_values`] of the
+/// block. `None` for a keyword that is no
 /// frame instruction.
 pub fn change(keyword: &str, values: bool) -> Option<FrameChange> {
     match keyword {

@@ -378,10 +378,8 @@ impl ModalState {
         if fanuc_tcp_here {
             tcp_offset_items.extend(words.iter().filter(|w| w.address == "H").map(|w| w.item));
         }
-        let frame_values = !keywords.is_empty()
-            && words
-                .iter()
-                .any(|w| matches!(w.address, "X" | "Y" | "Z" | "RPL"));
+        let frame_values =
+            !keywords.is_empty() && frames::has_values(words.iter().map(|w| w.address));
         for (item, k) in keywords {
             match *k {
                 "TRAORI" => {

@@ -296,15 +296,6 @@ fn unreadable_motion(text: &str, after_word: bool) -> bool {
     }
 }
 
-/// Whether `line` is a full circle given by its centre alone (`G2 I-10`):
-/// a move without axis words.
-fn full_circle_words(line: &crate::gcode::Line, meaning: &super::BlockMeaning) -> bool {
-    meaning.motion == Motion::Arc
-        && line
-            .words()
-            .any(|w| ["I", "J", "K"].iter().any(|a| w.is(a)))
-}
-
 /// Whether `words` hold the G code `code`.
 fn g_word(words: &[WordRef<'_>], code: f64) -> bool {
     words
@@ -444,9 +435,7 @@ impl MachineAxisTracker {
         let rotation = g_word(modal_words, 10.0)
             && matches!(word("L"), Some(l) if l == 2.0 || l == 20.0)
             && word("R").is_some();
-        let values = line
-            .words()
-            .any(|w| matches!(w.address.as_str(), "X" | "Y" | "Z" | "RPL"));
+        let values = super::frames::has_values(line.words().map(|w| w.address.as_str()));
         let mut set = None;
         for k in line.keywords() {
             match super::frames::change(k, values) {
@@ -582,10 +571,7 @@ impl MachineAxisTracker {
         let lathe_g50 = g_word(&modal_words, 50.0) && !axis_items.is_empty();
         if meaning.non_modal || frame || supa || lathe_g50 {
             let g = |c: f64| {
-                modal_words
-                    .iter()
-                    .any(|w| w.address == "G" && (w.value - c).abs() < 1e-6)
-                    || (c == 53.0 && (supa || g_word(&modal_words, 153.0)))
+                g_word(&modal_words, c) || (c == 53.0 && (supa || g_word(&modal_words, 153.0)))
             };
             let named = |k: usize| {
                 axis_items.iter().any(|&i| {
@@ -635,8 +621,14 @@ impl MachineAxisTracker {
             return Ok(None);
         }
         self.check_motion_words(machine, line, file)?;
+        // A full circle may give its centre alone (`G2 I-10`): it ends
+        // where it starts.
+        let full_circle = meaning.motion == Motion::Arc
+            && line
+                .words()
+                .any(|w| ["I", "J", "K"].iter().any(|a| w.is(a)));
         if let Some((at, what)) = self.active_frame()
-            && (!axis_items.is_empty() || full_circle_words(line, &meaning))
+            && (!axis_items.is_empty() || full_circle)
         {
             return Err(Error::input_with(
                 Location::new(
@@ -650,12 +642,6 @@ impl MachineAxisTracker {
                 line.text_lossy(),
             ));
         }
-        // A full circle may give its centre alone (`G2 I-10`): it ends
-        // where it starts.
-        let full_circle = meaning.motion == Motion::Arc
-            && line
-                .words()
-                .any(|w| ["I", "J", "K"].iter().any(|a| w.is(a)));
         if axis_items.is_empty() && !full_circle {
             return Ok(None);
         }

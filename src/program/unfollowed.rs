@@ -169,13 +169,13 @@ pub fn g_code(code: i64) -> Option<String> {
     })
 }
 
-/// Whether the G code `code` (ten times its value) switches on (`Some(true)`) or off an interpolation mode that
-/// changes what later axis words mean: Fanuc polar coordinate
-/// interpolation `G12.1` (off: `G13.1`), cylindrical interpolation `G7.1`
-/// and Haas `G107` with a radius (`radius`: the block has a `C` other
-/// than 0; off: with `C0`), Okuma's tool centre
-/// point control `G169` (off: `G168`), which would transform kinpost's
-/// machine axis words a second time.
+/// Whether the G code `code` (ten times its value) switches on
+/// (`Some(true)`) or off an interpolation mode that changes what later
+/// axis words mean: Fanuc polar coordinate interpolation `G12.1` (off:
+/// `G13.1`), cylindrical interpolation `G7.1` and Haas `G107` with a
+/// radius (`radius`: the block has a `C` other than 0; off: with `C0`),
+/// Okuma's tool centre point control `G169` (off: `G168`), which would
+/// transform kinpost's machine axis words a second time.
 pub fn interpolation_mode(code: i64, radius: bool) -> Option<bool> {
     match code {
         121 | 1690 => Some(true),
