@@ -1,12 +1,15 @@
 //! A machine file from a LinuxCNC configuration (`kinpost machine
 //! --from-linuxcnc config.ini`).
 //!
-//! The INI's `[KINS] KINEMATICS` names the kinematics module; its HAL
+//! The INI is read with the files it includes (`#INCLUDE file`, as
+//! LinuxCNC 2.8 and later read it). Its `[KINS] KINEMATICS` names the
+//! kinematics module; its HAL
 //! parameters come from the HAL files of `[HAL] HALFILE` (relative to the
 //! INI), the INI's own `[HAL] HALCMD` lines and `[HAL] POSTGUI_HALFILE`, in
 //! that order: `setp PIN VALUE`, and `sets SIGNAL VALUE` for pins joined to
-//! the signal by `net`. A value may be an INI reference `[SECTION]KEY`. The
-//! last value given wins, as when HAL runs the files.
+//! the signal by `net`; `source FILE` reads FILE (relative to the INI) in
+//! its place. A value may be an INI reference `[SECTION]KEY`. The last
+//! value given wins, as when HAL runs the files.
 //!
 //! The chains (`docs/integration.md`), with `con` = +1 when
 //! `conventional-directions` is 1 and −1 otherwise, `R` the rotation point,
@@ -53,22 +56,56 @@ struct IniEntry {
     section: String,
     key: String,
     value: String,
+    /// Index of the file it is in ([`Ini::sources`]).
+    source: usize,
     line: usize,
     /// Byte column of the value (1-based).
     col: usize,
 }
 
-/// An INI file: its entries in order.
-struct Ini {
+/// One file of an INI: the INI itself or a file it includes.
+struct IniSource {
     file: String,
     text: String,
+}
+
+/// An INI file with the files it includes (`#INCLUDE`): its entries in
+/// order.
+struct Ini {
+    sources: Vec<IniSource>,
     entries: Vec<IniEntry>,
 }
 
+/// How deep `#INCLUDE` may nest, as in LinuxCNC.
+const MAX_INCLUDE_DEPTH: usize = 16;
+
 impl Ini {
-    fn parse(text: String, file: String) -> Ini {
-        let mut entries = Vec::new();
+    /// Reads the INI at `path` and, where a line starts with `#INCLUDE `,
+    /// the file it names, in its place (LinuxCNC's rule: a relative name is
+    /// relative to the directory of the file that includes it, `~/` is the
+    /// home directory; up to 16 levels; a file that includes itself is an
+    /// error).
+    fn load(path: &Path) -> Result<Ini> {
+        let mut ini = Ini {
+            sources: Vec::new(),
+            entries: Vec::new(),
+        };
         let mut section = String::new();
+        let mut stack = Vec::new();
+        ini.read(path, &mut section, &mut stack)?;
+        Ok(ini)
+    }
+
+    fn read(&mut self, path: &Path, section: &mut String, stack: &mut Vec<PathBuf>) -> Result<()> {
+        let text = crate::text::read_text_file(path)?;
+        let source = self.sources.len();
+        let file = path.display().to_string();
+        self.sources.push(IniSource {
+            file: file.clone(),
+            text,
+        });
+        stack.push(std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()));
+        let text = std::mem::take(&mut self.sources[source].text);
         for (n, raw) in text.lines().enumerate() {
             // A byte-order mark is not part of the first line's text.
             let raw = if n == 0 {
@@ -76,33 +113,93 @@ impl Ini {
             } else {
                 raw
             };
+            if let Some(rest) = raw.strip_prefix("#INCLUDE") {
+                let at = Location::new(&file, n + 1, 1);
+                self.include(path, rest, at, raw, section, stack)?;
+                continue;
+            }
             let line = raw.trim();
             if line.is_empty() || line.starts_with('#') || line.starts_with(';') {
                 continue;
             }
             if line.starts_with('[') {
                 if let Some(end) = line.find(']') {
-                    section = line[1..end].trim().to_ascii_uppercase();
+                    *section = line[1..end].trim().to_ascii_uppercase();
                 }
                 continue;
             }
             if let Some((k, v)) = raw.split_once('=') {
                 let value = v.trim();
                 let col = raw.len() - v.trim_start().len() + 1;
-                entries.push(IniEntry {
+                self.entries.push(IniEntry {
                     section: section.clone(),
                     key: k.trim().to_ascii_uppercase(),
                     value: value.to_string(),
+                    source,
                     line: n + 1,
                     col,
                 });
             }
         }
-        Ini {
-            file,
-            text,
-            entries,
+        self.sources[source].text = text;
+        stack.pop();
+        Ok(())
+    }
+
+    /// Reads the file of an `#INCLUDE` line (`rest` follows the directive)
+    /// in the including file `from`.
+    fn include(
+        &mut self,
+        from: &Path,
+        rest: &str,
+        at: Location,
+        raw: &str,
+        section: &mut String,
+        stack: &mut Vec<PathBuf>,
+    ) -> Result<()> {
+        let fail = |msg: String| Error::input_with(at.clone(), msg, raw);
+        let name = rest.trim();
+        if !rest.starts_with([' ', '\t']) || name.is_empty() {
+            return Err(fail(
+                "`#INCLUDE` without a file name; expected `#INCLUDE file.inc`".into(),
+            ));
         }
+        let named = match name.strip_prefix("~/") {
+            Some(under_home) => match std::env::var_os("HOME") {
+                Some(home) => PathBuf::from(home).join(under_home),
+                None => return Err(fail(format!("`{name}`: HOME is not set"))),
+            },
+            None => PathBuf::from(name),
+        };
+        let path = if named.is_absolute() {
+            named
+        } else {
+            from.parent().unwrap_or(Path::new("")).join(named)
+        };
+        let key = std::fs::canonicalize(&path).unwrap_or_else(|_| path.clone());
+        if stack.contains(&key) {
+            return Err(fail(format!(
+                "`{name}` includes itself (through {} files); expected includes without a loop",
+                stack.len()
+            )));
+        }
+        if stack.len() >= MAX_INCLUDE_DEPTH {
+            return Err(fail(format!(
+                "`{name}`: includes nest deeper than {MAX_INCLUDE_DEPTH} levels, LinuxCNC's limit"
+            )));
+        }
+        if !path.is_file() {
+            let why = if path.is_dir() {
+                "it is a directory"
+            } else {
+                "no such file"
+            };
+            return Err(fail(format!(
+                "cannot include `{}`: {why}; expected a file (a relative name is relative to the directory of the file that includes it)",
+                path.display()
+            )));
+        }
+        self.read(&path, section, stack)
     }
 
     fn all<'a>(&'a self, section: &'a str, key: &'a str) -> impl Iterator<Item = &'a IniEntry> {
@@ -117,11 +214,20 @@ impl Ini {
             .find(|e| e.section == section && e.key == key)
     }
 
+    /// The file an entry is in.
+    fn file_of(&self, e: &IniEntry) -> &str {
+        &self.sources[e.source].file
+    }
+
     fn err(&self, e: &IniEntry, msg: impl Into<String>) -> Error {
         Error::input_with(
-            Location::new(&self.file, e.line, e.col),
+            Location::new(self.file_of(e), e.line, e.col),
             msg,
-            self.text.lines().nth(e.line - 1).unwrap_or(""),
+            self.sources[e.source]
+                .text
+                .lines()
+                .nth(e.line - 1)
+                .unwrap_or(""),
         )
     }
 }
@@ -146,7 +252,16 @@ struct Hal {
     /// `net SIGNAL pins…`: the signal of each pin.
     net_of: HashMap<String, String>,
     seq: usize,
+    /// The directory halcmd runs in (the INI's): `source FILE` is relative
+    /// to it.
+    dir: PathBuf,
+    /// How many `source` commands the file being read is nested in.
+    depth: usize,
 }
+
+/// How deep HAL files may `source` each other before kinpost takes it for
+/// a file that sources itself.
+const MAX_SOURCE_DEPTH: usize = 16;
 
 impl Hal {
     /// Reads the HAL commands of `text` (`file` names it; `first_line` is
@@ -196,6 +311,25 @@ impl Hal {
                     } else {
                         self.signals.insert(target, g);
                     }
+                }
+                "source" if tokens.len() >= 2 => {
+                    let (at, name) = tokens[1];
+                    let loc = Location::new(file, line, col0 + at + 1);
+                    if self.depth >= MAX_SOURCE_DEPTH {
+                        return Err(Error::input_with(
+                            loc,
+                            format!(
+                                "`source {name}`: HAL files source each other more than {MAX_SOURCE_DEPTH} deep; expected files that do not source themselves"
+                            ),
+                            raw,
+                        ));
+                    }
+                    let path = self.dir.join(name);
+                    let text = crate::text::read_text_file(&path)?;
+                    self.depth += 1;
+                    let read = self.read(ini, &text, &path.display().to_string(), 1, 0);
+                    self.depth -= 1;
+                    read?;
                 }
                 "net" if tokens.len() >= 2 => {
                     let signal = tokens[1].1.to_string();
@@ -285,8 +419,7 @@ const MM_PER_INCH: f64 = 25.4;
 /// kinematics' `tool-offset` pin (trt; default 0).
 pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Result<Value> {
     let file = ini_path.display().to_string();
-    let text = crate::text::read_text_file(ini_path)?;
-    let ini = Ini::parse(text, file.clone());
+    let ini = Ini::load(ini_path)?;
     let whole = |msg: String| Error::input(Location::new(&file, 0, 0), msg);
 
     let kins_e = ini.get("KINS", "KINEMATICS").ok_or_else(|| {
@@ -326,34 +459,44 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
         .parent()
         .map(Path::to_path_buf)
         .unwrap_or_else(|| PathBuf::from("."));
-    let mut hal = Hal::default();
-    let mut skipped: Vec<String> = Vec::new();
-    let mut read_file = |hal: &mut Hal, e: &IniEntry| -> Result<()> {
-        let name = e.value.split_whitespace().next().unwrap_or("");
-        if name.starts_with("LIB:") || name.ends_with(".tcl") {
-            skipped.push(name.to_string());
-            return Ok(());
-        }
-        let path = dir.join(name);
-        let text = crate::text::read_text_file(&path)?;
-        hal.read(&ini, &text, &path.display().to_string(), 1, 0)
+    let mut hal = Hal {
+        dir: dir.clone(),
+        ..Hal::default()
     };
-    for e in ini.all("HAL", "HALFILE") {
-        read_file(&mut hal, e)?;
-    }
-    for e in ini.all("HAL", "HALCMD") {
-        hal.read(&ini, &e.value, &file, e.line, e.col - 1)?;
-    }
-    for e in ini.all("HAL", "POSTGUI_HALFILE") {
-        read_file(&mut hal, e)?;
-    }
-
     let prefix = match kins {
         Kins::TrtAc => "xyzac-trt-kins",
         Kins::TrtBc => "xyzbc-trt-kins",
         Kins::TdrAb => "xyzab_tdr_kins",
         Kins::FiveAxis => "5axiskins",
     };
+    let mut skipped: Vec<String> = Vec::new();
+    let mut read_file = |hal: &mut Hal, e: &IniEntry| -> Result<()> {
+        let name = e.value.split_whitespace().next().unwrap_or("");
+        if name.starts_with("LIB:") {
+            skipped.push(name.to_string());
+            return Ok(());
+        }
+        let path = dir.join(name);
+        let text = crate::text::read_text_file(&path)?;
+        if name.ends_with(".tcl") {
+            // Tcl is not run; a Tcl file that touches the module's pins
+            // would leave the geometry unread.
+            tcl_touches(&text, &path, prefix)?;
+            skipped.push(name.to_string());
+            return Ok(());
+        }
+        hal.read(&ini, &text, &path.display().to_string(), 1, 0)
+    };
+    for e in ini.all("HAL", "HALFILE") {
+        read_file(&mut hal, e)?;
+    }
+    for e in ini.all("HAL", "HALCMD") {
+        hal.read(&ini, &e.value, ini.file_of(e), e.line, e.col - 1)?;
+    }
+    for e in ini.all("HAL", "POSTGUI_HALFILE") {
+        read_file(&mut hal, e)?;
+    }
+
     let pin = |p: &str| format!("{prefix}.{p}");
     // A HAL length in the configuration's units, in mm.
     let length = |hal: &Hal, p: &str, default: f64| -> Result<f64> {
@@ -499,6 +642,24 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
 
 /// The machine of a `trivkins` configuration (see the module docs):
 /// three linear axes and at most one rotary table.
+/// Refuses a Tcl HAL file (`HALFILE = x.tcl`, which kinpost does not run)
+/// that names a pin of the kinematics module `prefix`.
+fn tcl_touches(text: &str, path: &Path, prefix: &str) -> Result<()> {
+    for (n, line) in text.lines().enumerate() {
+        let code = line.split('#').next().unwrap_or("");
+        if let Some(at) = code.find(&format!("{prefix}.")) {
+            return Err(Error::input_with(
+                Location::new(path.display().to_string(), n + 1, at + 1),
+                format!(
+                    "a Tcl HAL file sets pins of {prefix}, and kinpost does not run Tcl; expected the module's parameters in a .hal file or a [HAL] HALCMD line"
+                ),
+                line,
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn trivial_machine(
     ini_path: &Path,
     ini: &Ini,

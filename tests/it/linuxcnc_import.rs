@@ -518,3 +518,142 @@ fn trivkins_and_unit_refusals() {
         assert!(e.contains(&format!("r{i}.ini:{want}")), "{e}");
     }
 }
+
+/// `#INCLUDE` (LinuxCNC 2.8 and later): the included file's entries are
+/// read in its place, nested includes relative to the file that includes
+/// them, so the configuration split into files gives the machine of the
+/// same configuration in one file. Before, the entries of an included file
+/// were not read: `[KINS]` there was "no [KINS] KINEMATICS entry", and
+/// `LINEAR_UNITS = inch` there would have been read as mm.
+#[test]
+fn an_ini_reads_the_files_it_includes() {
+    let dir = tempfile::tempdir().unwrap();
+    let whole = config(dir.path(), "xyzac-trt.ini", 1);
+    let text = std::fs::read_to_string(&whole)
+        .unwrap()
+        .replace("LINEAR_UNITS = mm", "LINEAR_UNITS = inch");
+    std::fs::write(&whole, &text).unwrap();
+    let want = machine_from_linuxcnc(&whole, None).unwrap_or_else(|e| panic!("{e}"));
+
+    // The same entries over three files: [KINS] and [TRAJ] in inc/kins.inc,
+    // which includes its neighbour axes.inc (the limits); the HALCMD of
+    // [HAL] in an include that starts no section.
+    let (head, rest) = text.split_at(text.find("[KINS]").unwrap());
+    let (kins, rest) = rest.split_at(rest.find("[HAL]").unwrap());
+    let (hal, rest) = rest.split_at(rest.find("HALCMD").unwrap());
+    let (halcmd, rest) = rest.split_at(rest.find("\n[GEOMETRY]").unwrap() + 1);
+    let (geometry, axes) = rest.split_at(rest.find("[AXIS_X]").unwrap());
+    std::fs::create_dir(dir.path().join("inc")).unwrap();
+    std::fs::write(
+        dir.path().join("inc/kins.inc"),
+        format!("{kins}#INCLUDE axes.inc\n"),
+    )
+    .unwrap();
+    std::fs::write(dir.path().join("inc/axes.inc"), axes).unwrap();
+    std::fs::write(dir.path().join("halcmd.inc"), halcmd).unwrap();
+    let split = dir.path().join("split.ini");
+    std::fs::write(
+        &split,
+        format!("{head}#INCLUDE inc/kins.inc\n{hal}#INCLUDE\thalcmd.inc\n{geometry}"),
+    )
+    .unwrap();
+    let got = machine_from_linuxcnc(&split, None).unwrap_or_else(|e| panic!("{e}"));
+    let strip = |mut v: serde_json::Value| {
+        v["name"] = "-".into();
+        v["description"] = "-".into();
+        v["source"] = "-".into();
+        v
+    };
+    assert_eq!(strip(got.clone()), strip(want));
+    assert!(
+        got["description"]
+            .as_str()
+            .unwrap()
+            .contains("in inch, converted to mm"),
+        "{}",
+        got["description"]
+    );
+
+    // Errors name the file and line that include.
+    let refuse = |main: &str, want: &str| {
+        let path = dir.path().join("bad.ini");
+        std::fs::write(&path, main).unwrap();
+        let e = machine_from_linuxcnc(&path, None).unwrap_err().to_string();
+        assert!(e.contains(want), "{main:?}: {e}");
+    };
+    std::fs::write(dir.path().join("loop.inc"), "[EMC]\n#INCLUDE bad.ini\n").unwrap();
+    refuse(
+        "[KINS]\nKINEMATICS = trivkins\n#INCLUDE loop.inc\n",
+        "loop.inc:2:1: `bad.ini` includes itself",
+    );
+    refuse(
+        "[KINS]\n#INCLUDE nowhere.inc\n",
+        "bad.ini:2:1: cannot include",
+    );
+    refuse("#INCLUDE\n", "bad.ini:1:1: `#INCLUDE` without a file name");
+    refuse(
+        "#INCLUDEkins.inc\n",
+        "bad.ini:1:1: `#INCLUDE` without a file name",
+    );
+    // An error inside an included file names that file.
+    std::fs::write(
+        dir.path().join("units.inc"),
+        "[TRAJ]\nLINEAR_UNITS = furlong\n",
+    )
+    .unwrap();
+    refuse(
+        "[KINS]\nKINEMATICS = trivkins coordinates=xyz\n#INCLUDE units.inc\n",
+        "units.inc:2:16: LINEAR_UNITS `furlong` is not a length unit",
+    );
+}
+
+/// A HAL file's `source FILE` reads FILE in its place (halcmd runs in the
+/// INI's directory): the kinematics parameters set there count, in order.
+/// Before, they were not read, and the rotation point stayed at 0 without a
+/// word.
+#[test]
+fn a_hal_file_reads_the_files_it_sources() {
+    let dir = tempfile::tempdir().unwrap();
+    let whole = config(dir.path(), "xyzac-trt.ini", 1);
+    let want = machine_from_linuxcnc(&whole, None).unwrap_or_else(|e| panic!("{e}"));
+    // The HAL file's setp lines moved into a file it sources.
+    let hal = dir.path().join("xyzac-trt.hal");
+    let text = std::fs::read_to_string(&hal).unwrap();
+    std::fs::create_dir(dir.path().join("hal")).unwrap();
+    std::fs::write(dir.path().join("hal/kins.hal"), &text).unwrap();
+    std::fs::write(&hal, "# the geometry\nsource hal/kins.hal\n").unwrap();
+    let got = machine_from_linuxcnc(&whole, None).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(got["chain"], want["chain"]);
+    assert_ne!(got["chain"][0]["translate"][0], 0.0, "{}", got["chain"]);
+
+    // A file that sources itself is refused at the command.
+    std::fs::write(&hal, "source xyzac-trt.hal\n").unwrap();
+    let e = machine_from_linuxcnc(&whole, None).unwrap_err().to_string();
+    assert!(
+        e.contains("xyzac-trt.hal:1:8: `source xyzac-trt.hal`: HAL files source each other"),
+        "{e}"
+    );
+
+    // A Tcl HAL file is not run: one that sets the module's pins is
+    // refused (before, it was skipped, and the geometry left at 0).
+    std::fs::write(&hal, "source hal/kins.hal\n").unwrap();
+    std::fs::write(
+        dir.path().join("geometry.tcl"),
+        "# Tcl\nsetp xyzac-trt-kins.z-offset [expr 2 * 5]\n",
+    )
+    .unwrap();
+    let ini = std::fs::read_to_string(&whole).unwrap();
+    std::fs::write(
+        &whole,
+        ini.replace(
+            "HALFILE = xyzac-trt.hal",
+            "HALFILE = xyzac-trt.hal\nHALFILE = geometry.tcl",
+        ),
+    )
+    .unwrap();
+    let e = machine_from_linuxcnc(&whole, None).unwrap_err().to_string();
+    assert!(
+        e.contains("geometry.tcl:2:6: a Tcl HAL file sets pins of xyzac-trt-kins"),
+        "{e}"
+    );
+}
