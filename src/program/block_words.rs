@@ -5,8 +5,9 @@ use crate::gcode::{ItemKind, Line};
 
 /// Appends the words of `line` to `words` and its keywords to `keywords`
 /// (with their item indices): a block delete `/` as the pseudo-keyword
-/// `/`, and a Sinumerik call kinpost knows in text it does not parse
-/// (`TRAORI`, `CYCLE800(…)`) as its name.
+/// `/`, a Sinumerik call kinpost knows in text it does not parse
+/// (`TRAORI`, `CYCLE800(…)`) as its name, and a Fagor instruction
+/// (`#RTCP ON`) as its pseudo-keyword ([`super::fagor`]).
 #[inline]
 pub fn block_words<'l>(
     line: &'l Line,
@@ -23,8 +24,9 @@ pub fn block_words<'l>(
             ItemKind::Keyword(k) => keywords.push((i, k.as_str())),
             ItemKind::BlockDelete => keywords.push((i, "/")),
             ItemKind::Opaque => {
+                let text = String::from_utf8_lossy(line.item_bytes(item));
                 if let Some(k) =
-                    super::opaque::known_call(&String::from_utf8_lossy(line.item_bytes(item)))
+                    super::opaque::known_call(&text).or_else(|| super::fagor::instruction(&text))
                 {
                     keywords.push((i, k));
                 }

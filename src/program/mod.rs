@@ -4,6 +4,7 @@ pub mod arc;
 mod block_delete;
 pub mod block_delete_switch;
 pub mod block_words;
+pub mod fagor;
 pub mod format;
 pub mod frames;
 pub mod heidenhain;

@@ -402,6 +402,9 @@ impl ModalState {
                 }
                 // Sinumerik's `G53` (also suppressing the other offsets).
                 "SUPA" => non_modal = true,
+                super::fagor::TCP_ON | super::fagor::TCP_OFF => {
+                    self.interpolation_mode = *k == super::fagor::TCP_ON
+                }
                 // Sinumerik motion modes besides G0–G3 (modal, like G2):
                 // circles through a point or tangential, and splines.
                 "CIP" | "CT" => self.motion = Motion::Arc,

@@ -30,6 +30,12 @@ pub fn describe_opaque(bytes: &[u8]) -> String {
             quote(token(text))
         );
     }
+    if super::fagor::instruction(text).is_some() {
+        return format!(
+            "a Fagor instruction (`{}`) in pose mode: it switches the control's tool centre point control or a coordinate system or transformation, which would move the axis words kinpost writes; kinpost does not convert Fagor programs",
+            quote(text.trim())
+        );
+    }
     if token(text).starts_with(',') {
         return format!(
             "`{}`: a corner rounding or chamfer (Fanuc, Haas `,R` / `,C`): the controller inserts an arc or a chamfer at the corner, a path kinpost does not convert; have the CAM system write the corner",

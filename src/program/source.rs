@@ -437,11 +437,19 @@ impl MachineAxisTracker {
             && word("R").is_some();
         let values = super::frames::has_values(line.words().map(|w| w.address.as_str()));
         let mut set = None;
-        for k in line.keywords() {
+        // Keywords, and the calls and instructions read from opaque text
+        // (`CYCLE800(…)`, Fagor `#CS ON`) as the modal state reads them.
+        let mut words = Vec::new();
+        let mut keywords = Vec::new();
+        super::block_words::block_words(line, &mut words, &mut keywords);
+        for &(_, k) in &keywords {
             match super::frames::change(k, values) {
                 Some(super::frames::FrameChange::Delete) => self.frame = None,
                 Some(super::frames::FrameChange::Set) if !["TRANS", "ATRANS"].contains(&k) => {
-                    set = Some(format!("the Sinumerik frame {k}"));
+                    set = Some(match k.strip_prefix('#') {
+                        Some(_) => "a Fagor coordinate system or transformation (#CS, #ACS, #MCS, #FACE, #CYL, #TOOL AX)".to_string(),
+                        None => format!("the Sinumerik frame {k}"),
+                    });
                 }
                 _ => {}
             }
@@ -539,8 +547,9 @@ impl MachineAxisTracker {
                 line.items.iter().position(|it| match &it.kind {
                     ItemKind::Keyword(k) => k == "TRAORI",
                     ItemKind::Opaque => {
-                        super::opaque::known_call(&String::from_utf8_lossy(line.item_bytes(it)))
-                            .is_some_and(|c| c.starts_with("TRAORI"))
+                        let text = String::from_utf8_lossy(line.item_bytes(it));
+                        super::opaque::known_call(&text).is_some_and(|c| c.starts_with("TRAORI"))
+                            || super::fagor::instruction(&text) == Some(super::fagor::TCP_ON)
                     }
                     // Heidenhain ISO's tool centre point management.
                     ItemKind::Word(w) => w.address == "M" && w.value == 128.0,
@@ -550,7 +559,7 @@ impl MachineAxisTracker {
         if let Some(i) = tcp {
             return Err(Error::input_with(
                 Location::new(file, line.number, line.items[i].start + 1),
-                "tool centre point control (G43.4, G43.5, G234, TRAORI, Heidenhain ISO M128) in a program read as machine axes: from here its X Y Z are tool-tip positions, which this command does not read as axes; convert the program with `kinpost post` first, or give a program that switches TCP on at its start",
+                "tool centre point control (G43.4, G43.5, G234, TRAORI, Heidenhain ISO M128, Fagor #RTCP ON) in a program read as machine axes: from here its X Y Z are tool-tip positions, which this command does not read as axes; convert the program with `kinpost post` first, or give a program that switches TCP on at its start",
                 line.text_lossy(),
             ));
         }

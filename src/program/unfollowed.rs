@@ -186,7 +186,7 @@ pub fn interpolation_mode(code: i64, radius: bool) -> Option<bool> {
 }
 
 /// Why pose mode may not start under an [`interpolation_mode`].
-pub const MODE_AT_POSE_START: &str = "pose mode starts while an interpolation mode set earlier in the program (Fanuc G12.1 polar coordinate interpolation, G7.1 or Haas G107 cylindrical interpolation, the controller's own tool centre point control: Okuma G169, Heidenhain ISO M128) is on: the controller would read kinpost's machine axis words in it; switch it off before (G13.1, G7.1 C0, G107 C0, G168, M129)";
+pub const MODE_AT_POSE_START: &str = "pose mode starts while an interpolation mode set earlier in the program (Fanuc G12.1 polar coordinate interpolation, G7.1 or Haas G107 cylindrical interpolation, the controller's own tool centre point control: Okuma G169, Heidenhain ISO M128, Fagor #RTCP ON or #TLC ON) is on: the controller would read kinpost's machine axis words in it; switch it off before (G13.1, G7.1 C0, G107 C0, G168, M129, #RTCP OFF)";
 
 /// `G` code ten times `code` as written: `12.1`, `154`.
 fn g_name(code: i64) -> String {

@@ -8,7 +8,12 @@ use crate::cl_support::kinpost;
 
 /// `kinpost args` on `text` written to `dir/name` (the file's path is the
 /// last argument): exit code, standard output, standard error.
-fn run(dir: &std::path::Path, name: &str, text: &str, args: &[&str]) -> (i32, String, String) {
+pub(crate) fn run(
+    dir: &std::path::Path,
+    name: &str,
+    text: &str,
+    args: &[&str],
+) -> (i32, String, String) {
     let path = dir.join(name);
     std::fs::write(&path, text).unwrap();
     let mut all = args.to_vec();
@@ -29,14 +34,25 @@ fn post(dir: &std::path::Path, name: &str, text: &str, extra: &[&str]) -> (i32, 
 }
 
 /// `post` on `text` must refuse it (exit 1) with `want` in its message.
-fn post_refuses(dir: &std::path::Path, name: &str, text: &str, extra: &[&str], want: &str) {
+pub(crate) fn post_refuses(
+    dir: &std::path::Path,
+    name: &str,
+    text: &str,
+    extra: &[&str],
+    want: &str,
+) {
     let (code, _, err) = post(dir, name, text, extra);
     assert_eq!(code, 1, "{name}: {err}");
     assert!(err.contains(want), "{name}: {err}");
 }
 
 /// `post` on `text` must convert it; its output.
-fn post_converts(dir: &std::path::Path, name: &str, text: &str, extra: &[&str]) -> String {
+pub(crate) fn post_converts(
+    dir: &std::path::Path,
+    name: &str,
+    text: &str,
+    extra: &[&str],
+) -> String {
     let (code, out, err) = post(dir, name, text, extra);
     assert_eq!(code, 0, "{name}: {err}");
     out
@@ -211,7 +227,7 @@ fn pose_mode_does_not_start_under_an_interpolation_mode() {
 /// `simulate`, `analyze --nonlinear`), on `text` (a machine-axis program
 /// for xyzac-trt): with `want`, each must refuse it (exit 1, no output)
 /// with `want` in its message; without, each must succeed.
-fn follow(dir: &std::path::Path, text: &str, want: Option<&str>) {
+pub(crate) fn follow(dir: &std::path::Path, text: &str, want: Option<&str>) {
     let out = dir.join("out");
     let o = out.to_str().unwrap();
     for args in [

@@ -78,4 +78,5 @@ mod seed000;
 mod seed003;
 mod simulate_arcs;
 mod simulate_stream;
+mod sixth_hunt;
 mod valid_jobs;
