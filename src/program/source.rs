@@ -751,7 +751,7 @@ impl MachineAxisTracker {
             self.ext[k] = match (absolute, modulo) {
                 (false, _) => self.ext[k] + v,
                 // A modulo axis turns the short way to an absolute target
-                // (LinuxCNC's wrapped rotary, a roll-over axis): followed
+                // (a roll-over axis set to the shortest path): followed
                 // on that path, not across the 0/360° seam.
                 (true, true) => crate::machine::rotary::unwind_near_degrees(v, self.ext[k]),
                 (true, false) => v,

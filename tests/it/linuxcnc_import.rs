@@ -262,11 +262,40 @@ fn limits_modes_and_refusals() {
         kinpost::machine::RotaryMode::Continuous
     );
     assert_eq!(ac.axis("Z").unwrap().min, Some(-250.0));
+    // `WRAPPED_ROTARY = no` (LinuxCNC's booleans in any spelling): not
+    // wrapped, and without limits continuous.
     let bc = m("xyzbc-trt.ini");
     assert_eq!(
         bc.axis("C").unwrap().rotary,
-        kinpost::machine::RotaryMode::Modulo
+        kinpost::machine::RotaryMode::Continuous
     );
+    // A wrapped rotary turns the way its word's sign says (LinuxCNC's
+    // `unwrap_rotary`): A350 after A10 is +340°, where kinpost's modulo axis
+    // takes the short way (−20°). It was written `modulo`, and `post` and
+    // `linkage` output turned the table the long way: refused now, in each
+    // spelling LinuxCNC reads as true; a value that is no boolean too.
+    let path = config(dir.path(), "xyzbc-trt.ini", 0);
+    let text = std::fs::read_to_string(&path).unwrap();
+    for (value, want) in [
+        (
+            "1",
+            "xyzbc-trt.ini:20:18: WRAPPED_ROTARY: LinuxCNC turns a wrapped rotary axis the way the sign of its word says",
+        ),
+        ("Yes", "xyzbc-trt.ini:20:18: WRAPPED_ROTARY: LinuxCNC turns"),
+        ("ON", "xyzbc-trt.ini:20:18: WRAPPED_ROTARY: LinuxCNC turns"),
+        (
+            "maybe",
+            "xyzbc-trt.ini:20:18: WRAPPED_ROTARY `maybe` is not a boolean",
+        ),
+    ] {
+        std::fs::write(
+            &path,
+            text.replace("WRAPPED_ROTARY = no", &format!("WRAPPED_ROTARY = {value}")),
+        )
+        .unwrap();
+        let e = machine_from_linuxcnc(&path, None).unwrap_err().to_string();
+        assert!(e.contains(want), "{value}: {e}");
+    }
     // maxkins is refused with the reason, at the KINEMATICS value.
     let e = machine_from_linuxcnc(&config(dir.path(), "maxkins.ini", 0), None)
         .unwrap_err()
@@ -308,6 +337,23 @@ fn limits_modes_and_refusals() {
     std::fs::write(
         dir.path().join("c.ini"),
         "[KINS]\nKINEMATICS = 5axiskins\n[HAL]\nHALFILE = nothere.hal\n",
+    )
+    .unwrap();
+    // A HALFILE name not beside the INI is one LinuxCNC finds in its HAL
+    // library (`core_sim.hal`): skipped and named, as `LIB:` files are.
+    let v = machine_from_linuxcnc(&dir.path().join("c.ini"), None).unwrap();
+    assert!(
+        v["description"]
+            .as_str()
+            .unwrap()
+            .contains("HAL files not read (library or Tcl files): nothere.hal."),
+        "{}",
+        v["description"]
+    );
+    // A path with a directory is the configuration's own: it must be there.
+    std::fs::write(
+        dir.path().join("c.ini"),
+        "[KINS]\nKINEMATICS = 5axiskins\n[HAL]\nHALFILE = sub/nothere.hal\n",
     )
     .unwrap();
     let e = machine_from_linuxcnc(&dir.path().join("c.ini"), None).unwrap_err();
@@ -655,5 +701,107 @@ fn a_hal_file_reads_the_files_it_sources() {
     assert!(
         e.contains("geometry.tcl:2:6: a Tcl HAL file sets pins of xyzac-trt-kins"),
         "{e}"
+    );
+}
+
+/// HAL commands as halcmd reads them (the sixth hunt: each gave the
+/// module's default, 0, without a word, a tip up to 28 mm from LinuxCNC's):
+/// `PIN = VALUE` is `setp`; a line ending in `\` goes on in the next (in
+/// the HAL file and in the INI); `[SECTION](KEY)` is an INI reference;
+/// HAL's first link copies the pin's value onto the signal, so a `sets`
+/// before it is lost; a pin driven by another component is refused, since
+/// its value is what that component computes.
+#[test]
+fn hal_commands_are_read_as_halcmd_reads_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let ini = config(dir.path(), "xyzac-trt.ini", 0);
+    let want = machine_from_linuxcnc(&ini, None).unwrap_or_else(|e| panic!("{e}"));
+    let hal = dir.path().join("xyzac-trt.hal");
+    let base = std::fs::read_to_string(&hal).unwrap();
+    let same = |text: &str| {
+        std::fs::write(&hal, text).unwrap();
+        let got = machine_from_linuxcnc(&ini, None).unwrap_or_else(|e| panic!("{text}\n{e}"));
+        assert_eq!(got["chain"], want["chain"], "{text}");
+    };
+    // `PIN = VALUE`, a continued `setp`, a continued `net`, `[S](K)`.
+    same(&base.replace(
+        "setp xyzac-trt-kins.x-rot-point 12.5",
+        "xyzac-trt-kins.x-rot-point = 12.5",
+    ));
+    same(&base.replace(
+        "setp xyzac-trt-kins.x-rot-point 12.5",
+        "setp xyzac-trt-kins.x-rot-point \\\n    12.5",
+    ));
+    same(&base.replace(
+        "net :z-offset xyzac-trt-kins.z-offset",
+        "net :z-offset \\\n    xyzac-trt-kins.z-offset",
+    ));
+    let ini_text = std::fs::read_to_string(&ini).unwrap();
+    std::fs::write(
+        &ini,
+        ini_text
+            .replace("[GEOMETRY]Z_ROT_POINT", "[GEOMETRY](Z_ROT_POINT)")
+            .replace("Z_ROT_POINT = -3.25", "Z_ROT_POINT = \\\n  -3.25"),
+    )
+    .unwrap();
+    same(&base);
+    std::fs::write(&ini, &ini_text).unwrap();
+    // A value set on the signal before its first pin is linked is lost; a
+    // `setp` of the pin before the link is what the signal carries.
+    std::fs::write(
+        &hal,
+        base.replace(
+            "net :z-offset xyzac-trt-kins.z-offset\n",
+            "newsig :z-offset float\nsets :z-offset 99\nsetp xyzac-trt-kins.z-offset 10.125\nnet :z-offset xyzac-trt-kins.z-offset\n",
+        )
+        .replace("sets :z-offset 10.125\n", ""),
+    )
+    .unwrap();
+    let got = machine_from_linuxcnc(&ini, None).unwrap();
+    assert_eq!(got["chain"], want["chain"]);
+    // Driven by another component: refused at the link.
+    for (net, at) in [
+        (
+            "net :z-offset zsum.out xyzac-trt-kins.z-offset",
+            "xyzac-trt.hal:7:15",
+        ),
+        (
+            "net :z-offset <= offs.z => xyzac-trt-kins.z-offset",
+            "xyzac-trt.hal:7:18",
+        ),
+        (
+            "net :z-offset offs.z => xyzac-trt-kins.z-offset",
+            "xyzac-trt.hal:7:15",
+        ),
+    ] {
+        std::fs::write(
+            &hal,
+            base.replace("net :z-offset xyzac-trt-kins.z-offset", net)
+                .replace("sets :z-offset 10.125\n", ""),
+        )
+        .unwrap();
+        let e = machine_from_linuxcnc(&ini, None).unwrap_err().to_string();
+        assert!(
+            e.contains(&format!(
+                "{at}: xyzac-trt-kins.z-offset is on signal :z-offset, which"
+            )),
+            "{net}: {e}"
+        );
+    }
+    // The tool offset, which motion.tooloffset.z drives while the machine
+    // runs, is the tool length given (or 0).
+    std::fs::write(
+        &hal,
+        base.replace(
+            "setp xyzac-trt-kins.tool-offset 42.5",
+            "net :tool-offset motion.tooloffset.z => xyzac-trt-kins.tool-offset",
+        ),
+    )
+    .unwrap();
+    let got = machine_from_linuxcnc(&ini, Some(42.5)).unwrap();
+    assert_eq!(got["chain"], want["chain"]);
+    assert_eq!(
+        machine_from_linuxcnc(&ini, None).unwrap()["tool_length"],
+        0.0
     );
 }

@@ -1,15 +1,13 @@
 //! A machine file from a LinuxCNC configuration (`kinpost machine
 //! --from-linuxcnc config.ini`).
 //!
-//! The INI is read with the files it includes (`#INCLUDE file`, as
-//! LinuxCNC 2.8 and later read it). Its `[KINS] KINEMATICS` names the
-//! kinematics module; its HAL
-//! parameters come from the HAL files of `[HAL] HALFILE` (relative to the
-//! INI), the INI's own `[HAL] HALCMD` lines and `[HAL] POSTGUI_HALFILE`, in
-//! that order: `setp PIN VALUE`, and `sets SIGNAL VALUE` for pins joined to
-//! the signal by `net`; `source FILE` reads FILE (relative to the INI) in
-//! its place. A value may be an INI reference `[SECTION]KEY`. The last
-//! value given wins, as when HAL runs the files.
+//! The INI is read as LinuxCNC reads it (`ini.rs`: `#INCLUDE` files,
+//! continued lines). Its `[KINS] KINEMATICS` names the kinematics module;
+//! its HAL parameters come from the HAL files of `[HAL] HALFILE` (relative
+//! to the INI), the INI's own `[HAL] HALCMD` lines and `[HAL]
+//! POSTGUI_HALFILE`, in that order, read as halcmd reads them (`hal.rs`).
+//! A wrapped rotary axis (`WRAPPED_ROTARY`) is refused: LinuxCNC turns it
+//! the way its word's sign says, which kinpost does not write.
 //!
 //! The chains (`docs/integration.md`), with `con` = +1 when
 //! `conventional-directions` is 1 and −1 otherwise, `R` the rotation point,
@@ -46,357 +44,14 @@
 //! slides with C but adds the B head's offset unturned, which no rigid chain
 //! reproduces.
 
+mod hal;
+mod ini;
+
 use crate::error::{Error, Location, Result};
+use hal::Hal;
+use ini::{Ini, IniEntry};
 use serde_json::{Map, Value, json};
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-
-/// One `KEY = VALUE` line of an INI file.
-struct IniEntry {
-    section: String,
-    key: String,
-    value: String,
-    /// Index of the file it is in ([`Ini::sources`]).
-    source: usize,
-    line: usize,
-    /// Byte column of the value (1-based).
-    col: usize,
-}
-
-/// One file of an INI: the INI itself or a file it includes.
-struct IniSource {
-    file: String,
-    text: String,
-}
-
-/// An INI file with the files it includes (`#INCLUDE`): its entries in
-/// order.
-struct Ini {
-    sources: Vec<IniSource>,
-    entries: Vec<IniEntry>,
-}
-
-/// How deep `#INCLUDE` may nest, as in LinuxCNC.
-const MAX_INCLUDE_DEPTH: usize = 16;
-
-impl Ini {
-    /// Reads the INI at `path` and, where a line starts with `#INCLUDE `,
-    /// the file it names, in its place (LinuxCNC's rule: a relative name is
-    /// relative to the directory of the file that includes it, `~/` is the
-    /// home directory; up to 16 levels; a file that includes itself is an
-    /// error).
-    fn load(path: &Path) -> Result<Ini> {
-        let mut ini = Ini {
-            sources: Vec::new(),
-            entries: Vec::new(),
-        };
-        let mut section = String::new();
-        let mut stack = Vec::new();
-        ini.read(path, &mut section, &mut stack)?;
-        Ok(ini)
-    }
-
-    fn read(&mut self, path: &Path, section: &mut String, stack: &mut Vec<PathBuf>) -> Result<()> {
-        let text = crate::text::read_text_file(path)?;
-        let source = self.sources.len();
-        let file = path.display().to_string();
-        self.sources.push(IniSource {
-            file: file.clone(),
-            text,
-        });
-        stack.push(std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()));
-        let text = std::mem::take(&mut self.sources[source].text);
-        for (n, raw) in text.lines().enumerate() {
-            // A byte-order mark is not part of the first line's text.
-            let raw = if n == 0 {
-                raw.trim_start_matches('\u{feff}')
-            } else {
-                raw
-            };
-            if let Some(rest) = raw.strip_prefix("#INCLUDE") {
-                let at = Location::new(&file, n + 1, 1);
-                self.include(path, rest, at, raw, section, stack)?;
-                continue;
-            }
-            let line = raw.trim();
-            if line.is_empty() || line.starts_with('#') || line.starts_with(';') {
-                continue;
-            }
-            if line.starts_with('[') {
-                if let Some(end) = line.find(']') {
-                    *section = line[1..end].trim().to_ascii_uppercase();
-                }
-                continue;
-            }
-            if let Some((k, v)) = raw.split_once('=') {
-                let value = v.trim();
-                let col = raw.len() - v.trim_start().len() + 1;
-                self.entries.push(IniEntry {
-                    section: section.clone(),
-                    key: k.trim().to_ascii_uppercase(),
-                    value: value.to_string(),
-                    source,
-                    line: n + 1,
-                    col,
-                });
-            }
-        }
-        self.sources[source].text = text;
-        stack.pop();
-        Ok(())
-    }
-
-    /// Reads the file of an `#INCLUDE` line (`rest` follows the directive)
-    /// in the including file `from`.
-    fn include(
-        &mut self,
-        from: &Path,
-        rest: &str,
-        at: Location,
-        raw: &str,
-        section: &mut String,
-        stack: &mut Vec<PathBuf>,
-    ) -> Result<()> {
-        let fail = |msg: String| Error::input_with(at.clone(), msg, raw);
-        let name = rest.trim();
-        if !rest.starts_with([' ', '\t']) || name.is_empty() {
-            return Err(fail(
-                "`#INCLUDE` without a file name; expected `#INCLUDE file.inc`".into(),
-            ));
-        }
-        let named = match name.strip_prefix("~/") {
-            Some(under_home) => match std::env::var_os("HOME") {
-                Some(home) => PathBuf::from(home).join(under_home),
-                None => return Err(fail(format!("`{name}`: HOME is not set"))),
-            },
-            None => PathBuf::from(name),
-        };
-        let path = if named.is_absolute() {
-            named
-        } else {
-            from.parent().unwrap_or(Path::new("")).join(named)
-        };
-        let key = std::fs::canonicalize(&path).unwrap_or_else(|_| path.clone());
-        if stack.contains(&key) {
-            return Err(fail(format!(
-                "`{name}` includes itself (through {} files); expected includes without a loop",
-                stack.len()
-            )));
-        }
-        if stack.len() >= MAX_INCLUDE_DEPTH {
-            return Err(fail(format!(
-                "`{name}`: includes nest deeper than {MAX_INCLUDE_DEPTH} levels, LinuxCNC's limit"
-            )));
-        }
-        if !path.is_file() {
-            let why = if path.is_dir() {
-                "it is a directory"
-            } else {
-                "no such file"
-            };
-            return Err(fail(format!(
-                "cannot include `{}`: {why}; expected a file (a relative name is relative to the directory of the file that includes it)",
-                path.display()
-            )));
-        }
-        self.read(&path, section, stack)
-    }
-
-    fn all<'a>(&'a self, section: &'a str, key: &'a str) -> impl Iterator<Item = &'a IniEntry> {
-        self.entries
-            .iter()
-            .filter(move |e| e.section == section && e.key == key)
-    }
-
-    fn get(&self, section: &str, key: &str) -> Option<&IniEntry> {
-        self.entries
-            .iter()
-            .find(|e| e.section == section && e.key == key)
-    }
-
-    /// The file an entry is in.
-    fn file_of(&self, e: &IniEntry) -> &str {
-        &self.sources[e.source].file
-    }
-
-    fn err(&self, e: &IniEntry, msg: impl Into<String>) -> Error {
-        Error::input_with(
-            Location::new(self.file_of(e), e.line, e.col),
-            msg,
-            self.sources[e.source]
-                .text
-                .lines()
-                .nth(e.line - 1)
-                .unwrap_or(""),
-        )
-    }
-}
-
-/// A value given to a pin or signal, and where.
-#[derive(Clone)]
-struct Given {
-    value: String,
-    loc: Location,
-    snippet: String,
-    /// Order of the command over all HAL sources.
-    seq: usize,
-}
-
-/// What the HAL sources set.
-#[derive(Default)]
-struct Hal {
-    /// `setp PIN VALUE`.
-    pins: HashMap<String, Given>,
-    /// `sets SIGNAL VALUE`.
-    signals: HashMap<String, Given>,
-    /// `net SIGNAL pins…`: the signal of each pin.
-    net_of: HashMap<String, String>,
-    seq: usize,
-    /// The directory halcmd runs in (the INI's): `source FILE` is relative
-    /// to it.
-    dir: PathBuf,
-    /// How many `source` commands the file being read is nested in.
-    depth: usize,
-}
-
-/// How deep HAL files may `source` each other before kinpost takes it for
-/// a file that sources itself.
-const MAX_SOURCE_DEPTH: usize = 16;
-
-impl Hal {
-    /// Reads the HAL commands of `text` (`file` names it; `first_line` is
-    /// the number of its first line; `col0` is added to columns).
-    fn read(
-        &mut self,
-        ini: &Ini,
-        text: &str,
-        file: &str,
-        first_line: usize,
-        col0: usize,
-    ) -> Result<()> {
-        for (n, raw) in text.lines().enumerate() {
-            let code = raw.split('#').next().unwrap_or("");
-            let tokens: Vec<(usize, &str)> = code
-                .split_whitespace()
-                .map(|t| (t.as_ptr() as usize - code.as_ptr() as usize, t))
-                .collect();
-            let Some(&(_, cmd)) = tokens.first() else {
-                continue;
-            };
-            let line = first_line + n;
-            let given = |i: usize, seq: usize| -> Result<Given> {
-                let (at, tok) = tokens[i];
-                let loc = Location::new(file, line, col0 + at + 1);
-                let value = resolve_ini_ref(ini, tok).ok_or_else(|| {
-                    Error::input_with(
-                        loc.clone(),
-                        format!("`{tok}` refers to no INI entry; expected a value or [SECTION]KEY of the INI"),
-                        raw,
-                    )
-                })?;
-                Ok(Given {
-                    value,
-                    loc,
-                    snippet: raw.to_string(),
-                    seq,
-                })
-            };
-            match cmd {
-                "setp" | "sets" if tokens.len() >= 3 => {
-                    self.seq += 1;
-                    let g = given(2, self.seq)?;
-                    let target = tokens[1].1.to_string();
-                    if cmd == "setp" {
-                        self.pins.insert(target, g);
-                    } else {
-                        self.signals.insert(target, g);
-                    }
-                }
-                "source" if tokens.len() >= 2 => {
-                    let (at, name) = tokens[1];
-                    let loc = Location::new(file, line, col0 + at + 1);
-                    if self.depth >= MAX_SOURCE_DEPTH {
-                        return Err(Error::input_with(
-                            loc,
-                            format!(
-                                "`source {name}`: HAL files source each other more than {MAX_SOURCE_DEPTH} deep; expected files that do not source themselves"
-                            ),
-                            raw,
-                        ));
-                    }
-                    let path = self.dir.join(name);
-                    let text = crate::text::read_text_file(&path)?;
-                    self.depth += 1;
-                    let read = self.read(ini, &text, &path.display().to_string(), 1, 0);
-                    self.depth -= 1;
-                    read?;
-                }
-                "net" if tokens.len() >= 2 => {
-                    let signal = tokens[1].1.to_string();
-                    for &(_, t) in &tokens[2..] {
-                        if !matches!(t, "<=" | "=>" | "<=>") {
-                            self.net_of.insert(t.to_string(), signal.clone());
-                        }
-                    }
-                }
-                _ => {}
-            }
-        }
-        Ok(())
-    }
-
-    /// The last value given to `pin`, directly or through its signal.
-    fn value(&self, pin: &str) -> Option<&Given> {
-        let direct = self.pins.get(pin);
-        let via = self.net_of.get(pin).and_then(|s| self.signals.get(s));
-        match (direct, via) {
-            (Some(a), Some(b)) => Some(if a.seq > b.seq { a } else { b }),
-            (a, b) => a.or(b),
-        }
-    }
-
-    fn number(&self, pin: &str, default: f64) -> Result<f64> {
-        match self.value(pin) {
-            None => Ok(default),
-            Some(g) => match g.value.parse::<f64>() {
-                Ok(v) if v.is_finite() => Ok(v),
-                _ => Err(Error::input_with(
-                    g.loc.clone(),
-                    format!(
-                        "`{}` for {pin} is not a number; expected a length in mm",
-                        g.value
-                    ),
-                    g.snippet.clone(),
-                )),
-            },
-        }
-    }
-
-    fn flag(&self, pin: &str) -> Result<bool> {
-        match self.value(pin) {
-            None => Ok(false),
-            Some(g) => match g.value.to_ascii_lowercase().as_str() {
-                "1" | "true" => Ok(true),
-                "0" | "false" => Ok(false),
-                _ => Err(Error::input_with(
-                    g.loc.clone(),
-                    format!("`{}` for {pin} is not a bit; expected 0 or 1", g.value),
-                    g.snippet.clone(),
-                )),
-            },
-        }
-    }
-}
-
-/// `[SECTION]KEY` → the INI's value; any other token as it is.
-fn resolve_ini_ref(ini: &Ini, tok: &str) -> Option<String> {
-    let Some(rest) = tok.strip_prefix('[') else {
-        return Some(tok.to_string());
-    };
-    let (section, key) = rest.split_once(']')?;
-    ini.get(&section.to_ascii_uppercase(), &key.to_ascii_uppercase())
-        .map(|e| e.value.clone())
-}
 
 /// The kinematics modules understood.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -459,24 +114,33 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
         .parent()
         .map(Path::to_path_buf)
         .unwrap_or_else(|| PathBuf::from("."));
-    let mut hal = Hal {
-        dir: dir.clone(),
-        ..Hal::default()
-    };
     let prefix = match kins {
         Kins::TrtAc => "xyzac-trt-kins",
         Kins::TrtBc => "xyzbc-trt-kins",
         Kins::TdrAb => "xyzab_tdr_kins",
         Kins::FiveAxis => "5axiskins",
     };
+    let mut hal = Hal {
+        dir: dir.clone(),
+        module: format!("{prefix}."),
+        ..Hal::default()
+    };
     let mut skipped: Vec<String> = Vec::new();
     let mut read_file = |hal: &mut Hal, e: &IniEntry| -> Result<()> {
         let name = e.value.split_whitespace().next().unwrap_or("");
-        if name.starts_with("LIB:") {
+        let path = match name.strip_prefix("~/") {
+            Some(under_home) => std::env::var_os("HOME")
+                .map(|h| PathBuf::from(h).join(under_home))
+                .unwrap_or_else(|| dir.join(name)),
+            None => dir.join(name),
+        };
+        // `LIB:name`, or a name LinuxCNC finds in its HAL library
+        // (`HALLIB_PATH`) rather than beside the INI: LinuxCNC's own files,
+        // which set no kinematics pins.
+        if name.starts_with("LIB:") || (!path.exists() && !name.contains('/')) {
             skipped.push(name.to_string());
             return Ok(());
         }
-        let path = dir.join(name);
         let text = crate::text::read_text_file(&path)?;
         if name.ends_with(".tcl") {
             // Tcl is not run; a Tcl file that touches the module's pins
@@ -506,8 +170,14 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
         match tool_length_mm {
             Some(t) => Ok(t),
             None if kins == Kins::FiveAxis => Ok(0.0),
-            None if kins == Kins::TdrAb => length(hal, &pin("tool-offset-z"), 0.0),
-            None => length(hal, &pin("tool-offset"), 0.0),
+            None => {
+                let p = pin(if kins == Kins::TdrAb {
+                    "tool-offset-z"
+                } else {
+                    "tool-offset"
+                });
+                Ok(to_mm(hal.undriven_number(&p, 0.0)?, mm_per_unit))
+            }
         }
     };
     let t = tool(&hal)?;
@@ -880,13 +550,26 @@ fn axis_limits(ini: &Ini, order: &[&str], mm_per_unit: f64) -> Result<Map<String
         let (lo, hi) = (num("MIN_LIMIT")?, num("MAX_LIMIT")?);
         let mut o = Map::new();
         let rotary = matches!(*name, "A" | "B" | "C");
-        let wrapped = ini
-            .get(&section, "WRAPPED_ROTARY")
-            .is_some_and(|e| matches!(e.value.as_str(), "1" | "true" | "TRUE"));
-        match (rotary, lo, hi) {
-            (true, _, _) if wrapped => {
-                o.insert("rotary".into(), "modulo".into());
+        // LinuxCNC's booleans (`IniFile::convertBool`), in any case.
+        if let Some(e) = ini.get(&section, "WRAPPED_ROTARY") {
+            match e.value.to_ascii_lowercase().as_str() {
+                "false" | "no" | "0" | "off" => {}
+                "true" | "yes" | "1" | "on" if rotary => {
+                    return Err(ini.err(
+                        e,
+                        format!("WRAPPED_ROTARY: LinuxCNC turns a wrapped rotary axis the way the sign of its word says ({name}350 turns positive to 350°, {name}-350 negative), and kinpost does not write such words: its modulo axes are for controllers that take the short way; set WRAPPED_ROTARY = 0 (kinpost then writes unwound positions), or describe the machine by hand"),
+                    ));
+                }
+                "true" | "yes" | "1" | "on" => {}
+                other => {
+                    return Err(ini.err(
+                        e,
+                        format!("WRAPPED_ROTARY `{other}` is not a boolean; expected 1 or 0 (true, yes, on; false, no, off)"),
+                    ));
+                }
             }
+        }
+        match (rotary, lo, hi) {
             // Limits a turn-counting controller uses for "no limit".
             (true, Some(lo), Some(hi)) if hi - lo < 36_000.0 && lo <= hi => {
                 o.insert("min".into(), lo.into());
