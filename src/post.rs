@@ -185,6 +185,8 @@ struct AxisWriter<'m> {
     last: Vec<AxisValue>,
     /// The next block writes every axis word ([`AxisWriter::write_all_next`]).
     write_all: bool,
+    /// mm per program unit of `last` (the units it was written in).
+    last_per_unit: f64,
     /// Scratch for the next block's (its allocation reused).
     next: Vec<AxisValue>,
     /// The words of the last block (ASCII), their buffer reused.
@@ -236,6 +238,7 @@ impl<'m> AxisWriter<'m> {
             scales,
             last: Vec::with_capacity(machine.axes.len()),
             write_all: false,
+            last_per_unit: 1.0,
             next: Vec::with_capacity(machine.axes.len()),
             text: Vec::with_capacity(128),
             scratch: String::new(),
@@ -247,6 +250,25 @@ impl<'m> AxisWriter<'m> {
     /// the last block's values stay the base of incremental words.
     pub(crate) fn write_all_next(&mut self) {
         self.write_all = true;
+    }
+
+    /// The machine was moved since the last block by blocks kinpost passed
+    /// through, to joint values `q` (internal units; `None` where the
+    /// program does not say where): they, not the last block's words, are
+    /// where the controller adds the next block's increments (G91).
+    pub(crate) fn moved_to(&mut self, q: Option<&[f64]>) {
+        self.last.clear();
+        self.last_per_unit = 1.0;
+        let Some(q) = q else {
+            return;
+        };
+        for (axis, s) in self.machine.axes.iter().zip(&self.scales) {
+            let raw = crate::machine::output_value(axis, q.get(axis.joint).copied().unwrap_or(0.0));
+            self.last.push(AxisValue {
+                raw,
+                scaled: scaled_integer(raw * s),
+            });
+        }
     }
 
     /// Axis words for joint values `q` (chain order, internal units), written
@@ -262,6 +284,22 @@ impl<'m> AxisWriter<'m> {
         let mut next = std::mem::take(&mut self.next);
         next.clear();
         let per_unit = units.mm_per_unit();
+        if per_unit != self.last_per_unit {
+            // G20/G21 since the last block: the controller holds the
+            // position and reads the next increments in the new unit.
+            let ratio = self.last_per_unit / per_unit;
+            for (p, (axis, s)) in self
+                .last
+                .iter_mut()
+                .zip(self.machine.axes.iter().zip(&self.scales))
+            {
+                if axis.kind == crate::machine::JointKind::Prismatic {
+                    let raw = p.rounded(*s) * ratio;
+                    *p = AxisValue { raw, scaled: None };
+                }
+            }
+            self.last_per_unit = per_unit;
+        }
         for (axis, s) in self.machine.axes.iter().zip(&self.scales) {
             let v = crate::machine::output_value(axis, q[axis.joint]);
             // (v / 1 is v: millimetre programs skip the division.)

@@ -615,6 +615,7 @@ pub fn diagnose(
         ),
         series,
         measurement,
+        gaps: untidy::gaps_finding(original),
         samples_used: prep.n,
         // Rounding far below the noise (an export with many decimals) is
         // not worth a line.

@@ -214,15 +214,55 @@ fn perpendicular_pair(u: &Unit<Vector3<f64>>) -> [Vector3<f64>; 2] {
 /// recording has no block column (or very many blocks).
 pub const MAX_ONSETS: usize = 400;
 
-/// Velocities by central differences (one-sided at the ends).
+/// A step of the sampling more than this many times the steps beside it
+/// is a gap (a trace buffer overflow, a paused export): a change of the
+/// sampling rate changes the steps for good, jitter by a fraction.
+pub const GAP_RATIO: f64 = 3.0;
+
+/// For each step of the time stamps `t` (between samples `i` and `i + 1`),
+/// whether it is a gap: more than [`GAP_RATIO`] times each step beside it.
+pub fn gap_steps(t: &[f64]) -> Vec<bool> {
+    let dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    (0..dt.len())
+        .map(|i| {
+            let before = i.checked_sub(1).map(|k| dt[k]);
+            let after = dt.get(i + 1).copied();
+            let beside = match (before, after) {
+                (Some(a), Some(b)) => a.max(b),
+                (Some(a), None) | (None, Some(a)) => a,
+                (None, None) => return false,
+            };
+            dt[i] > GAP_RATIO * beside
+        })
+        .collect()
+}
+
+/// Velocities by central differences, one-sided at the ends and at the
+/// edges of gaps ([`gap_steps`]): a difference across a gap would be the
+/// mean over seconds of motion the recording does not show.
 fn velocities(t: &[f64], q: &[f64], dof: usize) -> Vec<f64> {
     let n = t.len();
     let mut v = vec![0.0; n * dof];
     if n < 2 {
         return v;
     }
+    let gap = gap_steps(t);
     for i in 0..n {
-        let (a, b) = central_pair(i, n);
+        let (mut a, mut b) = central_pair(i, n);
+        if b > i && gap[i] {
+            b = i;
+        }
+        if a < i && gap[i - 1] {
+            a = i;
+        }
+        if a == b {
+            // Between two gaps (or at an end next to one): the shorter side.
+            (a, b) = if i + 1 < n && (i == 0 || t[i + 1] - t[i] <= t[i] - t[i - 1]) {
+                (i, i + 1)
+            } else {
+                (i - 1, i)
+            };
+        }
         let dt = t[b] - t[a];
         for j in 0..dof {
             v[i * dof + j] = (q[b * dof + j] - q[a * dof + j]) / dt;

@@ -325,6 +325,10 @@ pub struct Report {
     /// `"machine_physics": false`.
     #[serde(skip)]
     pub measurement: Vec<MeasurementFinding>,
+    /// Where the recording's sampling stops and goes on (`gaps`: count,
+    /// longest, samples missing), when it does: reported, not a finding.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gaps: Option<MeasurementFinding>,
     /// Samples the machine effects were fitted on (without outliers and
     /// the ends a clock offset leaves without a command).
     pub samples_used: usize,
@@ -474,6 +478,12 @@ impl Report {
             s.push_str(&format!(
                 "  machine effects fitted on {} of the {} samples\n",
                 self.samples_used, self.samples
+            ));
+        }
+        if let Some(g) = &self.gaps {
+            s.push_str(&format!(
+                "  gaps in the recording, not machine physics: {}\n",
+                g.where_.condition
             ));
         }
         for m in &self.measurement {

@@ -60,6 +60,9 @@ pub struct BlockReader<'a> {
     /// that pose was a block-delete one: the next pose's axis words are
     /// all written, also with `--modal-axes` ([`PendingPose::after_other`]).
     other_since_pose: bool,
+    /// Blocks passed through moved the machine since the last pose begun
+    /// ([`PendingPose::moved`]).
+    moved_since_pose: bool,
     /// The code or transformation kinpost does not follow in the last line
     /// passed through outside pose mode ([`BlockReader::take_unfollowed`]).
     unfollowed: Option<(usize, String)>,
@@ -132,6 +135,7 @@ impl<'a> GcodeConverter<'a> {
                         .any(|(_, m)| m.tool_length_mm != 0.0),
                 previous: None,
                 other_since_pose: false,
+                moved_since_pose: false,
                 unfollowed: None,
                 machine_ext: vec![0.0; machine.axes.len()],
                 machine_ext_stale: false,
@@ -340,6 +344,7 @@ impl BlockReader<'_> {
         let after_other = std::mem::replace(&mut self.other_since_pose, block_delete);
         Ok(Some(PendingPose {
             after_other,
+            moved: std::mem::take(&mut self.moved_since_pose),
             pose: Pose::new(tip, axis),
             from: match self.start {
                 Start::Unknown => None,
@@ -428,6 +433,9 @@ impl BlockWriter<'_> {
         let sep = separator(line, &meaning.pose_items);
         if pending.after_other {
             self.axes.write_all_next();
+        }
+        if pending.moved && !meaning.absolute {
+            self.axes.moved_to(pending.from.as_deref());
         }
         let words_text = self
             .axes
@@ -545,6 +553,7 @@ impl BlockReader<'_> {
                     .any(|w| w.address == "G" && (w.value - v).abs() < 1e-9)
             };
             if goes_where_not_known(line) {
+                self.moved_since_pose = true;
                 // Home, machine coordinates, offsets reset: where the tool
                 // is in program coordinates is no longer known, so the
                 // next pose must give X, Y and Z.
@@ -588,6 +597,7 @@ impl BlockReader<'_> {
             }
         }
         if moved {
+            self.moved_since_pose = true;
             let slash = line
                 .items
                 .iter()
@@ -639,6 +649,9 @@ pub struct PendingPose {
     /// was a block-delete one: with `--modal-axes` every axis word is
     /// written (the machine may not stand where kinpost's last words put it).
     pub after_other: bool,
+    /// Blocks passed through since the pose before moved the machine (to
+    /// `from`): the base of this block's increments (G91).
+    pub moved: bool,
     /// The tool pose to solve.
     pub pose: Pose,
     /// The joint values the block starts from: the pose before's (as

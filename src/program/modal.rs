@@ -697,13 +697,14 @@ impl ModalState {
                 _ => None,
             };
             if let Some(i) = comp {
-                axis_given[i] = true;
-                if !self.axis_set {
-                    // The first programmed component starts a fresh vector:
-                    // the others default to 0 unless also given.
+                if !axis_given.iter().any(|g| *g) {
+                    // A block's first component starts a fresh vector: the
+                    // ones it does not give are 0 (Fanuc G43.5, Sinumerik
+                    // A3= B3= C3=); a block with none keeps the vector.
                     self.axis = Vector3::zeros();
                     self.axis_set = true;
                 }
+                axis_given[i] = true;
                 self.axis[i] = w.value;
                 meaning.pose_items.push(w.item);
             }

@@ -240,3 +240,75 @@ fn a_negative_lag_is_never_a_finding() {
         r.rejected
     );
 }
+
+/// Gaps in the sampling (a trace buffer overflow: rows missing, the clock
+/// going on) are reported, not fitted silently (`formats.md` §2c), and the
+/// velocities at their edges come from one side. Before, nothing said
+/// there were gaps, and a servo lag beside them brought a spurious
+/// `vibration` or `cyclic` finding: the central differences across a gap
+/// averaged seconds of motion the recording does not show.
+#[test]
+fn gaps_are_reported_and_do_not_bring_findings_of_their_own() {
+    let cut = |rec: &mut Recording| {
+        let n = rec.samples.len();
+        let mut k = 0;
+        rec.samples.retain(|_| {
+            k += 1;
+            ![n / 5, n / 2, 4 * n / 5]
+                .iter()
+                .any(|&at| (at..at + 80).contains(&(k - 1)))
+        });
+    };
+    for m in [Machine::Zhao, Machine::Wang] {
+        let axis = match m {
+            Machine::Zhao => "Z",
+            Machine::Wang => "X",
+        };
+        let seeds: Vec<u64> = (3400..3400 + 4).collect();
+        let res = par_map(&seeds, |&seed| {
+            let sc = m.scenario(blocks(m), seed);
+            let mut out = Vec::new();
+            // A lag of the catalogue's acceptance size (tip RMS 1.2 σ).
+            let truth = sc
+                .calibrated(&format!("servo_lag:{axis}=0.001"), 1.2 * 0.001)
+                .spec;
+            let Effect::ServoLag { tau_s, .. } = truth.effect else {
+                unreachable!()
+            };
+            for effects in [vec![], vec![format!("servo_lag:{axis}={tau_s}")]] {
+                let effects: Vec<&str> = effects.iter().map(String::as_str).collect();
+                let mut rec = simulate(
+                    &sc.chain,
+                    Some(&sc.errors),
+                    &sc.program,
+                    &crate::diagnose_support::effects(&effects),
+                    &sc.opts,
+                )
+                .unwrap();
+                cut(&mut rec);
+                let r = diagnose(
+                    &sc.chain,
+                    Some(&sc.errors),
+                    &rec,
+                    &kinpost::diagnose::DiagOptions::default(),
+                )
+                .unwrap();
+                let gaps = r
+                    .gaps
+                    .as_ref()
+                    .map(|g| (g.parameters["count"], g.parameters["missing_samples"]));
+                out.push((effects.len(), gaps, machine_findings(&r), r.verdict.clone()));
+            }
+            out
+        });
+        for (lagged, gaps, names, verdict) in res.iter().flatten() {
+            assert_eq!(*gaps, Some((3.0, 240.0)), "{m:?}: {verdict}");
+            let want: Vec<String> = if *lagged == 1 {
+                vec![format!("servo_lag {axis}")]
+            } else {
+                vec![]
+            };
+            assert_eq!(*names, want, "{m:?}: {verdict}");
+        }
+    }
+}

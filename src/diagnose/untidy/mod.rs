@@ -434,3 +434,51 @@ impl Tidy {
         m
     }
 }
+
+/// The gaps of a recording's sampling ([`super::prepare::gap_steps`]) as a
+/// note of the report (`formats.md` §2c: reported, never fitted silently;
+/// not a finding, since the samples it has are fitted as they are): how
+/// many, the longest, about how many samples are missing.
+pub fn gaps_finding(rec: &Recording) -> Option<MeasurementFinding> {
+    let t: Vec<f64> = rec.samples.iter().map(|s| s.t).collect();
+    let gap = super::prepare::gap_steps(&t);
+    let at: Vec<usize> = (0..gap.len()).filter(|&i| gap[i]).collect();
+    let (&first, &last) = (at.first()?, at.last()?);
+    let step = |i: usize| t[i + 1] - t[i];
+    // The usual step beside a gap, to count the samples it lacks.
+    let beside = |i: usize| {
+        let before = i.checked_sub(1).map(step);
+        let after = (i + 2 < t.len()).then(|| step(i + 1));
+        before
+            .into_iter()
+            .chain(after)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let longest = at.iter().map(|&i| step(i)).fold(0.0, f64::max);
+    let missing: f64 = at
+        .iter()
+        .map(|&i| (step(i) / beside(i)).round() - 1.0)
+        .sum();
+    let k = at.len();
+    Some(MeasurementFinding {
+        effect: "gaps".into(),
+        axis: None,
+        parameters: [
+            ("count".to_string(), k as f64),
+            ("longest_s".to_string(), longest),
+            ("missing_samples".to_string(), missing),
+        ]
+        .into(),
+        uncertainty: BTreeMap::new(),
+        where_: Where {
+            blocks: [rec.samples[first].block, rec.samples[last + 1].block],
+            t_s: [t[first], t[last + 1]],
+            condition: format!(
+                "the recording stops {k} time(s) and goes on (about {missing:.0} samples missing in all, the longest gap {longest:.3} s: a trace buffer overflow or a paused export); the samples it has are fitted as they stand, the velocities at the gaps' edges taken from one side"
+            ),
+        },
+        rms_explained_mm: 0.0,
+        machine_physics: false,
+        samples: Vec::new(),
+    })
+}
