@@ -7,7 +7,8 @@
 //! - A field in double quotes (`"meas_x"`, `"0.125"`) is read without them.
 //! - With a semicolon or tab as the separator, a number may have a decimal
 //!   comma (`-20,00516`: a German-locale export); with commas it cannot.
-//! - A column name may carry its unit in brackets, `t [ms]`, `X[um]`,
+//! - A column name may carry its unit in brackets or parentheses, `t [ms]`,
+//!   `t (s)`, `X[um]` (and `time` names the time column `t`),
 //!   `B [rad]`, `temp_spindle [°C]`: the values are converted to the units of
 //!   `formats.md` (s, mm, deg, °C). A unit of the wrong kind, or one not
 //!   known, is refused at the column.
@@ -125,15 +126,20 @@ impl Quantity {
 }
 
 /// A column name split into its lower-case name and its unit, if it has
-/// one in brackets (`X [um]` → `("x", Some("um"))`).
+/// one in brackets or parentheses (`X [um]` → `("x", Some("um"))`, `t (s)`
+/// → `("t", Some("s"))`). `time` is the time column `t`.
 pub(crate) fn column_name(field: &str) -> (String, Option<&str>) {
-    match field.find('[') {
-        Some(open) if field.trim_end().ends_with(']') => {
-            let unit = &field[open + 1..field.trim_end().len() - 1];
-            (field[..open].trim().to_ascii_lowercase(), Some(unit.trim()))
-        }
-        _ => (field.trim().to_ascii_lowercase(), None),
-    }
+    let end = field.trim_end();
+    let split = [('[', ']'), ('(', ')')].iter().find_map(|&(open, close)| {
+        let at = field.find(open)?;
+        end.ends_with(close)
+            .then(|| (at, &field[at + 1..end.len() - 1]))
+    });
+    let (name, unit) = match split {
+        Some((at, unit)) => (field[..at].trim().to_ascii_lowercase(), Some(unit.trim())),
+        None => (field.trim().to_ascii_lowercase(), None),
+    };
+    (if name == "time" { "t".into() } else { name }, unit)
 }
 
 /// The quantity of a spatial-recording or feedback column by its name:
