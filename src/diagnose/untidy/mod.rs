@@ -224,7 +224,7 @@ fn misfit(prep: &Prepared) -> Result<()> {
         return Err(Error::input(
             Location::new("<recording>", 0, 0),
             format!(
-                "the recording does not fit this machine: the measured tool tip is a median {median:.3} mm from where the machine model puts it (more than {MISFIT_MM} mm). Is it a recording of this machine, with its axes in mm and degrees and the tip in the workpiece frame?"
+                "the recording does not fit this machine: the measured tool tip is a median {median:.3} mm from where the machine model puts it (more than {MISFIT_MM} mm). Is it a recording of this machine, with its axes in mm and degrees and the tip in the workpiece frame? A clock offset between the trace and the measurement is found up to a few tenths of a second (the motion then fits within millimetres); a larger one must be removed from the time stamps first (see docs/diagnose.md, Untidy recordings)"
             ),
         ));
     }
