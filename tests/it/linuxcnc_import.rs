@@ -805,3 +805,44 @@ fn hal_commands_are_read_as_halcmd_reads_them() {
         0.0
     );
 }
+
+/// Joint limits narrow the axis limits: kinpost's output runs under
+/// identity kinematics, where a joint's `[JOINT_n]` limits hold beside its
+/// axis's. LinuxCNC's own xyzbc-trt sample gives B ±36000 in `[AXIS_B]`
+/// and −100…50 in `[JOINT_3]`: it came out `continuous`, and a pose kinpost
+/// solved beyond 50° stopped the machine at the joint limit. Joints map to
+/// axes by the module's `coordinates=` or its default order.
+#[test]
+fn joint_limits_narrow_the_axis_limits() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = config(dir.path(), "xyzac-trt.ini", 0);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let with = |extra: &str, kins: &str| {
+        std::fs::write(
+            &path,
+            format!(
+                "{}\n{extra}",
+                text.replace("KINEMATICS = xyzac-trt-kins", kins)
+            ),
+        )
+        .unwrap();
+        let v = machine_from_linuxcnc(&path, None).unwrap_or_else(|e| panic!("{e}"));
+        Machine::from_json_str(&v.to_string(), "j.json").unwrap()
+    };
+    // A (joint 3): axis −30…110, joint −20…150 → −20…110. C (joint 4):
+    // continuous in [AXIS_C], −200…200 in [JOINT_4]. X (joint 0): −400…400
+    // and −350…500 → −350…400.
+    let joints = "[JOINT_3]\nMIN_LIMIT = -20\nMAX_LIMIT = 150\n[JOINT_4]\nMIN_LIMIT = -200\nMAX_LIMIT = 200\n[JOINT_0]\nMIN_LIMIT = -350\nMAX_LIMIT = 500\n";
+    let m = with(joints, "KINEMATICS = xyzac-trt-kins");
+    let lim = |m: &Machine, a: &str| {
+        let a = m.axis(a).unwrap();
+        (a.min, a.max)
+    };
+    assert_eq!(lim(&m, "A"), (Some(-20.0), Some(110.0)));
+    assert_eq!(lim(&m, "C"), (Some(-200.0), Some(200.0)));
+    assert_eq!(lim(&m, "X"), (Some(-350.0), Some(400.0)));
+    // `coordinates=` maps the joints otherwise: joint 3 is C, joint 4 A.
+    let m = with(joints, "KINEMATICS = xyzac-trt-kins coordinates=xyzca");
+    assert_eq!(lim(&m, "C"), (Some(-20.0), Some(150.0)));
+    assert_eq!(lim(&m, "A"), (Some(-30.0), Some(110.0)));
+}

@@ -286,7 +286,13 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
         }
     };
 
-    let axes = axis_limits(&ini, &order, mm_per_unit)?;
+    let default = match kins {
+        Kins::TrtAc => "XYZAC",
+        Kins::TrtBc => "XYZBC",
+        Kins::TdrAb => "XYZAB",
+        Kins::FiveAxis => "XYZBCW",
+    };
+    let axes = axis_limits(&ini, &order, &joint_letters(kins_e, default), mm_per_unit)?;
 
     let name = machine_name(ini_path, &ini);
     let mut description = format!(
@@ -404,7 +410,12 @@ fn trivial_machine(
     chain.push(joint("prismatic", "Y", [0.0, 1.0, 0.0]));
     chain.push(joint("prismatic", "Z", [0.0, 0.0, 1.0]));
     chain.push(json!({ "translate": [0.0, 0.0, -t] }));
-    let axes = axis_limits(ini, &order, mm_per_unit)?;
+    let axes = axis_limits(
+        ini,
+        &order,
+        &joint_letters(kins_e, "XYZABCUVW"),
+        mm_per_unit,
+    )?;
     let others: String = letters.chars().filter(|c| "UVW".contains(*c)).collect();
     let mut description = match rotary {
         None => format!(
@@ -531,12 +542,37 @@ fn machine_name(ini_path: &Path, ini: &Ini) -> String {
 /// The axes of `order` with their limits from `[AXIS_L] MIN_LIMIT` and
 /// `MAX_LIMIT` (linear ones converted to mm by `mm_per_unit`), rotary mode
 /// and decimals.
-fn axis_limits(ini: &Ini, order: &[&str], mm_per_unit: f64) -> Result<Map<String, Value>> {
+/// The axis letter of each joint of the kinematics module: its
+/// `coordinates=` parameter, else the module's default (`XYZABCUVW` for
+/// trivkins, the required letters for the others).
+fn joint_letters(kins_e: &IniEntry, default: &str) -> Vec<char> {
+    let param = kins_e.value.split_whitespace().find_map(|p| {
+        let (k, v) = p.split_once('=')?;
+        k.eq_ignore_ascii_case("coordinates").then_some(v)
+    });
+    param
+        .unwrap_or(default)
+        .chars()
+        .filter(char::is_ascii_alphabetic)
+        .map(|c| c.to_ascii_uppercase())
+        .collect()
+}
+
+/// The limits of the axes of `order` (`[AXIS_L]`), narrowed by those of
+/// the joints that carry each (`[JOINT_n]`, `joints` giving each joint's
+/// letter): kinpost's output runs under identity kinematics, where both
+/// hold.
+fn axis_limits(
+    ini: &Ini,
+    order: &[&str],
+    joints: &[char],
+    mm_per_unit: f64,
+) -> Result<Map<String, Value>> {
     let mut axes = Map::new();
     for name in order {
         let section = format!("AXIS_{name}");
-        let num = |key: &str| -> Result<Option<f64>> {
-            match ini.get(&section, key) {
+        let num = |section: &str, key: &str| -> Result<Option<f64>> {
+            match ini.get(section, key) {
                 None => Ok(None),
                 Some(e) => match e.value.parse::<f64>() {
                     Ok(v) if v.is_finite() => Ok(Some(v)),
@@ -547,7 +583,17 @@ fn axis_limits(ini: &Ini, order: &[&str], mm_per_unit: f64) -> Result<Map<String
                 },
             }
         };
-        let (lo, hi) = (num("MIN_LIMIT")?, num("MAX_LIMIT")?);
+        let (mut lo, mut hi) = (num(&section, "MIN_LIMIT")?, num(&section, "MAX_LIMIT")?);
+        let letter = name.chars().next().unwrap_or(' ');
+        for j in (0..joints.len()).filter(|&j| joints[j] == letter) {
+            let joint = format!("JOINT_{j}");
+            if let Some(v) = num(&joint, "MIN_LIMIT")? {
+                lo = Some(lo.map_or(v, |l: f64| l.max(v)));
+            }
+            if let Some(v) = num(&joint, "MAX_LIMIT")? {
+                hi = Some(hi.map_or(v, |h: f64| h.min(v)));
+            }
+        }
         let mut o = Map::new();
         let rotary = matches!(*name, "A" | "B" | "C");
         // LinuxCNC's booleans (`IniFile::convertBool`), in any case.
