@@ -312,3 +312,28 @@ fn gaps_are_reported_and_do_not_bring_findings_of_their_own() {
         }
     }
 }
+
+/// A clock offset of seconds (a tracker and a trace started by hand):
+/// beyond the linearised lag's reach the tip is millimetres off, and the
+/// recording was refused as "does not fit this machine". A coarse search
+/// finds it, the refinement measures it, and nothing else is claimed.
+#[test]
+fn a_clock_offset_of_seconds_is_found() {
+    for m in [Machine::Zhao, Machine::Wang] {
+        let seeds: Vec<u64> = (3500..3500 + 2).collect();
+        let res = par_map(&seeds, |&seed| {
+            let sc = m.scenario(blocks(m), seed);
+            let (_, r) = run(&sc, &[], |o| o.time_offset_s = 2.5);
+            (
+                measurement(&r, "time_offset"),
+                machine_findings(&r),
+                r.verdict.clone(),
+            )
+        });
+        for (offset, names, verdict) in res {
+            let d = offset.unwrap_or_else(|| panic!("{m:?}: no clock offset: {verdict}"));
+            assert!((d - 2.5).abs() < 2.5e-3, "{m:?}: offset {d}: {verdict}");
+            assert!(names.is_empty(), "{m:?}: {names:?}: {verdict}");
+        }
+    }
+}

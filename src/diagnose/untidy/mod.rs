@@ -8,12 +8,14 @@
 //!   [`Resolution`]);
 //! * [`outliers`]: gross outliers ([`gross_outliers`], [`departure`]);
 //! * [`offset`]: the clock offset ([`clock_offset`]);
+//! * [`coarse`]: a clock offset of seconds, searched coarsely first;
 //! * [`align`](mod@align): the commands moved to the machine's clock.
 
 // Numerical code: several parallel arrays are indexed by one counter.
 #![allow(clippy::needless_range_loop)]
 
 pub mod align;
+pub mod coarse;
 pub mod offset;
 pub mod outliers;
 pub mod resolution;
@@ -134,6 +136,29 @@ pub fn tidy(
             first,
         )?,
     };
+    // A recording that does not fit as it stands may be seconds off the
+    // program's clock: searched coarsely, then refined as any offset.
+    let offset = match offset {
+        None if misfit(&prep0).is_err() => match coarse::coarse_offset(machine, rec)? {
+            Some(d) => refine_offset(
+                machine,
+                rec,
+                &prep0,
+                &keep0,
+                rounding_xyz,
+                fixed_floor,
+                OffsetEstimate {
+                    offset_s: d,
+                    sd_s: 0.0,
+                    shared: (0..prep0.dof).collect(),
+                    lags: Vec::new(),
+                    delta_chi2: 0.0,
+                },
+            )?,
+            None => None,
+        },
+        found => found,
+    };
     let (rec1, kept1, blur) = match &offset {
         Some(o) => {
             let al = align(rec, o.estimate.offset_s);
@@ -224,7 +249,7 @@ fn misfit(prep: &Prepared) -> Result<()> {
         return Err(Error::input(
             Location::new("<recording>", 0, 0),
             format!(
-                "the recording does not fit this machine: the measured tool tip is a median {median:.3} mm from where the machine model puts it (more than {MISFIT_MM} mm). Is it a recording of this machine, with its axes in mm and degrees and the tip in the workpiece frame? A clock offset between the trace and the measurement is found up to a few tenths of a second (the motion then fits within millimetres); a larger one must be removed from the time stamps first (see docs/diagnose.md, Untidy recordings)"
+                "the recording does not fit this machine: the measured tool tip is a median {median:.3} mm from where the machine model puts it (more than {MISFIT_MM} mm). Is it a recording of this machine, with its axes in mm and degrees and the tip in the workpiece frame? No clock offset between the trace and the measurement up to 10 s (or a third of the recording) brings them within 5 mm either"
             ),
         ));
     }
