@@ -237,6 +237,29 @@ pub fn gap_steps(t: &[f64]) -> Vec<bool> {
         .collect()
 }
 
+/// The two samples the velocity at sample `i` of `t` (`t.len() ≥ 2`) is
+/// differenced over: its neighbours, or one of them and itself at an end
+/// or at the edge of a gap (`gap`: [`gap_steps`] of `t`), and between two
+/// gaps the shorter side.
+pub fn difference_pair(i: usize, t: &[f64], gap: &[bool]) -> (usize, usize) {
+    let n = t.len();
+    let (mut a, mut b) = central_pair(i, n);
+    if b > i && gap[i] {
+        b = i;
+    }
+    if a < i && gap[i - 1] {
+        a = i;
+    }
+    if a == b {
+        (a, b) = if i + 1 < n && (i == 0 || t[i + 1] - t[i] <= t[i] - t[i - 1]) {
+            (i, i + 1)
+        } else {
+            (i - 1, i)
+        };
+    }
+    (a, b)
+}
+
 /// Velocities by central differences, one-sided at the ends and at the
 /// edges of gaps ([`gap_steps`]): a difference across a gap would be the
 /// mean over seconds of motion the recording does not show.
@@ -248,21 +271,7 @@ fn velocities(t: &[f64], q: &[f64], dof: usize) -> Vec<f64> {
     }
     let gap = gap_steps(t);
     for i in 0..n {
-        let (mut a, mut b) = central_pair(i, n);
-        if b > i && gap[i] {
-            b = i;
-        }
-        if a < i && gap[i - 1] {
-            a = i;
-        }
-        if a == b {
-            // Between two gaps (or at an end next to one): the shorter side.
-            (a, b) = if i + 1 < n && (i == 0 || t[i + 1] - t[i] <= t[i] - t[i - 1]) {
-                (i, i + 1)
-            } else {
-                (i - 1, i)
-            };
-        }
+        let (a, b) = difference_pair(i, t, &gap);
         let dt = t[b] - t[a];
         for j in 0..dof {
             v[i * dof + j] = (q[b * dof + j] - q[a * dof + j]) / dt;

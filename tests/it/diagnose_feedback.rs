@@ -301,3 +301,59 @@ fn a_lag_seen_at_a_low_sample_rate_is_not_taken_for_outliers() {
         }
     }
 }
+
+/// Gaps in a joint-feedback trace (a trace buffer overflow: rows missing,
+/// the clock going on) are reported, not fitted silently (`formats.md`
+/// §2c), with the commanded velocities at their edges from one side; a
+/// servo lag is still found alone, to its value.
+#[test]
+fn gaps_in_a_feedback_trace_are_reported() {
+    let cut = |rec: &mut FeedbackRecording| {
+        let n = rec.t.len();
+        let gone = |i: usize| {
+            [n / 4, n / 2, 3 * n / 4]
+                .iter()
+                .any(|&at| (at..at + 50).contains(&i))
+        };
+        let keep: Vec<usize> = (0..n).filter(|&i| !gone(i)).collect();
+        rec.t = keep.iter().map(|&i| rec.t[i]).collect();
+        rec.block = keep.iter().map(|&i| rec.block[i]).collect();
+        for c in rec.cmd.iter_mut().chain(rec.fb.iter_mut()) {
+            *c = keep.iter().map(|&i| c[i]).collect();
+        }
+    };
+    for m in [Machine::Zhao, Machine::Wang] {
+        let seeds: Vec<u64> = (5600..5600 + 3).collect();
+        let res = par_map(&seeds, |&seed| {
+            let o = FeedbackSimOptions {
+                seed,
+                ..FeedbackSimOptions::default()
+            };
+            let mut rec = simulate_feedback(
+                &m.chain(),
+                &m.program(40, seed),
+                &effects(&["servo_lag:X=0.004"]),
+                &o,
+            )
+            .unwrap();
+            cut(&mut rec);
+            let r = diagnose_feedback(&rec, &DiagOptions::default()).unwrap();
+            let gaps = r
+                .gaps
+                .as_ref()
+                .map(|g| (g.parameters["count"], g.parameters["missing_samples"]));
+            (
+                gaps,
+                names(&r),
+                param(&r, "servo_lag", "tau_s"),
+                r.verdict.clone(),
+            )
+        });
+        for (gaps, names, tau, verdict) in res {
+            assert_eq!(gaps, Some((3.0, 150.0)), "{m:?}: {verdict}");
+            assert_eq!(names, ["servo_lag X"], "{m:?}: {verdict}");
+            let tau = tau.unwrap();
+            assert!((tau - 0.004).abs() < 0.0004, "{m:?}: tau {tau}");
+        }
+    }
+}

@@ -52,9 +52,13 @@ struct AxisData {
 fn axis_data(t: &[f64], cmd: &[f64], fb: &[f64]) -> AxisData {
     let n = t.len();
     let mut v = vec![0.0; n];
-    for i in 0..n {
-        let (a, b) = super::simulate::central_pair(i, n);
-        v[i] = (cmd[b] - cmd[a]) / (t[b] - t[a]);
+    if n >= 2 {
+        // One-sided at the edges of gaps, as for tool-tip recordings.
+        let gap = super::prepare::gap_steps(t);
+        for i in 0..n {
+            let (a, b) = super::prepare::difference_pair(i, t, &gap);
+            v[i] = (cmd[b] - cmd[a]) / (t[b] - t[a]);
+        }
     }
     let mut tr = DirectionTracker::new(DIRECTION_DEAD_BAND);
     let dir: Vec<f64> = cmd.iter().map(|q| tr.update(*q)).collect();
@@ -741,6 +745,7 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
         format!("missing physics found: {}{rest}", names.join(", "))
     };
     Ok(FeedbackReport {
+        gaps: super::untidy::gaps_note(&rec.t, |i| rec.block.get(i).copied().flatten()),
         recording: "joint_feedback".into(),
         samples: n,
         samples_used: used,

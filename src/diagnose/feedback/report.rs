@@ -84,6 +84,10 @@ pub struct FeedbackReport {
     /// machine effects by importance.
     #[serde(skip)]
     pub measurement: Vec<MeasurementFinding>,
+    /// Where the recording's sampling stops and goes on, when it does:
+    /// reported, not a finding.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gaps: Option<MeasurementFinding>,
     /// Machine effects found.
     pub findings: Vec<JointFinding>,
     /// Per-axis figures (in each axis's unit).
@@ -143,6 +147,12 @@ impl FeedbackReport {
                 a.holdout_rms[1] * k,
                 a.resolution
                     .map_or(String::new(), |q| format!("; values rounded to {q} {}", a.unit))
+            ));
+        }
+        if let Some(g) = &self.gaps {
+            s.push_str(&format!(
+                "  gaps in the recording, not machine physics: {}\n",
+                g.where_.condition
             ));
         }
         for m in &self.measurement {

@@ -466,7 +466,13 @@ impl Tidy {
 /// many, the longest, about how many samples are missing.
 pub fn gaps_finding(rec: &Recording) -> Option<MeasurementFinding> {
     let t: Vec<f64> = rec.samples.iter().map(|s| s.t).collect();
-    let gap = super::prepare::gap_steps(&t);
+    gaps_note(&t, |i| rec.samples[i].block)
+}
+
+/// [`gaps_finding`] of the time stamps `t`, `block` giving each sample's
+/// block (joint-feedback recordings as tool-tip ones).
+pub fn gaps_note(t: &[f64], block: impl Fn(usize) -> Option<u64>) -> Option<MeasurementFinding> {
+    let gap = super::prepare::gap_steps(t);
     let at: Vec<usize> = (0..gap.len()).filter(|&i| gap[i]).collect();
     let (&first, &last) = (at.first()?, at.last()?);
     let step = |i: usize| t[i + 1] - t[i];
@@ -496,7 +502,7 @@ pub fn gaps_finding(rec: &Recording) -> Option<MeasurementFinding> {
         .into(),
         uncertainty: BTreeMap::new(),
         where_: Where {
-            blocks: [rec.samples[first].block, rec.samples[last + 1].block],
+            blocks: [block(first), block(last + 1)],
             t_s: [t[first], t[last + 1]],
             condition: format!(
                 "the recording stops {k} time(s) and goes on (about {missing:.0} samples missing in all, the longest gap {longest:.3} s: a trace buffer overflow or a paused export); the samples it has are fitted as they stand, the velocities at the gaps' edges taken from one side"
