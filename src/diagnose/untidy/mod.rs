@@ -124,9 +124,8 @@ pub fn tidy(
     let first = clock_offset(&prep0, &keep0, sigma0, min_delta_chi2, None, LOOSE)
         .filter(|e| e.offset_s.abs() >= MIN_OFFSET_SAMPLES * median_interval(rec))
         .filter(|e| e.delta_chi2 >= MIN_OFFSET_SHARE * excess_chi2(&prep0, &keep0, sigma0));
-    let offset = match first {
-        None => None,
-        Some(first) => refine_offset(
+    let refine = |first| {
+        refine_offset(
             machine,
             rec,
             &prep0,
@@ -134,27 +133,23 @@ pub fn tidy(
             rounding_xyz,
             fixed_floor,
             first,
-        )?,
+        )
+    };
+    let offset = match first {
+        None => None,
+        Some(first) => refine(first)?,
     };
     // A recording that does not fit as it stands may be seconds off the
     // program's clock: searched coarsely, then refined as any offset.
     let offset = match offset {
         None if misfit(&prep0).is_err() => match coarse::coarse_offset(machine, rec)? {
-            Some(d) => refine_offset(
-                machine,
-                rec,
-                &prep0,
-                &keep0,
-                rounding_xyz,
-                fixed_floor,
-                OffsetEstimate {
-                    offset_s: d,
-                    sd_s: 0.0,
-                    shared: (0..prep0.dof).collect(),
-                    lags: Vec::new(),
-                    delta_chi2: 0.0,
-                },
-            )?,
+            Some(d) => refine(OffsetEstimate {
+                offset_s: d,
+                sd_s: 0.0,
+                shared: (0..prep0.dof).collect(),
+                lags: Vec::new(),
+                delta_chi2: 0.0,
+            })?,
             None => None,
         },
         found => found,
