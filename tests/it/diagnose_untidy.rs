@@ -337,3 +337,43 @@ fn a_clock_offset_of_seconds_is_found() {
         }
     }
 }
+
+/// Short clean traces stay quiet, also in the verdict: the noise floor of
+/// 30 samples is itself uncertain by about 20 %, and a residual 19 % above
+/// it had been called an "unexplained mismatch" (with a correlation read
+/// from 12 bins of 30 samples).
+#[test]
+fn short_clean_traces_are_consistent_with_noise() {
+    for m in [Machine::Zhao, Machine::Wang] {
+        let seeds: Vec<u64> = (3600..3600 + 40).collect();
+        let res = par_map(&seeds, |&seed| {
+            let sc = m.scenario(blocks(m), seed);
+            let mut rec = simulate(
+                &sc.chain,
+                Some(&sc.errors),
+                &sc.program,
+                &crate::diagnose_support::effects(&[]),
+                &sc.opts,
+            )
+            .unwrap();
+            // 30 samples from the middle of the trace.
+            let mid = rec.samples.len() / 2;
+            rec.samples = rec.samples[mid..mid + 30].to_vec();
+            let r = diagnose(
+                &sc.chain,
+                Some(&sc.errors),
+                &rec,
+                &kinpost::diagnose::DiagOptions::default(),
+            )
+            .unwrap();
+            (seed, machine_findings(&r), r.verdict.clone())
+        });
+        let loud: Vec<_> = res
+            .iter()
+            .filter(|(_, f, v)| {
+                !f.is_empty() || !v.starts_with("consistent with measurement noise")
+            })
+            .collect();
+        assert!(loud.is_empty(), "{m:?}: {loud:?}");
+    }
+}
