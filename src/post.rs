@@ -205,6 +205,31 @@ struct AxisValue {
 }
 
 impl AxisValue {
+    /// The word of `axis` at joint value `q` (internal units) in a program
+    /// unit of `per_unit` mm, to `1 / scale`.
+    #[inline]
+    fn of(axis: &crate::machine::AxisSpec, scale: f64, q: f64, per_unit: f64) -> Self {
+        let v = crate::machine::output_value(axis, q);
+        // (v / 1 is v: millimetre programs skip the division.)
+        let raw = if axis.kind == crate::machine::JointKind::Prismatic && per_unit != 1.0 {
+            v / per_unit
+        } else {
+            v
+        };
+        let scaled = scaled_integer(raw * scale);
+        // A modulo axis just below 360° rounds to 360: it is written 0.
+        let full_turn = axis.rotary == crate::machine::RotaryMode::Modulo
+            && scaled.is_some_and(|i| i as f64 == 360.0 * scale);
+        if full_turn {
+            AxisValue {
+                raw: 0.0,
+                scaled: Some(0),
+            }
+        } else {
+            AxisValue { raw, scaled }
+        }
+    }
+
     /// The value rounded to `1 / scale`: the double nearest the decimal
     /// written (so that incremental output does not drift).
     fn rounded(self, scale: f64) -> f64 {
@@ -263,11 +288,8 @@ impl<'m> AxisWriter<'m> {
             return;
         };
         for (axis, s) in self.machine.axes.iter().zip(&self.scales) {
-            let raw = crate::machine::output_value(axis, q.get(axis.joint).copied().unwrap_or(0.0));
-            self.last.push(AxisValue {
-                raw,
-                scaled: scaled_integer(raw * s),
-            });
+            let q = q.get(axis.joint).copied().unwrap_or(0.0);
+            self.last.push(AxisValue::of(axis, *s, q, 1.0));
         }
     }
 
@@ -301,25 +323,7 @@ impl<'m> AxisWriter<'m> {
             self.last_per_unit = per_unit;
         }
         for (axis, s) in self.machine.axes.iter().zip(&self.scales) {
-            let v = crate::machine::output_value(axis, q[axis.joint]);
-            // (v / 1 is v: millimetre programs skip the division.)
-            let raw = if axis.kind == crate::machine::JointKind::Prismatic && per_unit != 1.0 {
-                v / per_unit
-            } else {
-                v
-            };
-            let scaled = scaled_integer(raw * s);
-            // A modulo axis just below 360° rounds to 360: it is written 0.
-            let full_turn = axis.rotary == crate::machine::RotaryMode::Modulo
-                && scaled.is_some_and(|i| i as f64 == 360.0 * s);
-            next.push(if full_turn {
-                AxisValue {
-                    raw: 0.0,
-                    scaled: Some(0),
-                }
-            } else {
-                AxisValue { raw, scaled }
-            });
+            next.push(AxisValue::of(axis, *s, q[axis.joint], per_unit));
         }
         let out = &mut self.text;
         out.clear();

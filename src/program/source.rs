@@ -430,25 +430,26 @@ impl MachineAxisTracker {
     /// translations alone (`TRANS`, `ATRANS`), which move the program's
     /// origin as a work offset does, which this command leaves to
     /// `--work-offset`.
-    fn follow_frames(&mut self, line: &crate::gcode::Line, modal_words: &[WordRef<'_>]) {
+    fn follow_frames(
+        &mut self,
+        line: &crate::gcode::Line,
+        modal_words: &[WordRef<'_>],
+        keywords: &[(usize, &str)],
+    ) {
         let word = |a: &str| line.words().find(|w| w.address == a).map(|w| w.value);
         let rotation = g_word(modal_words, 10.0)
             && matches!(word("L"), Some(l) if l == 2.0 || l == 20.0)
             && word("R").is_some();
         let values = super::frames::has_values(line.words().map(|w| w.address.as_str()));
         let mut set = None;
-        // Keywords, and the calls and instructions read from opaque text
-        // (`CYCLE800(…)`, Fagor `#CS ON`) as the modal state reads them.
-        let mut words = Vec::new();
-        let mut keywords = Vec::new();
-        super::block_words::block_words(line, &mut words, &mut keywords);
-        for &(_, k) in &keywords {
+        for &(_, k) in keywords {
             match super::frames::change(k, values) {
                 Some(super::frames::FrameChange::Delete) => self.frame = None,
                 Some(super::frames::FrameChange::Set) if !["TRANS", "ATRANS"].contains(&k) => {
-                    set = Some(match k.strip_prefix('#') {
-                        Some(_) => "a Fagor coordinate system or transformation (#CS, #ACS, #MCS, #FACE, #CYL, #TOOL AX)".to_string(),
-                        None => format!("the Sinumerik frame {k}"),
+                    set = Some(if k == super::fagor::FRAME_ON {
+                        "a Fagor coordinate system or transformation (#CS, #ACS, #MCS, #FACE, #CYL, #TOOL AX)".to_string()
+                    } else {
+                        format!("the Sinumerik frame {k}")
                     });
                 }
                 _ => {}
@@ -495,6 +496,11 @@ impl MachineAxisTracker {
         file: &str,
     ) -> Result<Option<MachineBlock>> {
         super::heidenhain::check_machine_block(&line.bytes, file, line.number)?;
+        // Keywords, and the calls and instructions read from opaque text
+        // (`TRAORI(…)`, `CYCLE800(…)`, Fagor `#RTCP ON`), as the modal state
+        // reads them.
+        let (mut words, mut keywords) = (Vec::new(), Vec::new());
+        super::block_words::block_words(line, &mut words, &mut keywords);
         let mut modal_words = Vec::new();
         let mut axis_items = Vec::new();
         for (i, item) in line.items.iter().enumerate() {
@@ -544,17 +550,15 @@ impl MachineAxisTracker {
                 super::modal::TcpCode::FanucOn(i) | super::modal::TcpCode::SiemensOn(i) => *i,
             })
             .or_else(|| {
-                line.items.iter().position(|it| match &it.kind {
-                    ItemKind::Keyword(k) => k == "TRAORI",
-                    ItemKind::Opaque => {
-                        let text = String::from_utf8_lossy(line.item_bytes(it));
-                        super::opaque::known_call(&text).is_some_and(|c| c.starts_with("TRAORI"))
-                            || super::fagor::instruction(&text) == Some(super::fagor::TCP_ON)
-                    }
-                    // Heidenhain ISO's tool centre point management.
-                    ItemKind::Word(w) => w.address == "M" && w.value == 128.0,
-                    _ => false,
-                })
+                let keyword = keywords
+                    .iter()
+                    .find(|(_, k)| matches!(*k, "TRAORI" | "TRAORI(…)" | super::fagor::TCP_ON))
+                    .map(|&(i, _)| i);
+                // Heidenhain ISO's tool centre point management.
+                let m128 = line.items.iter().position(
+                    |it| matches!(&it.kind, ItemKind::Word(w) if w.address == "M" && w.value == 128.0),
+                );
+                keyword.into_iter().chain(m128).min()
             });
         if let Some(i) = tcp {
             return Err(Error::input_with(
@@ -570,7 +574,7 @@ impl MachineAxisTracker {
         // after G28, G30 or G53 the axes they move (G28/G30 alone: all),
         // after G92.1–G92.3 all axes, are somewhere the program's
         // coordinates do not say, until programmed again.
-        self.follow_frames(line, &modal_words);
+        self.follow_frames(line, &modal_words, &keywords);
         let frame = line.items.iter().any(
             |it| matches!(&it.kind, ItemKind::Keyword(k) if super::frames::SETTING.contains(&k.as_str())),
         );

@@ -4,8 +4,8 @@
 //! over the offset finds where the two meet; the usual refinement takes it
 //! from there.
 
-use super::MISFIT_MM;
 use super::align::align;
+use super::{MISFIT_MM, median_miss};
 use crate::diagnose::prepare::{ModelMachine, prepare};
 use crate::diagnose::recording::Recording;
 use crate::error::Result;
@@ -16,20 +16,6 @@ const SUBSAMPLE: usize = 400;
 const STEPS: i32 = 200;
 /// The longest offset searched, s (at most a third of the recording).
 const REACH_S: f64 = 10.0;
-
-/// The median distance of the measured tip from the model's, mm.
-fn median_miss(r: &[[f64; 3]]) -> f64 {
-    let mut d: Vec<f64> = r
-        .iter()
-        .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
-        .collect();
-    if d.is_empty() {
-        return f64::INFINITY;
-    }
-    let mid = d.len() / 2;
-    d.select_nth_unstable_by(mid, f64::total_cmp);
-    d[mid]
-}
 
 /// The clock offset (s; the sample stamped t shows the machine at
 /// t − offset) that brings the measured tip nearest the model's, by the

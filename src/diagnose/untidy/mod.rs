@@ -142,7 +142,7 @@ pub fn tidy(
     // A recording that does not fit as it stands may be seconds off the
     // program's clock: searched coarsely, then refined as any offset.
     let offset = match offset {
-        None if misfit(&prep0).is_err() => match coarse::coarse_offset(machine, rec)? {
+        None if median_miss(&prep0.r) > MISFIT_MM => match coarse::coarse_offset(machine, rec)? {
             Some(d) => refine(OffsetEstimate {
                 offset_s: d,
                 sd_s: 0.0,
@@ -231,15 +231,23 @@ fn excess_chi2(prep: &Prepared, keep: &[bool], sigma: f64) -> f64 {
 
 /// A recording whose median tip residual (after any alignment) exceeds
 /// [`MISFIT_MM`] does not fit the machine: a clear error.
-fn misfit(prep: &Prepared) -> Result<()> {
-    let mut norms: Vec<f64> = prep
-        .r
+/// The median distance of the measured tip from the model's, mm
+/// (infinite for no samples).
+pub(super) fn median_miss(r: &[[f64; 3]]) -> f64 {
+    let mut d: Vec<f64> = r
         .iter()
         .map(|v| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt())
         .collect();
-    let mid = norms.len() / 2;
-    norms.select_nth_unstable_by(mid, f64::total_cmp);
-    let median = norms[mid];
+    if d.is_empty() {
+        return f64::INFINITY;
+    }
+    let mid = d.len() / 2;
+    d.select_nth_unstable_by(mid, f64::total_cmp);
+    d[mid]
+}
+
+fn misfit(prep: &Prepared) -> Result<()> {
+    let median = median_miss(&prep.r);
     if median > MISFIT_MM {
         return Err(Error::input(
             Location::new("<recording>", 0, 0),

@@ -200,10 +200,7 @@ impl Hal {
     /// [`Self::given`], refused when a pin of another component drives the
     /// signal `pin` is on: its value is whatever that component computes.
     pub(super) fn value(&self, pin: &str) -> Result<Option<&Given>> {
-        if let Some(signal) = self.net_of.get(pin)
-            && let Some(w) = self.writers.get(signal)
-            && w.value != pin
-        {
+        if let Some((signal, w)) = self.driver(pin) {
             return Err(Error::input_with(
                 w.loc.clone(),
                 format!(
@@ -221,15 +218,18 @@ impl Hal {
     /// `motion.tooloffset.z` drives from the tool table while the machine
     /// runs).
     pub(super) fn undriven_number(&self, pin: &str, default: f64) -> Result<f64> {
-        let driven = self
-            .net_of
-            .get(pin)
-            .and_then(|s| self.writers.get(s))
-            .is_some_and(|w| w.value != pin);
-        if driven {
+        if self.driver(pin).is_some() {
             return Ok(default);
         }
         self.number(pin, default)
+    }
+
+    /// The signal `pin` is on and the pin of another component that drives
+    /// it, when one does.
+    fn driver(&self, pin: &str) -> Option<(&String, &Given)> {
+        let signal = self.net_of.get(pin)?;
+        let w = self.writers.get(signal)?;
+        (w.value != pin).then_some((signal, w))
     }
 
     pub(super) fn number(&self, pin: &str, default: f64) -> Result<f64> {

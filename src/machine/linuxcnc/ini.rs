@@ -50,12 +50,7 @@ impl Ini {
         Ok(ini)
     }
 
-    pub(super) fn read(
-        &mut self,
-        path: &Path,
-        section: &mut String,
-        stack: &mut Vec<PathBuf>,
-    ) -> Result<()> {
+    fn read(&mut self, path: &Path, section: &mut String, stack: &mut Vec<PathBuf>) -> Result<()> {
         let text = crate::text::read_text_file(path)?;
         let source = self.sources.len();
         let file = path.display().to_string();
@@ -102,7 +97,7 @@ impl Ini {
 
     /// Reads the file of an `#INCLUDE` line (`rest` follows the directive)
     /// in the including file `from`.
-    pub(super) fn include(
+    fn include(
         &mut self,
         from: &Path,
         rest: &str,
@@ -118,12 +113,10 @@ impl Ini {
                 "`#INCLUDE` without a file name; expected `#INCLUDE file.inc`".into(),
             ));
         }
-        let named = match name.strip_prefix("~/") {
-            Some(under_home) => match std::env::var_os("HOME") {
-                Some(home) => PathBuf::from(home).join(under_home),
-                None => return Err(fail(format!("`{name}`: HOME is not set"))),
-            },
-            None => PathBuf::from(name),
+        let named = match (name.starts_with("~/"), home_path(name)) {
+            (_, Some(path)) => path,
+            (true, None) => return Err(fail(format!("`{name}`: HOME is not set"))),
+            (false, None) => PathBuf::from(name),
         };
         let path = if named.is_absolute() {
             named
@@ -188,6 +181,13 @@ impl Ini {
                 .unwrap_or(""),
         )
     }
+}
+
+/// A file name that starts with `~/` under the home directory, as
+/// LinuxCNC expands it (`None` for any other name, or without `HOME`).
+pub(super) fn home_path(name: &str) -> Option<PathBuf> {
+    let under_home = name.strip_prefix("~/")?;
+    Some(PathBuf::from(std::env::var_os("HOME")?).join(under_home))
 }
 
 /// `[SECTION]KEY` → the INI's value; any other token as it is.

@@ -128,12 +128,7 @@ pub fn machine_from_linuxcnc(ini_path: &Path, tool_length_mm: Option<f64>) -> Re
     let mut skipped: Vec<String> = Vec::new();
     let mut read_file = |hal: &mut Hal, e: &IniEntry| -> Result<()> {
         let name = e.value.split_whitespace().next().unwrap_or("");
-        let path = match name.strip_prefix("~/") {
-            Some(under_home) => std::env::var_os("HOME")
-                .map(|h| PathBuf::from(h).join(under_home))
-                .unwrap_or_else(|| dir.join(name)),
-            None => dir.join(name),
-        };
+        let path = ini::home_path(name).unwrap_or_else(|| dir.join(name));
         // `LIB:name`, or a name LinuxCNC finds in its HAL library
         // (`HALLIB_PATH`) rather than beside the INI: LinuxCNC's own files,
         // which set no kinematics pins.
@@ -345,11 +340,7 @@ fn trivial_machine(
 ) -> Result<Value> {
     let file = ini_path.display().to_string();
     // The axes: the module's `coordinates=`, else [TRAJ] COORDINATES.
-    let param = kins_e.value.split_whitespace().find_map(|p| {
-        let (k, v) = p.split_once('=')?;
-        k.eq_ignore_ascii_case("coordinates").then_some(v)
-    });
-    let (letters, from) = match (param, ini.get("TRAJ", "COORDINATES")) {
+    let (letters, from) = match (coordinates_param(kins_e), ini.get("TRAJ", "COORDINATES")) {
         (Some(v), _) => (v.to_string(), kins_e),
         (None, Some(e)) => (e.value.clone(), e),
         (None, None) => {
@@ -542,15 +533,19 @@ fn machine_name(ini_path: &Path, ini: &Ini) -> String {
 /// The axes of `order` with their limits from `[AXIS_L] MIN_LIMIT` and
 /// `MAX_LIMIT` (linear ones converted to mm by `mm_per_unit`), rotary mode
 /// and decimals.
+/// The kinematics module's `coordinates=` parameter, when given.
+fn coordinates_param(kins_e: &IniEntry) -> Option<&str> {
+    kins_e.value.split_whitespace().find_map(|p| {
+        let (k, v) = p.split_once('=')?;
+        k.eq_ignore_ascii_case("coordinates").then_some(v)
+    })
+}
+
 /// The axis letter of each joint of the kinematics module: its
 /// `coordinates=` parameter, else the module's default (`XYZABCUVW` for
 /// trivkins, the required letters for the others).
 fn joint_letters(kins_e: &IniEntry, default: &str) -> Vec<char> {
-    let param = kins_e.value.split_whitespace().find_map(|p| {
-        let (k, v) = p.split_once('=')?;
-        k.eq_ignore_ascii_case("coordinates").then_some(v)
-    });
-    param
+    coordinates_param(kins_e)
         .unwrap_or(default)
         .chars()
         .filter(char::is_ascii_alphabetic)
