@@ -74,6 +74,16 @@ pub struct SimulateArgs {
     /// `diagnose` names them `outliers`).
     #[arg(long, value_name = "FRACTION", default_value_t = 0.0)]
     pub outliers: f64,
+    /// Registration of the measuring system, in mm: every measured tip is
+    /// this far off in the workpiece frame (a tracker or probe zeroed
+    /// off; `diagnose` names it `registration`). Three numbers `DX,DY,DZ`.
+    #[arg(
+        long,
+        value_name = "DX,DY,DZ",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    pub registration: Vec<f64>,
     /// Round every written value to a multiple of this step, in mm (axes
     /// in mm or deg, as an export with few decimals does). 0: no rounding.
     #[arg(long, value_name = "STEP", default_value_t = 0.0)]
@@ -312,6 +322,23 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         a.outliers,
         "expected a fraction of 0 … 0.5",
     )?;
+    let bad_registration = a
+        .registration
+        .iter()
+        .copied()
+        .find(|v| !(v.is_finite() && v.abs() <= 10.0));
+    if !(a.registration.is_empty() || a.registration.len() == 3) {
+        return Err(Error::Usage(format!(
+            "--registration: expected three offsets DX,DY,DZ in mm, found {}",
+            a.registration.len()
+        )));
+    }
+    check(
+        bad_registration.is_none(),
+        "--registration",
+        bad_registration.unwrap_or(0.0),
+        "expected three offsets of −10 … 10 mm",
+    )?;
     check(
         (0.0..=10.0).contains(&a.round),
         "--round",
@@ -364,6 +391,10 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         time_offset_s: a.time_offset,
         outlier_fraction: a.outliers,
         quantum: a.round,
+        registration_mm: match a.registration[..] {
+            [x, y, z] => [x, y, z],
+            _ => [0.0; 3],
+        },
     };
     if a.feedback {
         let fopts = crate::diagnose::feedback::FeedbackSimOptions::from(&opts);

@@ -61,6 +61,9 @@ pub enum Family {
     /// Error motion of a prismatic joint as cubic B-splines over the
     /// recorded travel, in the components of the mask.
     LinearMotion(usize, u8),
+    /// Not machine physics: a constant offset of the measured tip in the
+    /// workpiece frame (the measuring system's registration).
+    Registration,
 }
 
 impl Family {
@@ -78,6 +81,7 @@ impl Family {
             Family::PivotLength => EffectKind::PivotLength,
             Family::Vibration(_) => EffectKind::Vibration,
             Family::ErrorMotion(..) | Family::LinearMotion(..) => EffectKind::ErrorMotion,
+            Family::Registration => EffectKind::Registration,
         }
     }
 
@@ -95,7 +99,7 @@ impl Family {
             | Family::ErrorMotion(j, _)
             | Family::LinearMotion(j, _) => Some(j),
             Family::Squareness(_, b) => Some(b),
-            Family::PivotLength => None,
+            Family::PivotLength | Family::Registration => None,
         }
     }
 
@@ -103,7 +107,7 @@ impl Family {
     pub fn axis_label(self, names: &[String]) -> Option<String> {
         match self {
             Family::Squareness(a, b) => Some(format!("{}{}", names[a], names[b])),
-            Family::PivotLength => None,
+            Family::PivotLength | Family::Registration => None,
             f => f.joint().map(|j| names[j].clone()),
         }
     }
@@ -114,6 +118,7 @@ impl Family {
             Family::Cyclic(_) | Family::RotaryCenterOffset(_) | Family::Vibration(_) => 2,
             Family::ErrorMotion(_, m) => m.count_ones() as usize * 2 * MOTION_HARMONICS as usize,
             Family::LinearMotion(_, m) => m.count_ones() as usize * MOTION_BASIS,
+            Family::Registration => 3,
             _ => 1,
         }
     }
@@ -127,6 +132,17 @@ impl Family {
             | (Family::LinearMotion(a, _), Family::LinearMotion(b, _)) => a == b,
             _ => self == other,
         }
+    }
+
+    /// Whether it is a simple family: a few parameters for one physical
+    /// cause. Not simple: an error motion's series or spline, and the
+    /// registration of the measurement, which can each sum up several
+    /// simple effects at once (see [`super::stepwise`]).
+    pub fn is_simple(self) -> bool {
+        !matches!(
+            self,
+            Family::ErrorMotion(..) | Family::LinearMotion(..) | Family::Registration
+        )
     }
 
     /// Whether a non-linear parameter (τ or period) is searched.
@@ -167,6 +183,7 @@ impl Family {
             }
         }
         v.push(Family::PivotLength);
+        v.push(Family::Registration);
         v
     }
 }
@@ -296,6 +313,11 @@ pub fn base_columns(prep: &Prepared, fam: Family, nl: f64) -> Cols {
                 }
             }
             Family::PivotLength => put(0, prep.tool_axis[i]),
+            Family::Registration => {
+                put(0, [1.0, 0.0, 0.0]);
+                put(1, [0.0, 1.0, 0.0]);
+                put(2, [0.0, 0.0, 1.0]);
+            }
             Family::ErrorMotion(j, mask) | Family::LinearMotion(j, mask) => {
                 let Some(Some(m)) = prep.motion.get(j) else {
                     continue;

@@ -12,6 +12,7 @@
 //! * [`feedback`]: joint-feedback recordings (`formats.md` §2b), diagnosed
 //!   on `fb − command` without the chain.
 //! * [`fit`]: linearised effect fits, onset profiles, cross-validation.
+//! * [`stepwise`]: the forward selection of the effects.
 //! * [`report`]: the report ([`Report`]): JSON, text, SVG.
 //!
 //! See `docs/diagnose.md`.
@@ -31,6 +32,7 @@ pub mod recording;
 pub mod report;
 pub mod rng;
 pub mod simulate;
+pub mod stepwise;
 pub mod timeline;
 pub mod unexplained;
 pub mod untidy;
@@ -47,14 +49,13 @@ pub use simulate::{
     sample_waypoints, simulate,
 };
 
-use fit::{Candidate, Family, Fitted, SearchCtx, Selected, Term};
+use fit::{Family, Fitted, SearchCtx, Selected, Term};
 use prepare::{ModelMachine, Prepared, prepare};
 use report::{Condition, Locate, Series, Window};
 
 use crate::error::{Error, Location, Result};
 use crate::geometric::ErrorModel;
 use crate::machine::chain::{Chain, JointKind};
-use rayon::prelude::*;
 
 /// Least share of the held-out residual's excess over the noise that an
 /// effect must explain to be a finding: a jittered trace's mismatch let a
@@ -173,119 +174,23 @@ pub fn diagnose(
     };
     let families: Vec<Family> = Family::all(&prep)
         .into_iter()
-        .filter(|f| opts.kinds.is_empty() || opts.kinds.contains(&f.kind()))
+        .filter(|f| {
+            // A registration of the measurement is always weighed: left
+            // out, a machine effect would take its place.
+            f.kind().is_measurement() || opts.kinds.is_empty() || opts.kinds.contains(&f.kind())
+        })
         .collect();
 
     // Forward stepwise selection.
-    let mut rejected: Vec<report::Rejected> = Vec::new();
-    let mut terms: Vec<Term> = Vec::new();
-    let mut fitted_meta: Vec<(f64, (f64, f64))> = Vec::new();
-    let mut rounds: Vec<Vec<Candidate>> = Vec::new();
-    let mut first_round: Vec<Candidate> = Vec::new();
-    let rss0: f64 = prep
-        .r
-        .iter()
-        .map(|v| v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-        .sum();
-    let mut hold_prev = fit::holdout_rss(&prep, &fit::design(&prep, &[]));
-    let hold_before = hold_prev;
-    while terms.len() < opts.max_effects {
-        let sel = Selected::new(&prep, fit::design(&prep, &terms));
-        // The vibration search scans thousands of frequencies: it runs in
-        // the first round, then only while the residual left by the terms
-        // so far is above the noise, or for an axis whose vibration was a
-        // candidate in the first round (a vibration near the Nyquist
-        // frequency raises the noise floor estimate itself).
-        let rss_now = rss0 - sel.h.dot(&(&sel.ginv * &sel.h));
-        let chi_now = rss_now / (s2 * n_rows);
-        let above_noise = chi_now > 1.05 && (chi_now - 1.0) * (1.5 * n_rows).sqrt() > 4.0;
-        // The families are searched on every core, the candidates taken
-        // in the families' order.
-        let searched: Vec<Family> = families
-            .iter()
-            .copied()
-            .filter(|f| !terms.iter().any(|t| t.family.same_slot(*f)))
-            .filter(|f| {
-                !matches!(f, Family::Vibration(_))
-                    || terms.is_empty()
-                    || above_noise
-                    || first_round
-                        .iter()
-                        .any(|c| c.term.family == *f && c.score >= opts.bic_margin)
-            })
-            .collect();
-        let mut cands: Vec<Candidate> = searched
-            .par_iter()
-            .filter_map(|f| fit::search_family(&prep, &sel, *f, &ctx))
-            .collect();
-        cands.sort_by(|a, b| b.score.total_cmp(&a.score));
-        if terms.is_empty() {
-            first_round = cands.clone();
-        }
-        let mut accepted = None;
-        let mut tried = 0;
-        for c in &cands {
-            if c.score < opts.bic_margin || tried == 3 {
-                break;
-            }
-            let mut trial = terms.clone();
-            trial.push(c.term);
-            let cols = fit::design(&prep, &trial);
-            // Physical signs and plausibility, with the others in the fit.
-            let (beta, _) = fit::lsq(&prep, &cols, &|_| true);
-            let own = &beta.as_slice()[beta.len() - c.term.family.linear_params()..];
-            let effect = fit::term_effect(&prep, &c.term, own);
-            if let Some(reason) = plausible::implausible(&effect, &prep) {
-                reject(&mut rejected, &effect, &machine.chain, reason);
-                continue;
-            }
-            // Rounded commands leave a residual that follows the axes
-            // where they stop; an effect smaller than it is not resolved.
-            let size = (c.delta_rss / n_rows).sqrt();
-            if size < unresolved {
-                reject(
-                    &mut rejected,
-                    &effect,
-                    &machine.chain,
-                    format!(
-                        "it moves the tip by {:.3} µm RMS, less than the {:.3} µm the rounding of the recorded values leaves",
-                        size * 1e3,
-                        unresolved * 1e3
-                    ),
-                );
-                continue;
-            }
-            tried += 1;
-            let hold = fit::holdout_rss(&prep, &cols);
-            let gain = hold_prev - hold;
-            // What the held-out residual has above the noise: an effect
-            // that explains a sliver of it describes something else.
-            let excess = (hold_prev - n_rows * s2).max(0.0);
-            if gain >= ctx.ln_n * s2 && gain < MIN_HOLDOUT_SHARE * excess {
-                reject(
-                    &mut rejected,
-                    &effect,
-                    &machine.chain,
-                    format!(
-                        "it explains {:.2} % of the held-out mismatch above the noise, less than {:.0} %: a mismatch it does not describe dominates (timing jitter, an effect outside the catalogue)",
-                        100.0 * gain / excess,
-                        100.0 * MIN_HOLDOUT_SHARE
-                    ),
-                );
-                continue;
-            }
-            if gain >= ctx.ln_n * s2 {
-                accepted = Some((*c, hold));
-                break;
-            }
-        }
-        let Some((c, hold)) = accepted else { break };
-        rounds.push(cands.clone());
-        terms.push(c.term);
-        fitted_meta.push((c.score, (hold_prev, hold)));
-        hold_prev = hold;
-    }
-
+    let stepwise::Stepwise {
+        mut terms,
+        meta: mut fitted_meta,
+        mut rounds,
+        first_round,
+        mut rejected,
+        hold_before,
+        ..
+    } = stepwise::select(&prep, &families, &ctx, opts, unresolved, &machine.chain);
     // Back-fitting: re-search each term's non-linear parameter and onset
     // with the others in the model.
     if terms.len() > 1 {
@@ -512,14 +417,24 @@ pub fn diagnose(
         o.sort_by(|a, b| explained[*b].total_cmp(&explained[*a]));
         o
     };
+    // A registration of the measurement is reported with the other
+    // measurement faults, never as machine physics.
+    let (registration, order): (Vec<usize>, Vec<usize>) = order
+        .into_iter()
+        .partition(|&k| fitted[k].term.family.kind().is_measurement());
     let top_term = order.first().map(|&k| fitted[k].term);
+    let registration: Vec<report::MeasurementFinding> = registration
+        .iter()
+        .map(|&k| untidy::registration_finding(&findings[k]))
+        .collect();
     findings = order.iter().map(|&k| findings[k].clone()).collect();
 
     let chi2 = |r: &[[f64; 3]]| rms(r).powi(2) / s2;
     let chi_before = chi2(&prep.r);
     let chi_after = chi2(&after);
     let locate = locate(&prep, &after, sigma);
-    let measurement = tidy.findings(original);
+    let mut measurement = tidy.findings(original);
+    measurement.extend(registration);
     let faults = if measurement.is_empty() {
         String::new()
     } else {
@@ -530,6 +445,15 @@ pub fn diagnose(
                     "a clock offset of {:.3} ms",
                     m.parameters.get("offset_s").copied().unwrap_or(0.0) * 1e3
                 ),
+                "registration" => {
+                    let p = |k: &str| m.parameters.get(k).copied().unwrap_or(0.0) * 1e3;
+                    format!(
+                        "a registration offset of the measured tip of ({:.3}, {:.3}, {:.3}) µm",
+                        p("dx_mm"),
+                        p("dy_mm"),
+                        p("dz_mm")
+                    )
+                }
                 _ => format!(
                     "{} gross outlier(s)",
                     m.parameters.get("count").copied().unwrap_or(0.0)
@@ -557,11 +481,19 @@ pub fn diagnose(
     let where_text = unexplained
         .as_ref()
         .map_or(String::new(), |u| format!(": it shows {}", u.condition));
+    // The residual the machine effects are judged on: after the
+    // measurement faults fitted with them (a registration).
+    let (chi_physics, rms_physics) =
+        if measurement.iter().any(|m| m.effect == "registration") && findings.is_empty() {
+            (chi_after, rms_after)
+        } else {
+            (chi_before, rms_before)
+        };
     let verdict = if findings.is_empty() {
-        if !above(chi_before) {
+        if !above(chi_physics) {
             format!(
                 "consistent with measurement noise{faults}: the residual RMS {:.3} µm is at the noise floor {:.3} µm; no missing physics found",
-                rms_before * 1e3,
+                rms_physics * 1e3,
                 sigma * 1e3
             )
         } else {

@@ -216,5 +216,8 @@ pub fn implausible(effect: &Effect, prep: &Prepared) -> Option<String> {
         }
         Effect::PivotLength { delta_mm } => (delta_mm.abs() > MAX_PIVOT_MM)
             .then(|| format!("a pivot length {delta_mm:.3} mm off is another tool, not an error")),
+        // The misfit check bounds it (a median miss of 5 mm is another
+        // machine or another frame).
+        Effect::Registration { .. } => None,
     }
 }

@@ -766,6 +766,7 @@ pub fn condition_text(effect: &Effect, rotary: bool) -> String {
             format!("varies with the {axis} angle: {axis} turns about a displaced line")
         }
         Effect::PivotLength { .. } => "along the tool axis, showing as the tool tilts".to_string(),
+        Effect::Registration { .. } => "everywhere: a constant offset of the measured tip in the workpiece frame, whatever the axes do".to_string(),
         Effect::ErrorMotion {
             axis, terms, span, ..
         } => {

@@ -46,6 +46,10 @@ pub struct SimOptions {
     /// mm or deg, measured tip in mm) rounded to a multiple of it. 0 for
     /// none.
     pub quantum: f64,
+    /// Registration of the measuring system: every measured tip is this
+    /// far off in the workpiece frame (a tracker or probe zeroed off),
+    /// mm. Zero for none.
+    pub registration_mm: [f64; 3],
 }
 
 impl Default for SimOptions {
@@ -58,6 +62,7 @@ impl Default for SimOptions {
             time_offset_s: 0.0,
             outlier_fraction: 0.0,
             quantum: 0.0,
+            registration_mm: [0.0; 3],
         }
     }
 }
@@ -558,11 +563,12 @@ impl<'a> TipSimulator<'a> {
         let faults_ok = opts.time_offset_s.is_finite()
             && (0.0..=1.0).contains(&opts.outlier_fraction)
             && opts.quantum.is_finite()
-            && opts.quantum >= 0.0;
+            && opts.quantum >= 0.0
+            && opts.registration_mm.iter().all(|v| v.is_finite());
         if !faults_ok {
             return Err(Error::input(
                 Location::new("<simulate>", 0, 0),
-                "the clock offset must be finite, the outlier fraction 0 … 1 and the quantum ≥ 0",
+                "the clock offset and the registration must be finite, the outlier fraction 0 … 1 and the quantum ≥ 0",
             ));
         }
         // The machine runs `offset` behind the recording's clock.
@@ -629,10 +635,11 @@ impl TipState<'_> {
             }
         };
         let (rng, faults) = (&mut self.rng, &mut self.faults);
+        let reg = opts.registration_mm;
         let mut meas = [
-            tip.x + opts.noise_mm * rng.normal(),
-            tip.y + opts.noise_mm * rng.normal(),
-            tip.z + opts.noise_mm * rng.normal(),
+            tip.x + reg[0] + opts.noise_mm * rng.normal(),
+            tip.y + reg[1] + opts.noise_mm * rng.normal(),
+            tip.z + reg[2] + opts.noise_mm * rng.normal(),
         ];
         if opts.outlier_fraction > 0.0 && faults.uniform() < opts.outlier_fraction {
             let d = [faults.normal(), faults.normal(), faults.normal()];

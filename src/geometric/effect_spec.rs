@@ -142,6 +142,7 @@ fn example(kind: EffectKind) -> &'static str {
         EffectKind::PivotLength => "pivot_length:0.01",
         EffectKind::Vibration => "vibration:X=0.002,f=7,phase=0",
         EffectKind::ErrorMotion => "error_motion:C,EXC_cos1=0.0012,EYC_sin1=0.0012",
+        EffectKind::Registration => "registration (not an effect to inject)",
     }
 }
 

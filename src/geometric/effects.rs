@@ -58,6 +58,13 @@ pub enum EffectKind {
     Vibration,
     /// A position-dependent error motion of a rotary axis.
     ErrorMotion,
+    /// Not machine physics: the measuring system registered off the
+    /// workpiece frame by a constant vector (a tracker or probe zero, a
+    /// workpiece frame set up off). `diagnose` weighs it against the
+    /// machine effects and reports it as a measurement fault; it is not
+    /// in [`EffectKind::ALL`], so it is never injected or written into a
+    /// model.
+    Registration,
 }
 
 impl EffectKind {
@@ -90,7 +97,14 @@ impl EffectKind {
             EffectKind::PivotLength => "pivot_length",
             EffectKind::Vibration => "vibration",
             EffectKind::ErrorMotion => "error_motion",
+            EffectKind::Registration => "registration",
         }
+    }
+
+    /// Whether it is a fault of the measurement rather than machine
+    /// physics (`formats.md` §2c).
+    pub fn is_measurement(self) -> bool {
+        self == EffectKind::Registration
     }
 
     /// The kind called `name` (case-insensitive; `-` may stand for `_`).
@@ -224,6 +238,12 @@ pub enum Effect {
         /// Phase at t = 0, deg.
         phase_deg: f64,
     },
+    /// Not machine physics: every measured tip is `offset_mm` off in the
+    /// workpiece frame (the measuring system's registration).
+    Registration {
+        /// The offset `[dx, dy, dz]` of the measured tip, workpiece frame, mm.
+        offset_mm: [f64; 3],
+    },
 }
 
 /// An effect with an optional start: it acts from the first sample of block
@@ -269,6 +289,7 @@ impl Effect {
             Effect::PivotLength { .. } => EffectKind::PivotLength,
             Effect::Vibration { .. } => EffectKind::Vibration,
             Effect::ErrorMotion { .. } => EffectKind::ErrorMotion,
+            Effect::Registration { .. } => EffectKind::Registration,
         }
     }
 
@@ -285,7 +306,7 @@ impl Effect {
             | Effect::Vibration { axis, .. }
             | Effect::ErrorMotion { axis, .. } => Some(axis.clone()),
             Effect::Squareness { axes, .. } => Some(format!("{}{}", axes[0], axes[1])),
-            Effect::PivotLength { .. } => None,
+            Effect::PivotLength { .. } | Effect::Registration { .. } => None,
         }
     }
 
@@ -316,11 +337,13 @@ impl Effect {
                 p(&format!("period_{u}"), *period),
                 p("phase_deg", *phase_deg),
             ],
-            Effect::RotaryCenterOffset { offset_mm, .. } => vec![
-                p("dx_mm", offset_mm[0]),
-                p("dy_mm", offset_mm[1]),
-                p("dz_mm", offset_mm[2]),
-            ],
+            Effect::RotaryCenterOffset { offset_mm, .. } | Effect::Registration { offset_mm } => {
+                vec![
+                    p("dx_mm", offset_mm[0]),
+                    p("dy_mm", offset_mm[1]),
+                    p("dz_mm", offset_mm[2]),
+                ]
+            }
             Effect::PivotLength { delta_mm } => vec![p("delta_mm", *delta_mm)],
             Effect::Vibration {
                 amplitude,
@@ -469,6 +492,13 @@ impl Effect {
             },
             EffectKind::PivotLength => Effect::PivotLength {
                 delta_mm: get(&["delta_mm", "delta", "value"])?,
+            },
+            EffectKind::Registration => Effect::Registration {
+                offset_mm: [
+                    opt(&["dx_mm", "dx"], 0.0)?,
+                    opt(&["dy_mm", "dy"], 0.0)?,
+                    opt(&["dz_mm", "dz"], 0.0)?,
+                ],
             },
             EffectKind::ErrorMotion => {
                 let axis = one_axis()?;
@@ -713,7 +743,7 @@ impl BoundEffect {
                 }
                 (Some(j), None)
             }
-            Effect::PivotLength { .. } => (None, None),
+            Effect::PivotLength { .. } | Effect::Registration { .. } => (None, None),
         };
         Ok(BoundEffect {
             spec: spec.clone(),
@@ -763,16 +793,19 @@ impl BoundEffect {
             }
             Effect::RotaryCenterOffset { .. }
             | Effect::PivotLength { .. }
+            | Effect::Registration { .. }
             | Effect::ErrorMotion { .. } => 0.0,
         }
     }
 
     /// Whether this effect changes the chain (rotary centre offset, pivot
-    /// length) rather than a joint position.
+    /// length, registration) rather than a joint position.
     pub fn modifies_chain(&self) -> bool {
         matches!(
             self.spec.effect,
-            Effect::RotaryCenterOffset { .. } | Effect::PivotLength { .. }
+            Effect::RotaryCenterOffset { .. }
+                | Effect::PivotLength { .. }
+                | Effect::Registration { .. }
         )
     }
 }
@@ -909,7 +942,9 @@ fn direction_in_frame_of(chain: &Chain, a: usize, b: usize) -> Vector3<f64> {
 
 /// Returns `chain` with the chain-modifying effects inserted: a rotary
 /// centre offset as `Trans(d)` before and `Trans(−d)` after its joint, a
-/// pivot length as a translation along the tool axis at the tip.
+/// pivot length as a translation along the tool axis at the tip, a
+/// registration as a translation at the workpiece frame (the chain's
+/// first element).
 pub fn chain_with_effects(chain: &Chain, effects: &[&BoundEffect]) -> Chain {
     let mut c = chain.clone();
     for e in effects {
@@ -924,6 +959,9 @@ pub fn chain_with_effects(chain: &Chain, effects: &[&BoundEffect]) -> Chain {
             }
             Effect::PivotLength { delta_mm } => {
                 c.translate(Vector3::new(0.0, 0.0, *delta_mm));
+            }
+            Effect::Registration { offset_mm } => {
+                c = c.with_fixed_inserted(0, translation(&Vector3::from_column_slice(offset_mm)));
             }
             _ => {}
         }

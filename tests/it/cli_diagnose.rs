@@ -375,3 +375,46 @@ fn a_joint_feedback_trace_is_plotted_per_axis() {
         assert!(text.contains(label), "no {label}");
     }
 }
+
+#[test]
+fn a_registration_is_simulated_and_named_through_the_binary() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("registered.csv");
+    let base = [
+        "simulate",
+        "--machine",
+        "zhao2022-xzbc",
+        "--errors",
+        &repo_file("fixtures/errors/zhao2022-xzbc.csv"),
+        "--program",
+        &repo_file("fixtures/programs/zhao2022-xzbc-exercise.nc"),
+        "--seed",
+        "12",
+    ];
+    let mut args = base.to_vec();
+    args.extend([
+        "--registration",
+        "-0.002,0.0015,0",
+        "-o",
+        rec.to_str().unwrap(),
+    ]);
+    kinpost(&args);
+    let v = diagnose_json(&rec, &[]);
+    let f = &v["findings"].as_array().unwrap()[..];
+    assert_eq!(f.len(), 1, "{v}");
+    assert_eq!(f[0]["effect"], "registration");
+    assert_eq!(f[0]["machine_physics"], false);
+    let p = &f[0]["parameters"];
+    assert!((p["dx_mm"].as_f64().unwrap() + 0.002).abs() < 2e-4, "{p}");
+    assert!((p["dy_mm"].as_f64().unwrap() - 0.0015).abs() < 2e-4, "{p}");
+    // A bad registration is a usage error (exit 2), and writes nothing.
+    for bad in ["0.002,0.001", "0.002,0.001,nan", "0,0,11"] {
+        let out_path = dir.path().join("bad.csv");
+        let mut args = base.to_vec();
+        args.extend(["--registration", bad, "-o", out_path.to_str().unwrap()]);
+        let out = Command::new(BIN).args(&args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{bad}");
+        assert!(String::from_utf8_lossy(&out.stderr).contains("--registration"));
+        assert!(!out_path.exists());
+    }
+}

@@ -225,7 +225,9 @@ pub fn scale_effect(e: &mut kinpost::diagnose::Effect, k: f64) {
         Scale { ppm, .. } => *ppm *= k,
         Squareness { angle_urad, .. } => *angle_urad *= k,
         Cyclic { amplitude, .. } | Vibration { amplitude, .. } => *amplitude *= k,
-        RotaryCenterOffset { offset_mm, .. } => offset_mm.iter_mut().for_each(|v| *v *= k),
+        RotaryCenterOffset { offset_mm, .. } | Registration { offset_mm } => {
+            offset_mm.iter_mut().for_each(|v| *v *= k)
+        }
         PivotLength { delta_mm } => *delta_mm *= k,
         ErrorMotion { terms, .. } => terms.iter_mut().for_each(|t| {
             t.2 *= k;

@@ -59,6 +59,9 @@ pub fn term_effect(prep: &Prepared, term: &Term, beta: &[f64]) -> Effect {
             }
         }
         Family::PivotLength => Effect::PivotLength { delta_mm: beta[0] },
+        Family::Registration => Effect::Registration {
+            offset_mm: [beta[0], beta[1], beta[2]],
+        },
         Family::ErrorMotion(j, mask) => {
             let mut terms = Vec::new();
             for (p, c) in mask_components(mask).enumerate() {
@@ -159,6 +162,7 @@ pub fn parameter_sd(prep: &Prepared, term: &Term, beta: &[f64], cov: &DMatrix<f6
             v.extend((0..n).map(scaled));
             v
         }
+        Family::Registration => vec![sd(0), sd(1), sd(2)],
         _ => vec![sd(0)],
     }
 }

@@ -245,7 +245,14 @@ pub fn search_family(
                 return None;
             }
             let prof = scan(prep, sel, &base, onsets, None, ctx.min_after);
-            let (k, d, pen) = choose_onset(&prof, ctx, n_on);
+            let (k, d, pen) = if fam == Family::Registration {
+                // The measuring system's registration holds for the whole
+                // recording: from part-way it would take up the mean of
+                // an effect that starts moving there (a backlash).
+                (0, prof.first().copied().unwrap_or(0.0), 0.0)
+            } else {
+                choose_onset(&prof, ctx, n_on)
+            };
             let penalty = k_lin * ctx.ln_n + pen;
             Some(Candidate {
                 term: Term {

@@ -9,7 +9,9 @@
 //! * [`outliers`]: gross outliers ([`gross_outliers`], [`departure`]);
 //! * [`offset`]: the clock offset ([`clock_offset`]);
 //! * [`coarse`]: a clock offset of seconds, searched coarsely first;
-//! * [`align`](mod@align): the commands moved to the machine's clock.
+//! * [`align`](mod@align): the commands moved to the machine's clock;
+//! * [`registration`](mod@registration): a constant offset of the
+//!   measured tip, weighed among the machine effects.
 
 // Numerical code: several parallel arrays are indexed by one counter.
 #![allow(clippy::needless_range_loop)]
@@ -18,6 +20,7 @@ pub mod align;
 pub mod coarse;
 pub mod offset;
 pub mod outliers;
+pub mod registration;
 pub mod resolution;
 
 use std::collections::BTreeMap;
@@ -25,6 +28,7 @@ use std::collections::BTreeMap;
 pub use align::{Aligned, align, monotone_hermite, without};
 pub use offset::{LOOSE, OffsetEstimate, STRICT, Tolerance, clock_offset};
 pub use outliers::{OUTLIER_SIGMAS, departure, gross_outliers};
+pub use registration::registration_finding;
 pub use resolution::{Resolution, quantum};
 
 use super::prepare::{ModelMachine, Prepared, noise_floor, prepare};
