@@ -441,10 +441,16 @@ pub fn diagnose(
         let parts: Vec<String> = measurement
             .iter()
             .map(|m| match m.effect.as_str() {
-                "time_offset" => format!(
-                    "a clock offset of {:.3} ms",
-                    m.parameters.get("offset_s").copied().unwrap_or(0.0) * 1e3
-                ),
+                "time_offset" => {
+                    let offset = format!(
+                        "a clock offset of {:.3} ms",
+                        m.parameters.get("offset_s").copied().unwrap_or(0.0) * 1e3
+                    );
+                    match m.parameters.get("drift_ppm") {
+                        Some(ppm) => format!("{offset} at the start, drifting {ppm:.2} ppm"),
+                        None => offset,
+                    }
+                }
                 "registration" => {
                     let p = |k: &str| m.parameters.get(k).copied().unwrap_or(0.0) * 1e3;
                     format!(

@@ -380,6 +380,8 @@ fn param_text(name: &str, v: f64, sd: Option<f64>) -> String {
         (b, "µrad", 1.0, 2)
     } else if name == "ppm" {
         ("scale", "ppm", 1.0, 2)
+    } else if let Some(b) = name.strip_suffix("_ppm") {
+        (b, "ppm", 1.0, 3)
     } else {
         (name, "", 1.0, 6)
     };

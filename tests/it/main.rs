@@ -29,6 +29,7 @@ mod compensate_robust;
 mod compensate_stream;
 mod corpus_roundtrip;
 mod demo_fixtures;
+mod diagnose_clock_rate;
 mod diagnose_csv_dialects;
 mod diagnose_docs;
 mod diagnose_effects;

@@ -22,6 +22,42 @@ use super::resolution::quantum;
 /// deg), so that samples the alignment cannot place within the noise are
 /// left out of the fits.
 pub fn align(rec: &Recording, offset_s: f64) -> Aligned {
+    align_clock(rec, Clock::offset(offset_s))
+}
+
+/// The recording's clock against the program's: the sample stamped t
+/// shows the machine at t − shift(t), shift(t) = offset + rate·(t − t_ref)
+/// (a clock offset, and a clock that runs `rate` fast or slow: two free-
+/// running clocks differ by some ppm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Clock {
+    /// The shift at `t_ref`, s.
+    pub offset_s: f64,
+    /// How much faster the recording's clock runs, s per s (20 ppm: 2e-5).
+    pub rate: f64,
+    /// The time the offset is given at, s.
+    pub t_ref: f64,
+}
+
+impl Clock {
+    /// A constant offset.
+    pub fn offset(offset_s: f64) -> Clock {
+        Clock {
+            offset_s,
+            rate: 0.0,
+            t_ref: 0.0,
+        }
+    }
+
+    /// The shift at the stamp `t`, s.
+    pub fn shift(&self, t: f64) -> f64 {
+        self.offset_s + self.rate * (t - self.t_ref)
+    }
+}
+
+/// [`align`] for a clock that also runs fast or slow: each sample stamped
+/// t gets the command of t − `clock.shift(t)`.
+pub fn align_clock(rec: &Recording, clock: Clock) -> Aligned {
     let s = &rec.samples;
     let n = s.len();
     let mut out = Recording {
@@ -64,6 +100,7 @@ pub fn align(rec: &Recording, offset_s: f64) -> Aligned {
         .collect();
     let mut k = 0usize;
     for (i, smp) in s.iter().enumerate() {
+        let offset_s = clock.shift(smp.t);
         let tt = smp.t - offset_s;
         if tt < s[0].t || tt > s[n - 1].t {
             continue;

@@ -9,6 +9,7 @@
 //! * [`outliers`]: gross outliers ([`gross_outliers`], [`departure`]);
 //! * [`offset`]: the clock offset ([`clock_offset`]);
 //! * [`coarse`]: a clock offset of seconds, searched coarsely first;
+//! * [`rate`](mod@rate): a clock that runs fast or slow ([`with_rate`]);
 //! * [`align`](mod@align): the commands moved to the machine's clock;
 //! * [`registration`](mod@registration): a constant offset of the
 //!   measured tip, weighed among the machine effects.
@@ -20,14 +21,16 @@ pub mod align;
 pub mod coarse;
 pub mod offset;
 pub mod outliers;
+pub mod rate;
 pub mod registration;
 pub mod resolution;
 
 use std::collections::BTreeMap;
 
-pub use align::{Aligned, align, monotone_hermite, without};
+pub use align::{Aligned, Clock, align, align_clock, monotone_hermite, without};
 pub use offset::{LOOSE, OffsetEstimate, STRICT, Tolerance, clock_offset};
 pub use outliers::{OUTLIER_SIGMAS, departure, gross_outliers};
+pub use rate::{Rate, with_rate};
 pub use registration::registration_finding;
 pub use resolution::{Resolution, quantum};
 
@@ -78,6 +81,18 @@ pub struct Offset {
     /// within half the noise floor (a change of acceleration between
     /// samples).
     pub doubtful: usize,
+    /// A clock that also runs fast or slow, when the recording shows one
+    /// (then `estimate.offset_s` is the shift at its `t_ref`).
+    pub rate: Option<Rate>,
+}
+
+impl Offset {
+    /// The recording's clock against the program's.
+    pub fn clock(&self) -> Clock {
+        self.rate
+            .as_ref()
+            .map_or(Clock::offset(self.estimate.offset_s), |r| r.clock)
+    }
 }
 
 /// A recording made tidy: aligned to the program's clock, without its
@@ -158,9 +173,19 @@ pub fn tidy(
         },
         found => found,
     };
+    // A clock that runs fast or slow: a delay that grows with time.
+    let offset = with_rate(
+        machine,
+        rec,
+        &prep0,
+        &keep0,
+        &|p: &Prepared| floor_of(p, rounding_xyz, fixed_floor),
+        offset,
+        min_delta_chi2,
+    )?;
     let (rec1, kept1, blur) = match &offset {
         Some(o) => {
-            let al = align(rec, o.estimate.offset_s);
+            let al = align_clock(rec, o.clock());
             (al.rec.clone(), al.kept.clone(), Some(al))
         }
         None => (rec.clone(), (0..rec.samples.len()).collect(), None),
@@ -209,7 +234,7 @@ pub const MIN_OFFSET_SAMPLES: f64 = 0.01;
 pub const MIN_OFFSET_SHARE: f64 = 0.25;
 
 /// The median time between samples, s.
-fn median_interval(rec: &Recording) -> f64 {
+pub(super) fn median_interval(rec: &Recording) -> f64 {
     let mut d: Vec<f64> = rec.samples.windows(2).map(|w| w[1].t - w[0].t).collect();
     if d.is_empty() {
         return 0.0;
@@ -221,7 +246,7 @@ fn median_interval(rec: &Recording) -> f64 {
 
 /// χ² of the residual above its degrees of freedom, over the samples
 /// `keep` allows.
-fn excess_chi2(prep: &Prepared, keep: &[bool], sigma: f64) -> f64 {
+pub(super) fn excess_chi2(prep: &Prepared, keep: &[bool], sigma: f64) -> f64 {
     let (mut chi, mut dof) = (0.0, 0.0);
     for i in 0..prep.n {
         if keep[i] {
@@ -352,6 +377,7 @@ fn refine_offset(
         rms_explained_mm: (moved / (3 * kept.len()).max(1) as f64).sqrt(),
         dropped: rec.samples.len() - kept.len(),
         doubtful: 0,
+        rate: None,
     }))
 }
 
@@ -379,18 +405,37 @@ impl Tidy {
                     o.doubtful
                 ));
             }
+            let t_first = first.map_or(0.0, |s| s.t);
+            let t_last = last.map_or(0.0, |s| s.t);
+            let clock = o.clock();
+            let start = clock.shift(t_first);
+            let mut parameters: BTreeMap<String, f64> = [("offset_s".to_string(), start)].into();
+            let mut uncertainty: BTreeMap<String, f64> = [("offset_s".to_string(), e.sd_s)].into();
+            let mut everywhere = format!(
+                "everywhere: the recording {} the program by {:.3} ms, as every moving axis shows the same delay",
+                if start >= 0.0 { "lags" } else { "leads" },
+                start.abs() * 1e3
+            );
+            if let Some(r) = &o.rate {
+                parameters.insert("drift_ppm".to_string(), r.clock.rate * 1e6);
+                uncertainty.insert("drift_ppm".to_string(), r.rate_sd * 1e6);
+                everywhere = format!(
+                    "everywhere: the recording's clock runs {:.2} ppm against the program's, so the delay every moving axis shows grows from {:.3} ms at the start to {:.3} ms at the end (`offset_s` is the delay at the start)",
+                    r.clock.rate * 1e6,
+                    start * 1e3,
+                    clock.shift(t_last) * 1e3
+                );
+            }
             out.push(MeasurementFinding {
                 effect: "time_offset".into(),
                 axis: None,
-                parameters: [("offset_s".to_string(), e.offset_s)].into(),
-                uncertainty: [("offset_s".to_string(), e.sd_s)].into(),
+                parameters,
+                uncertainty,
                 where_: Where {
                     blocks: [first.and_then(|s| s.block), last.and_then(|s| s.block)],
                     t_s: [first.map_or(0.0, |s| s.t), last.map_or(0.0, |s| s.t)],
                     condition: format!(
-                        "everywhere: the recording {} the program by {:.3} ms, as every moving axis shows the same delay; removed before any machine effect was fitted{dropped}",
-                        if e.offset_s >= 0.0 { "lags" } else { "leads" },
-                        e.offset_s.abs() * 1e3
+                        "{everywhere}; removed before any machine effect was fitted{dropped}"
                     ),
                 },
                 rms_explained_mm: o.rms_explained_mm,

@@ -200,3 +200,135 @@ pub fn clock_offset(
         delta_chi2,
     })
 }
+
+/// A clock that runs fast or slow, seen in a residual.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RateEstimate {
+    /// How much faster the recording's clock runs, s per s: the delay
+    /// grows by this much per second of recording.
+    pub rate: f64,
+    /// Its standard deviation.
+    pub sd: f64,
+    /// The time the rate is taken about (the mean time of the samples
+    /// used), s.
+    pub t_ref: f64,
+    /// The axes that share it (chain indices).
+    pub shared: Vec<usize>,
+    /// Decrease of χ² when the common rate enters (each axis's own lag
+    /// already in).
+    pub delta_chi2: f64,
+    /// Decrease of χ² by the whole timing model: the common rate, every
+    /// axis's own lag, the own rates of the others.
+    pub timing_chi2: f64,
+}
+
+/// An axis informs the clock rate when its own rate is known to this
+/// (s per s, 100 ppm).
+const INFORMATIVE_RATE: f64 = 1e-4;
+
+/// The clock rate of a residual: a delay that grows with time alike on
+/// every moving axis, `r ≈ −Σⱼ (Lⱼ + ρ·(t − t̄)) · Jⱼ · q̇ⱼ`. Each axis's own
+/// lag and rate are fitted, the median rate of the axes that determine
+/// theirs to 100 ppm is the common one, and the axes within 4 standard
+/// deviations plus `tolerance` share it (at least two, and more than half
+/// of the informative ones). The common rate is then fitted with every
+/// axis's own lag, and an own rate for the axes that do not share it (a
+/// servo lag that starts part-way grows on one axis only). `shared`
+/// fixes the set (for the refinement). `None` unless the common rate
+/// lowers χ² by more than `min_delta_chi2`.
+pub fn clock_rate(
+    prep: &Prepared,
+    keep: &[bool],
+    sigma: f64,
+    min_delta_chi2: f64,
+    shared: Option<&[usize]>,
+    tolerance: Tolerance,
+) -> Option<RateEstimate> {
+    let dof = prep.dof;
+    let (mut tw, mut w) = (0.0, 0.0);
+    for i in 0..prep.n {
+        if keep[i] {
+            tw += prep.t[i];
+            w += 1.0;
+        }
+    }
+    if w < 20.0 {
+        return None;
+    }
+    let t_ref = tw / w;
+    // Columns: lag of each axis, then rate of each axis.
+    let k = 2 * dof;
+    let mut g = DMatrix::zeros(k, k);
+    let mut h = DVector::zeros(k);
+    let mut col = vec![[0.0; 3]; k];
+    for i in 0..prep.n {
+        if !keep[i] {
+            continue;
+        }
+        let dt = prep.t[i] - t_ref;
+        for j in 0..dof {
+            let jj = prep.jj(i, j);
+            let v = prep.vj(i, j);
+            col[j] = [-jj[0] * v, -jj[1] * v, -jj[2] * v];
+            col[dof + j] = [col[j][0] * dt, col[j][1] * dt, col[j][2] * dt];
+        }
+        for a in 0..k {
+            h[a] += (0..3).map(|c| col[a][c] * prep.r[i][c]).sum::<f64>();
+            for b in 0..=a {
+                g[(a, b)] += (0..3).map(|c| col[a][c] * col[b][c]).sum::<f64>();
+            }
+        }
+    }
+    for a in 0..k {
+        for b in 0..a {
+            g[(b, a)] = g[(a, b)];
+        }
+    }
+    let set: Vec<usize> = match shared {
+        Some(s) => s.to_vec(),
+        None => {
+            let inv = pinv_sym(&g);
+            let beta = &inv * &h;
+            let rates: Vec<(f64, f64)> = (0..dof)
+                .map(|j| {
+                    let m = dof + j;
+                    (beta[m], inv[(m, m)].max(0.0).sqrt() * sigma)
+                })
+                .collect();
+            let informative: Vec<usize> = (0..dof)
+                .filter(|&j| g[(dof + j, dof + j)] > 0.0 && rates[j].1 < INFORMATIVE_RATE)
+                .collect();
+            shared_axes(&rates, &informative, tolerance)?
+        }
+    };
+    // Reduced fit: every axis's own lag, the common rate, an own rate for
+    // the others.
+    let mut groups: Vec<Vec<usize>> = (0..dof).map(|j| vec![j]).collect();
+    groups.push(set.iter().map(|&j| dof + j).collect());
+    groups.extend((0..dof).filter(|j| !set.contains(j)).map(|j| vec![dof + j]));
+    let m = groups.len();
+    let gr = DMatrix::from_fn(m, m, |a, b| {
+        groups[a]
+            .iter()
+            .flat_map(|&x| groups[b].iter().map(move |&y| (x, y)))
+            .map(|(x, y)| g[(x, y)])
+            .sum()
+    });
+    let hr = DVector::from_fn(m, |a, _| groups[a].iter().map(|&x| h[x]).sum());
+    let inv = pinv_sym(&gr);
+    let beta = &inv * &hr;
+    let rate = beta[dof];
+    let sd = inv[(dof, dof)].max(0.0).sqrt() * sigma;
+    let delta_chi2 = if sd > 0.0 { (rate / sd).powi(2) } else { 0.0 };
+    if shared.is_none() && delta_chi2 < min_delta_chi2 {
+        return None;
+    }
+    Some(RateEstimate {
+        rate,
+        sd,
+        t_ref,
+        shared: set,
+        delta_chi2,
+        timing_chi2: hr.dot(&beta) / (sigma * sigma),
+    })
+}
