@@ -85,7 +85,7 @@ pub struct Prepared {
     pub block: Vec<Option<u64>>,
     /// Commanded positions, `n × dof`.
     pub q: Vec<f64>,
-    /// Commanded velocities (central differences), `n × dof`.
+    /// Commanded velocities ([`velocities`]), `n × dof`.
     pub v: Vec<f64>,
     /// Direction of the last motion, `n × dof`.
     pub dir: Vec<f64>,
@@ -260,9 +260,17 @@ pub fn difference_pair(i: usize, t: &[f64], gap: &[bool]) -> (usize, usize) {
     (a, b)
 }
 
-/// Velocities by central differences, one-sided at the ends and at the
-/// edges of gaps ([`gap_steps`]): a difference across a gap would be the
-/// mean over seconds of motion the recording does not show.
+/// Velocities of the commands. Where two samples on each side are
+/// without a gap, the median of the slopes at the sample of the
+/// quadratics through the three samples to its left, around it and to its
+/// right: a command that changes its acceleration once between two
+/// samples (a corner of the feed profile) spoils the quadratics across the
+/// corner, and the median is one that does not cross it. A central
+/// difference there missed the speed by up to a·h/2: with a 20 ms servo
+/// lag sampled at 10 Hz, spikes of 0.18 mm. Elsewhere central
+/// differences, one-sided at the ends and at the edges of gaps
+/// ([`gap_steps`]): a difference across a gap would be the mean over
+/// seconds of motion the recording does not show.
 fn velocities(t: &[f64], q: &[f64], dof: usize) -> Vec<f64> {
     let n = t.len();
     let mut v = vec![0.0; n * dof];
@@ -271,6 +279,21 @@ fn velocities(t: &[f64], q: &[f64], dof: usize) -> Vec<f64> {
     }
     let gap = gap_steps(t);
     for i in 0..n {
+        // Two samples on each side without a gap: the median of the
+        // slopes at t_i of the quadratics through the left, central and
+        // right three samples.
+        if i >= 2 && i + 2 < n && !gap[i - 2..=i + 1].iter().any(|g| *g) {
+            for j in 0..dof {
+                let y = |k: usize| q[k * dof + j];
+                let slope = |k: usize| {
+                    quadratic_slope([t[k], t[k + 1], t[k + 2]], [y(k), y(k + 1), y(k + 2)], t[i])
+                };
+                let mut three = [slope(i - 2), slope(i - 1), slope(i)];
+                three.sort_by(f64::total_cmp);
+                v[i * dof + j] = three[1];
+            }
+            continue;
+        }
         let (a, b) = difference_pair(i, t, &gap);
         let dt = t[b] - t[a];
         for j in 0..dof {
@@ -278,6 +301,14 @@ fn velocities(t: &[f64], q: &[f64], dof: usize) -> Vec<f64> {
         }
     }
     v
+}
+
+/// The slope at `x` of the quadratic through the points `(t, y)`.
+fn quadratic_slope(t: [f64; 3], y: [f64; 3], x: f64) -> f64 {
+    let [t0, t1, t2] = t;
+    y[0] * ((x - t1) + (x - t2)) / ((t0 - t1) * (t0 - t2))
+        + y[1] * ((x - t0) + (x - t2)) / ((t1 - t0) * (t1 - t2))
+        + y[2] * ((x - t0) + (x - t1)) / ((t2 - t0) * (t2 - t1))
 }
 
 /// Prepares `rec` against the model machine.

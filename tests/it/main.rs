@@ -39,6 +39,7 @@ mod diagnose_feedback;
 mod diagnose_loop;
 mod diagnose_registration;
 mod diagnose_report;
+mod diagnose_sampling;
 mod diagnose_thermal;
 mod diagnose_untidy;
 mod diagnose_vibration;

@@ -50,7 +50,8 @@ pub const MISFIT_MM: f64 = 5.0;
 pub const MISFIT_AFTER_MM: f64 = 1.0;
 
 /// The noise floor of a prepared residual per coordinate, and its
-/// quadratic mean: the robust estimate, never below the rounding of the
+/// quadratic mean: the robust estimate (on the residual without each
+/// axis's apparent lag, [`offset::lag_free`]), never below the rounding of the
 /// measured tip, plus the rounding of the commands (`rounding` as
 /// [`Resolution::floor_xyz`], mm); `fixed` overrides both.
 pub fn floor_of(
@@ -61,7 +62,7 @@ pub fn floor_of(
     if let Some(f) = fixed {
         return ([f; 3], f);
     }
-    let (per, _) = noise_floor(&prep.r);
+    let (per, _) = noise_floor(&offset::lag_free(prep));
     let (meas, cmd) = rounding;
     let per: [f64; 3] = std::array::from_fn(|c| per[c].max(meas[c]).hypot(cmd[c]));
     let pooled = ((per[0] * per[0] + per[1] * per[1] + per[2] * per[2]) / 3.0).sqrt();

@@ -47,6 +47,30 @@ fn axis_lags(prep: &Prepared, keep: &[bool]) -> AxisLags {
     AxisLags { lag, sd_unit, g, h }
 }
 
+/// The residual of `prep` with each axis's apparent lag taken out (the
+/// least-squares fit of `r ≈ −Σⱼ Lⱼ · Jⱼ · q̇ⱼ` over every sample): what the
+/// noise floor is read from. A servo lag or a clock offset is smooth in
+/// time but not at the sampling's scale where the feed changes (a 20 ms
+/// lag at 10 Hz moves the tip by 0.4 mm between two samples there), and
+/// left in it raised the floor of a 1 µm recording to 2 µm.
+pub fn lag_free(prep: &Prepared) -> Vec<[f64; 3]> {
+    let keep = vec![true; prep.n];
+    let al = axis_lags(prep, &keep);
+    (0..prep.n)
+        .map(|i| {
+            let mut r = prep.r[i];
+            for j in 0..prep.dof {
+                let jj = prep.jj(i, j);
+                let d = -al.lag[j] * prep.vj(i, j);
+                for c in 0..3 {
+                    r[c] -= d * jj[c];
+                }
+            }
+            r
+        })
+        .collect()
+}
+
 /// An axis informs the clock offset when its lag is known to this (s).
 const INFORMATIVE_SD_S: f64 = 1e-3;
 

@@ -17,7 +17,8 @@ const MEDIAN_HALF: usize = 3;
 /// signal the running median cannot follow: none is called an outlier.
 const MAX_OUTLIER_FRACTION: f64 = 0.05;
 
-/// Gross outliers of a residual: samples whose residual departs from its
+/// Gross outliers of a residual: samples whose residual, without each
+/// axis's apparent lag ([`super::offset::lag_free`]), departs from its
 /// neighbours ([`departure`]) by more than [`OUTLIER_SIGMAS`] noise floors
 /// in some coordinate (samples `skip` marks are not looked at). A smooth
 /// effect, a kink, a step at a reversal or an onset is never flagged. When
@@ -39,9 +40,13 @@ pub fn gross_outliers(
     let mut column = vec![0.0; n];
     let mut dev = vec![[0.0; 3]; n];
     let mut far = vec![false; n];
+    // Without each axis's apparent lag: where the feed changes, a lag
+    // moves the tip by more between two samples than the running median
+    // follows, and those samples are physics, not faults.
+    let r = super::offset::lag_free(prep);
     for c in 0..3 {
         for i in 0..n {
-            column[i] = prep.r[i][c];
+            column[i] = r[i][c];
         }
         for i in 0..n {
             if skip.get(i).copied().unwrap_or(false) {
