@@ -85,7 +85,8 @@ pub struct Prepared {
     pub block: Vec<Option<u64>>,
     /// Commanded positions, `n × dof`.
     pub q: Vec<f64>,
-    /// Commanded velocities ([`velocities`]), `n × dof`.
+    /// Commanded velocities (the median of three quadratics' slopes,
+    /// central differences near the ends and gaps), `n × dof`.
     pub v: Vec<f64>,
     /// Direction of the last motion, `n × dof`.
     pub dir: Vec<f64>,
