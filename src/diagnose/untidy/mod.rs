@@ -301,22 +301,8 @@ fn refine_offset(
     fixed_floor: Option<f64>,
     first: OffsetEstimate,
 ) -> Result<Option<Offset>> {
-    // The samples to fit on after an alignment: not doubtful, not an
-    // outlier of the aligned residual, not set aside before.
-    let usable = |al: &Aligned, pa: &Prepared| {
-        let (per, sigma) = floor_of(pa, rounding, fixed_floor);
-        let doubtful = al.doubtful(pa, 0.5 * sigma);
-        let mut keep: Vec<bool> = al
-            .kept
-            .iter()
-            .zip(&doubtful)
-            .map(|(&i, &dbt)| keep0[i] && !dbt)
-            .collect();
-        for (i, _) in gross_outliers(pa, per, &doubtful) {
-            keep[i] = false;
-        }
-        (keep, sigma)
-    };
+    let floor = |p: &Prepared| floor_of(p, rounding, fixed_floor);
+    let usable = |al: &Aligned, pa: &Prepared| usable(al, pa, keep0, &floor);
     let mut shared = first.shared.clone();
     let mut d = first.offset_s;
     let mut last = first;
@@ -353,8 +339,53 @@ fn refine_offset(
     }
     let pa = prepare(machine, &al.rec)?;
     let (keep, _) = usable(&al, &pa);
-    let kept = &al.kept;
-    // The aligned residual must be smaller, on the same samples.
+    let Some(rms_explained_mm) = alignment_gain(prep0, &pa, &al.kept, &keep) else {
+        return Ok(None);
+    };
+    Ok(Some(Offset {
+        estimate: last,
+        rms_explained_mm,
+        dropped: rec.samples.len() - al.kept.len(),
+        doubtful: 0,
+        rate: None,
+    }))
+}
+
+/// The samples to fit on after an alignment `al` (`pa` prepared from its
+/// recording): placed by the alignment within half the noise floor
+/// (`floor`, as [`floor_of`]), not an outlier of the aligned residual, not
+/// set aside before (`keep0`, indexed by the original samples). Returns
+/// them and the pooled floor.
+pub(super) fn usable(
+    al: &Aligned,
+    pa: &Prepared,
+    keep0: &[bool],
+    floor: &dyn Fn(&Prepared) -> ([f64; 3], f64),
+) -> (Vec<bool>, f64) {
+    let (per, sigma) = floor(pa);
+    let doubtful = al.doubtful(pa, 0.5 * sigma);
+    let mut keep: Vec<bool> = al
+        .kept
+        .iter()
+        .zip(&doubtful)
+        .map(|(&i, &dbt)| keep0[i] && !dbt)
+        .collect();
+    for (i, _) in gross_outliers(pa, per, &doubtful) {
+        keep[i] = false;
+    }
+    (keep, sigma)
+}
+
+/// What an alignment gains, on the samples `keep` allows (`kept`: their
+/// indices in the original recording of `prep0`, `pa` prepared from the
+/// aligned one): the RMS per coordinate of the tip change it makes (mm),
+/// or `None` when the aligned residual is not smaller.
+pub(super) fn alignment_gain(
+    prep0: &Prepared,
+    pa: &Prepared,
+    kept: &[usize],
+    keep: &[bool],
+) -> Option<f64> {
     let rss = |r: &[f64; 3]| r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
     let (mut before, mut after, mut moved) = (0.0, 0.0, 0.0);
     for (k, &i) in kept.iter().enumerate() {
@@ -370,16 +401,7 @@ fn refine_offset(
         ];
         moved += rss(&m);
     }
-    if before - after <= 0.0 {
-        return Ok(None);
-    }
-    Ok(Some(Offset {
-        estimate: last,
-        rms_explained_mm: (moved / (3 * kept.len()).max(1) as f64).sqrt(),
-        dropped: rec.samples.len() - kept.len(),
-        doubtful: 0,
-        rate: None,
-    }))
+    (before - after > 0.0).then(|| (moved / (3 * kept.len()).max(1) as f64).sqrt())
 }
 
 impl Tidy {

@@ -8,7 +8,8 @@
 use super::align::{Aligned, Clock, align_clock};
 use super::offset::{RateEstimate, STRICT, Tolerance, clock_offset, clock_rate};
 use super::{
-    MIN_OFFSET_SAMPLES, MIN_OFFSET_SHARE, Offset, excess_chi2, gross_outliers, median_interval,
+    MIN_OFFSET_SAMPLES, MIN_OFFSET_SHARE, Offset, alignment_gain, excess_chi2, median_interval,
+    usable,
 };
 use crate::diagnose::prepare::{ModelMachine, Prepared, prepare};
 use crate::diagnose::recording::Recording;
@@ -53,22 +54,7 @@ pub fn with_rate(
     let span = rec.samples[n - 1].t - rec.samples[0].t;
     let d0 = offset.as_ref().map_or(0.0, |o| o.estimate.offset_s);
     let mut clock = Clock::offset(d0);
-    // The samples to fit on after an alignment: kept before, placed by
-    // the alignment within half the noise floor, not an outlier now.
-    let usable = |al: &Aligned, pa: &Prepared| {
-        let (per, sigma) = floor(pa);
-        let doubtful = al.doubtful(pa, 0.5 * sigma);
-        let mut keep: Vec<bool> = al
-            .kept
-            .iter()
-            .zip(&doubtful)
-            .map(|(&i, &d)| keep0[i] && !d)
-            .collect();
-        for (i, _) in gross_outliers(pa, per, &doubtful) {
-            keep[i] = false;
-        }
-        (keep, sigma)
-    };
+    let usable = |al: &Aligned, pa: &Prepared| usable(al, pa, keep0, floor);
     let al = align_clock(rec, clock);
     let pa = prepare(machine, &al.rec)?;
     let (keep, sigma) = usable(&al, &pa);
@@ -135,31 +121,15 @@ pub fn with_rate(
     }
     let pa = prepare(machine, &al.rec)?;
     let (keep, _) = usable(&al, &pa);
-    let rss = |r: &[f64; 3]| r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-    let (mut before, mut after, mut shift) = (0.0, 0.0, 0.0);
-    for (k, &i) in al.kept.iter().enumerate() {
-        if !keep[k] {
-            continue;
-        }
-        before += rss(&prep0.r[i]);
-        after += rss(&pa.r[k]);
-        let m = [
-            prep0.model_tip[i][0] - pa.model_tip[k][0],
-            prep0.model_tip[i][1] - pa.model_tip[k][1],
-            prep0.model_tip[i][2] - pa.model_tip[k][2],
-        ];
-        shift += rss(&m);
-    }
-    let Some(mut estimate) = estimate else {
+    let (Some(mut estimate), Some(rms_explained_mm)) =
+        (estimate, alignment_gain(prep0, &pa, &al.kept, &keep))
+    else {
         return Ok(offset);
     };
-    if before - after <= 0.0 {
-        return Ok(offset);
-    }
     estimate.offset_s = clock.offset_s;
     Ok(Some(Offset {
         estimate,
-        rms_explained_mm: (shift / (3 * al.kept.len()).max(1) as f64).sqrt(),
+        rms_explained_mm,
         dropped: n - al.kept.len(),
         doubtful: 0,
         rate: Some(Rate {
