@@ -489,12 +489,11 @@ pub fn diagnose(
         .map_or(String::new(), |u| format!(": it shows {}", u.condition));
     // The residual the machine effects are judged on: after the
     // measurement faults fitted with them (a registration).
-    let (chi_physics, rms_physics) =
-        if measurement.iter().any(|m| m.effect == "registration") && findings.is_empty() {
-            (chi_after, rms_after)
-        } else {
-            (chi_before, rms_before)
-        };
+    let (chi_physics, rms_physics) = if measurement.iter().any(|m| m.effect == "registration") {
+        (chi_after, rms_after)
+    } else {
+        (chi_before, rms_before)
+    };
     let verdict = if findings.is_empty() {
         if !above(chi_physics) {
             format!(

@@ -16,9 +16,8 @@
 //! needs the error motion, or tells a rotary axis's error motion again as
 //! a centre offset and a cyclic error of that axis, is not preferred: the
 //! motion's harmonics split off that way save parameters, not a cause.
-//! The margin keeps, say, a registration from
-//! being traded for a rotary centre offset plus a zero offset that fit
-//! exactly as well.)
+//! The margin keeps, say, a registration from being traded for a rotary
+//! centre offset plus a zero offset that fit exactly as well.)
 
 use rayon::prelude::*;
 
@@ -76,8 +75,9 @@ impl Order {
 /// [`Order`]s when the greedy model holds a term that is not simple; a
 /// model of another order without an error motion, and without a centre
 /// offset or cyclic error of a rotary axis whose error motion the greedy
-/// model holds, replaces the greedy one when its BIC is lower by more than [`DiagOptions::bic_margin`]
-/// (the first round of the report is always the greedy one's).
+/// model holds, replaces the greedy one when its BIC is lower by more
+/// than [`DiagOptions::bic_margin`] (the first round of the report is
+/// always the greedy one's).
 pub fn select(
     prep: &Prepared,
     families: &[Family],
@@ -146,6 +146,8 @@ fn forward(
         .iter()
         .map(|v| v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
         .sum();
+    // The residual sum of squares a selection leaves.
+    let left = |sel: &Selected| rss0 - sel.h.dot(&(&sel.ginv * &sel.h));
     let mut hold_prev = fit::holdout_rss(prep, &fit::design(prep, &[]));
     let hold_before = hold_prev;
     while terms.len() < opts.max_effects {
@@ -155,7 +157,7 @@ fn forward(
         // so far is above the noise, or for an axis whose vibration was a
         // candidate in the first round (a vibration near the Nyquist
         // frequency raises the noise floor estimate itself).
-        let rss_now = rss0 - sel.h.dot(&(&sel.ginv * &sel.h));
+        let rss_now = left(&sel);
         let chi_now = rss_now / (s2 * n_rows);
         let above_noise = chi_now > 1.05 && (chi_now - 1.0) * (1.5 * n_rows).sqrt() > 4.0;
         // The families are searched on every core, the candidates taken
@@ -255,10 +257,7 @@ fn forward(
     // Backward elimination: a term that the later ones made redundant
     // (taking it out raises χ² by less than it paid to enter) leaves, the
     // least needed first.
-    let rss_of = |terms: &[Term]| {
-        let sel = Selected::new(prep, fit::design(prep, terms));
-        rss0 - sel.h.dot(&(&sel.ginv * &sel.h))
-    };
+    let rss_of = |terms: &[Term]| left(&Selected::new(prep, fit::design(prep, terms)));
     let mut removed = false;
     while terms.len() > 1 {
         let rss_all = rss_of(&terms);
@@ -269,10 +268,9 @@ fn forward(
                 ((rss_of(&others) - rss_all) / s2 - pens[k], k)
             })
             .min_by(|a, b| a.0.total_cmp(&b.0));
-        let Some((gain, k)) = least.filter(|(gain, _)| *gain < 0.0) else {
+        let Some((_, k)) = least.filter(|(gain, _)| *gain < 0.0) else {
             break;
         };
-        debug_assert!(gain < 0.0);
         terms.remove(k);
         meta.remove(k);
         rounds.remove(k);

@@ -132,7 +132,8 @@ pub fn tidy(
     let prep0 = prepare(machine, rec)?;
     let resolution = Resolution::of(rec);
     let rounding_xyz = resolution.floor_xyz(&prep0);
-    let (per0, sigma0) = floor_of(&prep0, rounding_xyz, fixed_floor);
+    let floor = |p: &Prepared| floor_of(p, rounding_xyz, fixed_floor);
+    let (per0, sigma0) = floor(&prep0);
     let out0: Vec<usize> = gross_outliers(&prep0, per0, &[])
         .into_iter()
         .map(|(i, _)| i)
@@ -144,17 +145,7 @@ pub fn tidy(
     let first = clock_offset(&prep0, &keep0, sigma0, min_delta_chi2, None, LOOSE)
         .filter(|e| e.offset_s.abs() >= MIN_OFFSET_SAMPLES * median_interval(rec))
         .filter(|e| e.delta_chi2 >= MIN_OFFSET_SHARE * excess_chi2(&prep0, &keep0, sigma0));
-    let refine = |first| {
-        refine_offset(
-            machine,
-            rec,
-            &prep0,
-            &keep0,
-            rounding_xyz,
-            fixed_floor,
-            first,
-        )
-    };
+    let refine = |first| refine_offset(machine, rec, &prep0, &keep0, &floor, first);
     let offset = match first {
         None => None,
         Some(first) => refine(first)?,
@@ -175,15 +166,7 @@ pub fn tidy(
         found => found,
     };
     // A clock that runs fast or slow: a delay that grows with time.
-    let offset = with_rate(
-        machine,
-        rec,
-        &prep0,
-        &keep0,
-        &|p: &Prepared| floor_of(p, rounding_xyz, fixed_floor),
-        offset,
-        min_delta_chi2,
-    )?;
+    let offset = with_rate(machine, rec, &prep0, &keep0, &floor, offset, min_delta_chi2)?;
     let (rec1, kept1, blur) = match &offset {
         Some(o) => {
             let al = align_clock(rec, o.clock());
@@ -193,7 +176,7 @@ pub fn tidy(
     };
     let prep1 = prepare(machine, &rec1)?;
     misfit(&prep1)?;
-    let (per1, sigma1) = floor_of(&prep1, rounding_xyz, fixed_floor);
+    let (per1, sigma1) = floor(&prep1);
     // Samples the alignment cannot place are left out first, so that they
     // are never taken for outliers.
     let doubtful = match &blur {
@@ -297,12 +280,10 @@ fn refine_offset(
     rec: &Recording,
     prep0: &Prepared,
     keep0: &[bool],
-    rounding: ([f64; 3], [f64; 3]),
-    fixed_floor: Option<f64>,
+    floor: &dyn Fn(&Prepared) -> ([f64; 3], f64),
     first: OffsetEstimate,
 ) -> Result<Option<Offset>> {
-    let floor = |p: &Prepared| floor_of(p, rounding, fixed_floor);
-    let usable = |al: &Aligned, pa: &Prepared| usable(al, pa, keep0, &floor);
+    let usable = |al: &Aligned, pa: &Prepared| usable(al, pa, keep0, floor);
     let mut shared = first.shared.clone();
     let mut d = first.offset_s;
     let mut last = first;

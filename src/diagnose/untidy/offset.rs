@@ -20,11 +20,19 @@ struct AxisLags {
     h: DVector<f64>,
 }
 
-fn axis_lags(prep: &Prepared, keep: &[bool]) -> AxisLags {
+/// The normal equations of the timing columns over the samples `keep`
+/// allows: each axis's lag, `−Jⱼ · q̇ⱼ`, and with `rate_about` = t̄ also
+/// each axis's rate, `−Jⱼ · q̇ⱼ · (t − t̄)` (lags first, then rates).
+fn timing_normal(
+    prep: &Prepared,
+    keep: &[bool],
+    rate_about: Option<f64>,
+) -> (DMatrix<f64>, DVector<f64>) {
     let dof = prep.dof;
-    let mut g = DMatrix::zeros(dof, dof);
-    let mut h = DVector::zeros(dof);
-    let mut col = vec![[0.0; 3]; dof];
+    let k = if rate_about.is_some() { 2 * dof } else { dof };
+    let mut g = DMatrix::zeros(k, k);
+    let mut h = DVector::zeros(k);
+    let mut col = vec![[0.0; 3]; k];
     for i in 0..prep.n {
         if !keep[i] {
             continue;
@@ -33,14 +41,43 @@ fn axis_lags(prep: &Prepared, keep: &[bool]) -> AxisLags {
             let jj = prep.jj(i, j);
             let v = prep.vj(i, j);
             col[j] = [-jj[0] * v, -jj[1] * v, -jj[2] * v];
+            if let Some(t_ref) = rate_about {
+                let dt = prep.t[i] - t_ref;
+                col[dof + j] = [col[j][0] * dt, col[j][1] * dt, col[j][2] * dt];
+            }
         }
-        for a in 0..dof {
+        for a in 0..k {
             h[a] += (0..3).map(|c| col[a][c] * prep.r[i][c]).sum::<f64>();
-            for b in 0..dof {
+            for b in 0..k {
                 g[(a, b)] += (0..3).map(|c| col[a][c] * col[b][c]).sum::<f64>();
             }
         }
     }
+    (g, h)
+}
+
+/// The normal equations of `g`, `h` with the columns of each group summed
+/// into one (a common lag or rate for the axes of a group).
+fn grouped(
+    g: &DMatrix<f64>,
+    h: &DVector<f64>,
+    groups: &[Vec<usize>],
+) -> (DMatrix<f64>, DVector<f64>) {
+    let m = groups.len();
+    let gr = DMatrix::from_fn(m, m, |a, b| {
+        groups[a]
+            .iter()
+            .flat_map(|&x| groups[b].iter().map(move |&y| (x, y)))
+            .map(|(x, y)| g[(x, y)])
+            .sum()
+    });
+    let hr = DVector::from_fn(m, |a, _| groups[a].iter().map(|&x| h[x]).sum());
+    (gr, hr)
+}
+
+fn axis_lags(prep: &Prepared, keep: &[bool]) -> AxisLags {
+    let dof = prep.dof;
+    let (g, h) = timing_normal(prep, keep, None);
     let inv = pinv_sym(&g);
     let lag = (&inv * &h).iter().copied().collect();
     let sd_unit = (0..dof).map(|j| inv[(j, j)].max(0.0).sqrt()).collect();
@@ -184,29 +221,9 @@ pub fn clock_offset(
     };
     // Reduced fit: one common lag for the set, an own lag for every other
     // axis.
-    let others: Vec<usize> = (0..dof).filter(|j| !set.contains(j)).collect();
-    let k = 1 + others.len();
-    let idx = |p: usize| -> Vec<usize> {
-        if p == 0 {
-            set.clone()
-        } else {
-            vec![others[p - 1]]
-        }
-    };
-    let mut g = DMatrix::zeros(k, k);
-    let mut h = DVector::zeros(k);
-    for a in 0..k {
-        let ia = idx(a);
-        h[a] = ia.iter().map(|&j| al.h[j]).sum();
-        for b in 0..k {
-            let ib = idx(b);
-            g[(a, b)] = ia
-                .iter()
-                .flat_map(|&x| ib.iter().map(move |&y| (x, y)))
-                .map(|(x, y)| al.g[(x, y)])
-                .sum();
-        }
-    }
+    let mut groups = vec![set.clone()];
+    groups.extend((0..dof).filter(|j| !set.contains(j)).map(|j| vec![j]));
+    let (g, h) = grouped(&al.g, &al.h, &groups);
     let inv = pinv_sym(&g);
     let beta = &inv * &h;
     let d = beta[0];
@@ -280,34 +297,7 @@ pub fn clock_rate(
         return None;
     }
     let t_ref = tw / w;
-    // Columns: lag of each axis, then rate of each axis.
-    let k = 2 * dof;
-    let mut g = DMatrix::zeros(k, k);
-    let mut h = DVector::zeros(k);
-    let mut col = vec![[0.0; 3]; k];
-    for i in 0..prep.n {
-        if !keep[i] {
-            continue;
-        }
-        let dt = prep.t[i] - t_ref;
-        for j in 0..dof {
-            let jj = prep.jj(i, j);
-            let v = prep.vj(i, j);
-            col[j] = [-jj[0] * v, -jj[1] * v, -jj[2] * v];
-            col[dof + j] = [col[j][0] * dt, col[j][1] * dt, col[j][2] * dt];
-        }
-        for a in 0..k {
-            h[a] += (0..3).map(|c| col[a][c] * prep.r[i][c]).sum::<f64>();
-            for b in 0..=a {
-                g[(a, b)] += (0..3).map(|c| col[a][c] * col[b][c]).sum::<f64>();
-            }
-        }
-    }
-    for a in 0..k {
-        for b in 0..a {
-            g[(b, a)] = g[(a, b)];
-        }
-    }
+    let (g, h) = timing_normal(prep, keep, Some(t_ref));
     let set: Vec<usize> = match shared {
         Some(s) => s.to_vec(),
         None => {
@@ -330,15 +320,7 @@ pub fn clock_rate(
     let mut groups: Vec<Vec<usize>> = (0..dof).map(|j| vec![j]).collect();
     groups.push(set.iter().map(|&j| dof + j).collect());
     groups.extend((0..dof).filter(|j| !set.contains(j)).map(|j| vec![dof + j]));
-    let m = groups.len();
-    let gr = DMatrix::from_fn(m, m, |a, b| {
-        groups[a]
-            .iter()
-            .flat_map(|&x| groups[b].iter().map(move |&y| (x, y)))
-            .map(|(x, y)| g[(x, y)])
-            .sum()
-    });
-    let hr = DVector::from_fn(m, |a, _| groups[a].iter().map(|&x| h[x]).sum());
+    let (gr, hr) = grouped(&g, &h, &groups);
     let inv = pinv_sym(&gr);
     let beta = &inv * &hr;
     let rate = beta[dof];

@@ -6,7 +6,7 @@
 //! and removed by moving the commands to the machine's clock.
 
 use super::align::{Aligned, Clock, align_clock};
-use super::offset::{RateEstimate, STRICT, Tolerance, clock_offset, clock_rate};
+use super::offset::{STRICT, Tolerance, clock_offset, clock_rate};
 use super::{
     MIN_OFFSET_SAMPLES, MIN_OFFSET_SHARE, Offset, alignment_gain, excess_chi2, median_interval,
     usable,
@@ -34,10 +34,11 @@ pub struct Rate {
 /// Looks for a clock rate in `rec` once the clock offset `offset` (if
 /// any) is removed, and refines offset and rate together. Returns the
 /// offset with its rate, or the offset as it was when the recording shows
-/// no rate (`floor` gives the noise floor of a prepared residual, per
-/// coordinate and pooled, as [`super::floor_of`]; `min_delta_chi2` is what the rate must lower χ² by; it must
-/// also account for a quarter of the excess χ² and move the commands by at
-/// least 1 % of a sampling interval over the recording).
+/// no rate. `floor` gives the noise floor of a prepared residual, per
+/// coordinate and pooled, as [`super::floor_of`]; `min_delta_chi2` is
+/// what the rate must lower χ² by. The rate must also account for a
+/// quarter of the excess χ² and move the commands by at least 1 % of a
+/// sampling interval over the recording.
 pub fn with_rate(
     machine: &ModelMachine,
     rec: &Recording,
@@ -53,9 +54,8 @@ pub fn with_rate(
     }
     let span = rec.samples[n - 1].t - rec.samples[0].t;
     let d0 = offset.as_ref().map_or(0.0, |o| o.estimate.offset_s);
-    let mut clock = Clock::offset(d0);
     let usable = |al: &Aligned, pa: &Prepared| usable(al, pa, keep0, floor);
-    let al = align_clock(rec, clock);
+    let al = align_clock(rec, Clock::offset(d0));
     let pa = prepare(machine, &al.rec)?;
     let (keep, sigma) = usable(&al, &pa);
     let Some(first) = clock_rate(&pa, &keep, sigma, min_delta_chi2, None, LOOSE_RATE) else {
@@ -73,12 +73,12 @@ pub fn with_rate(
     let mut lag_axes = offset
         .as_ref()
         .map_or(rate_axes.clone(), |o| o.estimate.shared.clone());
-    clock = Clock {
+    let mut clock = Clock {
         offset_s: d0,
         rate: 0.0,
         t_ref: first.t_ref,
     };
-    let mut last: RateEstimate = first.clone();
+    let mut rate_sd = first.sd;
     let mut step = first;
     let mut estimate = offset.as_ref().map(|o| o.estimate.clone());
     for round in 0..8 {
@@ -107,7 +107,7 @@ pub fn with_rate(
         let Some(next) = clock_rate(&pa, &keep, sigma, 0.0, Some(&rate_axes), STRICT) else {
             break;
         };
-        last = next.clone();
+        rate_sd = next.sd;
         let small = next.rate.abs() <= 1e-3 * clock.rate.abs() + 1e-9;
         if round >= 1 && small && moved <= 1e-4 * clock.offset_s.abs() + 1e-7 {
             break;
@@ -132,9 +132,6 @@ pub fn with_rate(
         rms_explained_mm,
         dropped: n - al.kept.len(),
         doubtful: 0,
-        rate: Some(Rate {
-            clock,
-            rate_sd: last.sd,
-        }),
+        rate: Some(Rate { clock, rate_sd }),
     }))
 }
