@@ -36,6 +36,7 @@ mod diagnose_effects;
 mod diagnose_error_motion;
 mod diagnose_false_alarm;
 mod diagnose_feedback;
+mod diagnose_feedback_rate;
 mod diagnose_loop;
 mod diagnose_registration;
 mod diagnose_report;

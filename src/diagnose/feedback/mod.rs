@@ -14,6 +14,7 @@
 // Numerical code: several parallel arrays are indexed by one counter.
 #![allow(clippy::needless_range_loop)]
 
+mod clock;
 pub mod recording;
 pub mod report;
 pub mod simulate;
@@ -29,8 +30,7 @@ pub use simulate::{FeedbackRow, FeedbackSimOptions, FeedbackSimulator, simulate_
 use super::DiagOptions;
 use super::fit::pinv_sym;
 use super::report::{FlaggedSample, MeasurementFinding, Where};
-use super::untidy::offset::shared_axes;
-use super::untidy::{LOOSE, OUTLIER_SIGMAS, departure, monotone_hermite, quantum};
+use super::untidy::{OUTLIER_SIGMAS, departure, monotone_hermite, quantum};
 use crate::error::{Error, Location, Result};
 use crate::geometric::effects::{DIRECTION_DEAD_BAND, DirectionTracker, Effect, EffectSpec};
 
@@ -344,53 +344,27 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
             bad[i] = true;
         }
     }
-    // Clock offset: the lag common to the axes.
-    let lag = |d: &AxisData, s: f64| {
-        let (mut ev, mut vv) = (0.0, 0.0);
-        for i in 0..n {
-            if !bad[i] {
-                ev += d.e[i] * d.v[i];
-                vv += d.v[i] * d.v[i];
-            }
-        }
-        if vv > 0.0 {
-            Some((-ev / vv, s / vv.sqrt()))
-        } else {
-            None
-        }
-    };
-    let lags: Vec<Option<(f64, f64)>> = (0..n_ax).map(|k| lag(&data[k], sigma[k])).collect();
-    let informative: Vec<usize> = (0..n_ax)
-        .filter(|&k| lags[k].is_some_and(|(_, sd)| sd < 1e-3))
+    // The trace's clock: a delay common to the axes, maybe growing.
+    let use_sample: Vec<bool> = bad.iter().map(|b| !b).collect();
+    let timing: Vec<clock::AxisTiming<'_>> = (0..n_ax)
+        .map(|k| clock::AxisTiming {
+            e: &data[k].e,
+            v: &data[k].v,
+            sigma: sigma[k],
+        })
         .collect();
-    let mut offset: Option<(f64, f64)> = None;
-    if informative.len() >= 2 {
-        let flat: Vec<(f64, f64)> = lags.iter().map(|l| l.unwrap_or_default()).collect();
-        if let Some(shared) = shared_axes(&flat, &informative, LOOSE) {
-            let (mut num, mut den) = (0.0, 0.0);
-            for &k in &shared {
-                let (l, sd) = lags[k].unwrap_or_default();
-                num += l / (sd * sd);
-                den += 1.0 / (sd * sd);
-            }
-            let d = num / den;
-            let sd = den.sqrt().recip();
-            let dt = (rec.t[n - 1] - rec.t[0]) / (n - 1) as f64;
-            if (d / sd).powi(2) > ln_n + opts.bic_margin && d.abs() >= 0.01 * dt {
-                offset = Some((d, sd));
-            }
-        }
-    }
+    let offset = clock::trace_clock(&timing, &rec.t, &use_sample, opts.bic_margin);
     let mut dropped_ends = 0usize;
     let mut doubtful = 0usize;
     // Index in the recording of each sample of `data`.
     let mut index: Vec<usize> = (0..n).collect();
-    if let Some((d, _)) = offset {
+    if let Some(tc) = offset {
+        let shift = |t: f64| tc.clock.shift(t);
         // Move every command to the axes' clock and start again.
         let mut cmd_al: Vec<Vec<f64>> = vec![Vec::with_capacity(n); n_ax];
         let mut keep_idx = Vec::with_capacity(n);
         for i in 0..n {
-            let tt = rec.t[i] - d;
+            let tt = rec.t[i] - shift(rec.t[i]);
             if tt < rec.t[0] || tt > rec.t[n - 1] {
                 continue;
             }
@@ -416,6 +390,7 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
                 }
             };
             for (p, &i) in keep_idx.iter().enumerate() {
+                let d = shift(rec.t[i]);
                 let tt = rec.t[i] - d;
                 let j = rec.t.partition_point(|x| *x <= tt).clamp(1, n - 1) - 1;
                 let dt = rec.t[j + 1] - rec.t[j];
@@ -661,18 +636,34 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
     let mut measurement = Vec::new();
     let span = [rec.t[0], rec.t[n - 1]];
     let blocks = [rec.block[0], rec.block[n - 1]];
-    if let Some((d, sd)) = offset {
+    if let Some(tc) = offset {
+        let (start, start_sd) = tc.shift_at(rec.t[0]);
+        let mut parameters: BTreeMap<String, f64> = [("offset_s".to_string(), start)].into();
+        let mut uncertainty: BTreeMap<String, f64> = [("offset_s".to_string(), start_sd)].into();
+        let mut everywhere = format!(
+            "everywhere: every traced axis lags its command by the same {:.3} ms, which is the trace's clock, not the drives",
+            start * 1e3
+        );
+        if let Some(rate_sd) = tc.rate_sd {
+            parameters.insert("drift_ppm".to_string(), tc.clock.rate * 1e6);
+            uncertainty.insert("drift_ppm".to_string(), rate_sd * 1e6);
+            everywhere = format!(
+                "everywhere: the feedback's clock runs {:.2} ppm against the commands', so the delay every traced axis shows grows from {:.3} ms at the start to {:.3} ms at the end (`offset_s` is the delay at the start); the trace's clocks, not the drives",
+                tc.clock.rate * 1e6,
+                start * 1e3,
+                tc.clock.shift(rec.t[n - 1]) * 1e3
+            );
+        }
         measurement.push(MeasurementFinding {
             effect: "time_offset".into(),
             axis: None,
-            parameters: [("offset_s".to_string(), d)].into(),
-            uncertainty: [("offset_s".to_string(), sd)].into(),
+            parameters,
+            uncertainty,
             where_: Where {
                 blocks,
                 t_s: span,
                 condition: format!(
-                    "everywhere: every traced axis lags its command by the same {:.3} ms, which is the trace's clock, not the drives; removed before the axes were fitted ({dropped_ends} sample(s) at the ends left out; {doubtful} where the command changes its acceleration between samples cannot be aligned within half the noise floor and are left out of the fits)",
-                    d * 1e3
+                    "{everywhere}; removed before the axes were fitted ({dropped_ends} sample(s) at the ends left out; {doubtful} where the command changes its acceleration between samples cannot be aligned within half the noise floor and are left out of the fits)"
                 ),
             },
             rms_explained_mm: 0.0,
