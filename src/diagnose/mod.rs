@@ -504,7 +504,7 @@ pub fn diagnose(
         } else {
             format!(
                 "unexplained mismatch{faults}: the residual RMS {:.3} µm exceeds the noise floor {:.3} µm, but no effect of the catalogue explains it on held-out data{where_text}",
-                rms_before * 1e3,
+                rms_physics * 1e3,
                 sigma * 1e3
             )
         }
