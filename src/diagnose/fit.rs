@@ -20,6 +20,7 @@ use super::motion_components::{
 };
 use super::prepare::Prepared;
 use crate::geometric::effects::{Effect, EffectKind, EffectSpec};
+use crate::geometric::error_motion::MotionSpan;
 use crate::machine::chain::JointKind;
 
 mod effect;
@@ -64,6 +65,20 @@ pub enum Family {
     /// Not machine physics: a constant offset of the measured tip in the
     /// workpiece frame (the measuring system's registration).
     Registration,
+    /// Not machine physics: a slow wander of the measured tip with time
+    /// ([`WANDER_BASIS`] cubic B-splines over the recording, per
+    /// workpiece coordinate).
+    Wander,
+}
+
+/// Basis functions in time of a [`Family::Wander`], per coordinate: cubic
+/// B-splines with uniform knots, five intervals over the recording.
+pub const WANDER_BASIS: usize = 8;
+
+/// The B-spline basis in time of a wander over the recording of `prep`.
+pub fn wander_span(prep: &Prepared) -> Option<MotionSpan> {
+    let (lo, hi) = (prep.t.first()?, prep.t.last()?);
+    MotionSpan::new(*lo, *hi, WANDER_BASIS)
 }
 
 impl Family {
@@ -82,6 +97,7 @@ impl Family {
             Family::Vibration(_) => EffectKind::Vibration,
             Family::ErrorMotion(..) | Family::LinearMotion(..) => EffectKind::ErrorMotion,
             Family::Registration => EffectKind::Registration,
+            Family::Wander => EffectKind::Wander,
         }
     }
 
@@ -99,7 +115,7 @@ impl Family {
             | Family::ErrorMotion(j, _)
             | Family::LinearMotion(j, _) => Some(j),
             Family::Squareness(_, b) => Some(b),
-            Family::PivotLength | Family::Registration => None,
+            Family::PivotLength | Family::Registration | Family::Wander => None,
         }
     }
 
@@ -107,7 +123,7 @@ impl Family {
     pub fn axis_label(self, names: &[String]) -> Option<String> {
         match self {
             Family::Squareness(a, b) => Some(format!("{}{}", names[a], names[b])),
-            Family::PivotLength | Family::Registration => None,
+            Family::PivotLength | Family::Registration | Family::Wander => None,
             f => f.joint().map(|j| names[j].clone()),
         }
     }
@@ -119,29 +135,35 @@ impl Family {
             Family::ErrorMotion(_, m) => m.count_ones() as usize * 2 * MOTION_HARMONICS as usize,
             Family::LinearMotion(_, m) => m.count_ones() as usize * MOTION_BASIS,
             Family::Registration => 3,
+            Family::Wander => 3 * WANDER_BASIS,
             _ => 1,
         }
     }
 
     /// Whether `self` and `other` model the same thing, so that one model
-    /// holds at most one of them: the same family, or two error motions of
-    /// one joint (with different components).
+    /// holds at most one of them: the same family, two error motions of
+    /// one joint (with different components), or a registration and a
+    /// wander (whose curve holds every constant).
     pub fn same_slot(self, other: Family) -> bool {
         match (self, other) {
             (Family::ErrorMotion(a, _), Family::ErrorMotion(b, _))
             | (Family::LinearMotion(a, _), Family::LinearMotion(b, _)) => a == b,
+            (Family::Registration | Family::Wander, Family::Registration | Family::Wander) => true,
             _ => self == other,
         }
     }
 
     /// Whether it is a simple family: a few parameters for one physical
     /// cause. Not simple: an error motion's series or spline, and the
-    /// registration of the measurement, which can each sum up several
-    /// simple effects at once (see [`super::stepwise`]).
+    /// registration and the wander of the measurement, which can each sum
+    /// up several simple effects at once (see [`super::stepwise`]).
     pub fn is_simple(self) -> bool {
         !matches!(
             self,
-            Family::ErrorMotion(..) | Family::LinearMotion(..) | Family::Registration
+            Family::ErrorMotion(..)
+                | Family::LinearMotion(..)
+                | Family::Registration
+                | Family::Wander
         )
     }
 
@@ -184,6 +206,7 @@ impl Family {
         }
         v.push(Family::PivotLength);
         v.push(Family::Registration);
+        v.push(Family::Wander);
         v
     }
 }
@@ -278,6 +301,7 @@ pub fn base_columns(prep: &Prepared, fam: Family, nl: f64) -> Cols {
     let t_ref = prep.t.first().copied().unwrap_or(0.0);
     let span = match fam {
         Family::LinearMotion(j, _) => motion_span(prep, j),
+        Family::Wander => wander_span(prep),
         _ => None,
     };
     for i in 0..prep.n {
@@ -317,6 +341,15 @@ pub fn base_columns(prep: &Prepared, fam: Family, nl: f64) -> Cols {
                 put(0, [1.0, 0.0, 0.0]);
                 put(1, [0.0, 1.0, 0.0]);
                 put(2, [0.0, 0.0, 1.0]);
+            }
+            Family::Wander => {
+                if let Some(sp) = &span {
+                    for (b, w) in sp.values(prep.t[i]).into_iter().enumerate() {
+                        put(b, [w, 0.0, 0.0]);
+                        put(WANDER_BASIS + b, [0.0, w, 0.0]);
+                        put(2 * WANDER_BASIS + b, [0.0, 0.0, w]);
+                    }
+                }
             }
             Family::ErrorMotion(j, mask) | Family::LinearMotion(j, mask) => {
                 let Some(Some(m)) = prep.motion.get(j) else {
@@ -639,7 +672,27 @@ pub const FOLDS: usize = 5;
 /// on the others.
 pub fn holdout_rss(prep: &Prepared, cols: &Cols) -> f64 {
     let n = prep.n;
-    let fold_of = |i: usize| (i * FOLDS / n.max(1)).min(FOLDS - 1);
+    holdout_rss_by(prep, cols, &|i| (i * FOLDS / n.max(1)).min(FOLDS - 1))
+}
+
+/// Chunks of time of [`holdout_rss_chunked`].
+pub const CHUNKS: usize = 50;
+
+/// [`holdout_rss`] with each fold [`CHUNKS`] / [`FOLDS`] short stretches of
+/// time spread over the recording (chunk k in fold k mod 5): what a model
+/// with a smooth function of time (a wander of the measurement) is judged
+/// on. A contiguous fold takes away a fifth of the recording, and with it
+/// whatever fixes that function there: its prediction would be a guess,
+/// whatever the function.
+pub fn holdout_rss_chunked(prep: &Prepared, cols: &Cols) -> f64 {
+    let n = prep.n;
+    holdout_rss_by(prep, cols, &|i| {
+        (i * CHUNKS / n.max(1)).min(CHUNKS - 1) % FOLDS
+    })
+}
+
+fn holdout_rss_by(prep: &Prepared, cols: &Cols, fold_of: &dyn Fn(usize) -> usize) -> f64 {
+    let n = prep.n;
     let mut rss = 0.0;
     for f in 0..FOLDS {
         let beta = if cols.k > 0 {

@@ -346,7 +346,19 @@ pub fn diagnose(
             ),
         ));
     }
-    let hold_after = fit::holdout_rss(&prep, &all);
+    // With a wander of the measurement in the model, a function of time,
+    // the held-out residual is read on short stretches of time (a
+    // contiguous fifth of the recording takes away what fixes the wander
+    // there).
+    let wander = terms.iter().any(|t| t.family == Family::Wander);
+    let (hold_before, hold_after) = if wander {
+        (
+            fit::holdout_rss_chunked(&prep, &fit::design(&prep, &[])),
+            fit::holdout_rss_chunked(&prep, &all),
+        )
+    } else {
+        (hold_before, fit::holdout_rss(&prep, &all))
+    };
     let to_rms = |rss: f64| (rss / n_rows).sqrt();
     let t_span = [prep.t[0], prep.t[prep.n - 1]];
     let blocks = [block_of(&prep, 0), block_of(&prep, prep.n - 1)];
@@ -425,7 +437,10 @@ pub fn diagnose(
     let top_term = order.first().map(|&k| fitted[k].term);
     let registration: Vec<report::MeasurementFinding> = registration
         .iter()
-        .map(|&k| untidy::registration_finding(&findings[k]))
+        .map(|&k| match fitted[k].term.family {
+            fit::Family::Wander => untidy::wander_finding(&findings[k]),
+            _ => untidy::registration_finding(&findings[k]),
+        })
         .collect();
     findings = order.iter().map(|&k| findings[k].clone()).collect();
 
@@ -460,6 +475,15 @@ pub fn diagnose(
                         p("dz_mm")
                     )
                 }
+                "wander" => {
+                    let p = |k: &str| m.parameters.get(k).copied().unwrap_or(0.0) * 1e3;
+                    format!(
+                        "a wander of the measured tip of ({:.3}, {:.3}, {:.3}) µm peak to peak",
+                        p("range_x_mm"),
+                        p("range_y_mm"),
+                        p("range_z_mm")
+                    )
+                }
                 _ => format!(
                     "{} gross outlier(s)",
                     m.parameters.get("count").copied().unwrap_or(0.0)
@@ -489,7 +513,10 @@ pub fn diagnose(
         .map_or(String::new(), |u| format!(": it shows {}", u.condition));
     // The residual the machine effects are judged on: after the
     // measurement faults fitted with them (a registration).
-    let (chi_physics, rms_physics) = if measurement.iter().any(|m| m.effect == "registration") {
+    let (chi_physics, rms_physics) = if measurement
+        .iter()
+        .any(|m| matches!(m.effect.as_str(), "registration" | "wander"))
+    {
         (chi_after, rms_after)
     } else {
         (chi_before, rms_before)
@@ -546,6 +573,11 @@ pub fn diagnose(
         rms_after_mm: rms_after,
         holdout_rms_before_mm: to_rms(hold_before),
         holdout_rms_after_mm: to_rms(hold_after),
+        holdout_folds: if wander {
+            "5 folds of 10 short stretches of time, as a wander is in the model"
+        } else {
+            "5 contiguous time folds"
+        },
         findings,
         verdict,
         noise_floor_xyz_mm: per,

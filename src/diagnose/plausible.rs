@@ -218,6 +218,6 @@ pub fn implausible(effect: &Effect, prep: &Prepared) -> Option<String> {
             .then(|| format!("a pivot length {delta_mm:.3} mm off is another tool, not an error")),
         // The misfit check bounds it (a median miss of 5 mm is another
         // machine or another frame).
-        Effect::Registration { .. } => None,
+        Effect::Registration { .. } | Effect::Wander { .. } => None,
     }
 }

@@ -295,8 +295,13 @@ pub struct Report {
     /// fitted, so it equals `rms_before_mm`), mm.
     pub holdout_rms_before_mm: f64,
     /// Held-out RMS with the effects found, from 5 contiguous time folds
-    /// each predicted from a fit on the other four, mm.
+    /// each predicted from a fit on the other four (with a wander of the
+    /// measurement in the model: 5 folds of 10 short stretches of time
+    /// each, as [`Report::holdout_folds`] says), mm.
     pub holdout_rms_after_mm: f64,
+    /// The folds of the held-out RMS, in words.
+    #[serde(skip)]
+    pub holdout_folds: &'static str,
     /// Effects found, most important first.
     pub findings: Vec<Finding>,
     /// Verdict in words.
@@ -461,7 +466,8 @@ impl Report {
             self.chi2_per_dof_after
         ));
         s.push_str(&format!(
-            "  held-out RMS (5 contiguous time folds): before {}, after {}\n",
+            "  held-out RMS ({}): before {}, after {}\n",
+            self.holdout_folds,
             um(self.holdout_rms_before_mm),
             um(self.holdout_rms_after_mm)
         ));
@@ -769,6 +775,7 @@ pub fn condition_text(effect: &Effect, rotary: bool) -> String {
         }
         Effect::PivotLength { .. } => "along the tool axis, showing as the tool tilts".to_string(),
         Effect::Registration { .. } => "everywhere: a constant offset of the measured tip in the workpiece frame, whatever the axes do".to_string(),
+        Effect::Wander { span, .. } => format!("with time: a slow wander of the measured tip in the workpiece frame (a curve with knots every {:.0} s), whatever the axes do", crate::geometric::effects::wander_knot_spacing(span)),
         Effect::ErrorMotion {
             axis, terms, span, ..
         } => {

@@ -127,8 +127,23 @@ impl<'a> TrueMachine<'a> {
     }
 
     /// Tool tip for commanded `q` (file units) in motion state `state`, with
-    /// the effects flagged in `active`.
+    /// the effects flagged in `active`; a wander of the measurement among
+    /// them moves the tip as measured.
     pub(crate) fn tip(&mut self, state: &MotionState, active: u64) -> Vector3<f64> {
+        let mut tip = self.machine_tip(state, active);
+        for (k, e) in self.effects.iter().enumerate() {
+            if active & (1 << k) != 0
+                && let crate::geometric::effects::Effect::Wander { span, coef_mm } = &e.spec.effect
+            {
+                let w = crate::geometric::effects::wander_at(span, coef_mm, state.t);
+                tip += Vector3::from(w);
+            }
+        }
+        tip
+    }
+
+    /// The tool tip of the machine (every effect but a wander).
+    fn machine_tip(&mut self, state: &MotionState, active: u64) -> Vector3<f64> {
         let n = self.chain.dof();
         let mut q = state.q.to_vec();
         let mut chain_mask = 0u64;

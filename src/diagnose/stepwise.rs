@@ -218,7 +218,16 @@ fn forward(
                 continue;
             }
             tried += 1;
-            let hold = fit::holdout_rss(prep, &cols);
+            // A wander of the measurement is a function of time: judged on
+            // short stretches of time.
+            let (hold_prev, hold) = if c.term.family == Family::Wander {
+                (
+                    fit::holdout_rss_chunked(prep, &fit::design(prep, &terms)),
+                    fit::holdout_rss_chunked(prep, &cols),
+                )
+            } else {
+                (hold_prev, fit::holdout_rss(prep, &cols))
+            };
             let gain = hold_prev - hold;
             // What the held-out residual has above the noise: an effect
             // that explains a sliver of it describes something else.

@@ -143,6 +143,7 @@ fn example(kind: EffectKind) -> &'static str {
         EffectKind::Vibration => "vibration:X=0.002,f=7,phase=0",
         EffectKind::ErrorMotion => "error_motion:C,EXC_cos1=0.0012,EYC_sin1=0.0012",
         EffectKind::Registration => "registration (not an effect to inject)",
+        EffectKind::Wander => "wander (not an effect to inject)",
     }
 }
 

@@ -25,11 +25,13 @@ use std::fmt;
 
 use nalgebra::{Matrix4, Vector3};
 
+pub use super::direction::{DIRECTION_DEAD_BAND, DirectionTracker};
 use super::error_motion::motion_from_parameters;
 pub use super::error_motion::{
     MotionSpan, MotionTerm, TurnArc, component_name, error_motion_at, error_motion_components,
     error_motion_peaks,
 };
+pub use super::wander::{wander_at, wander_knot_spacing, wander_range};
 use crate::error::{Error, Location, Result};
 use crate::machine::chain::{Chain, ErrorMotion, JointKind, translation};
 
@@ -65,6 +67,12 @@ pub enum EffectKind {
     /// in [`EffectKind::ALL`], so it is never injected or written into a
     /// model.
     Registration,
+    /// Not machine physics: the measured tip wandering slowly with time,
+    /// whatever the axes do (a tracker's air or mount warming, a probe's
+    /// drift). Like [`EffectKind::Registration`] it is weighed against the
+    /// machine effects, reported as a measurement fault and never injected
+    /// or written into a model.
+    Wander,
 }
 
 impl EffectKind {
@@ -98,13 +106,14 @@ impl EffectKind {
             EffectKind::Vibration => "vibration",
             EffectKind::ErrorMotion => "error_motion",
             EffectKind::Registration => "registration",
+            EffectKind::Wander => "wander",
         }
     }
 
     /// Whether it is a fault of the measurement rather than machine
     /// physics (`formats.md` §2c).
     pub fn is_measurement(self) -> bool {
-        self == EffectKind::Registration
+        matches!(self, EffectKind::Registration | EffectKind::Wander)
     }
 
     /// The kind called `name` (case-insensitive; `-` may stand for `_`).
@@ -244,6 +253,15 @@ pub enum Effect {
         /// The offset `[dx, dy, dz]` of the measured tip, workpiece frame, mm.
         offset_mm: [f64; 3],
     },
+    /// Not machine physics: the measured tip wanders with time (a smooth
+    /// function of time in each workpiece coordinate).
+    Wander {
+        /// The cubic B-spline basis in time (its `lo` and `hi` in s).
+        span: MotionSpan,
+        /// The coefficient of each basis function, `[x, y, z]` in the
+        /// workpiece frame, mm.
+        coef_mm: Vec<[f64; 3]>,
+    },
 }
 
 /// An effect with an optional start: it acts from the first sample of block
@@ -290,6 +308,7 @@ impl Effect {
             Effect::Vibration { .. } => EffectKind::Vibration,
             Effect::ErrorMotion { .. } => EffectKind::ErrorMotion,
             Effect::Registration { .. } => EffectKind::Registration,
+            Effect::Wander { .. } => EffectKind::Wander,
         }
     }
 
@@ -306,7 +325,9 @@ impl Effect {
             | Effect::Vibration { axis, .. }
             | Effect::ErrorMotion { axis, .. } => Some(axis.clone()),
             Effect::Squareness { axes, .. } => Some(format!("{}{}", axes[0], axes[1])),
-            Effect::PivotLength { .. } | Effect::Registration { .. } => None,
+            Effect::PivotLength { .. } | Effect::Registration { .. } | Effect::Wander { .. } => {
+                None
+            }
         }
     }
 
@@ -345,6 +366,17 @@ impl Effect {
                 ]
             }
             Effect::PivotLength { delta_mm } => vec![p("delta_mm", *delta_mm)],
+            Effect::Wander { span, coef_mm } => {
+                let range = wander_range(span, coef_mm);
+                vec![
+                    p("range_x_mm", range[0]),
+                    p("range_y_mm", range[1]),
+                    p("range_z_mm", range[2]),
+                    p("from_s", span.lo),
+                    p("to_s", span.hi),
+                    p("knot_spacing_s", wander_knot_spacing(span)),
+                ]
+            }
             Effect::Vibration {
                 amplitude,
                 frequency_hz,
@@ -500,6 +532,12 @@ impl Effect {
                     opt(&["dz_mm", "dz"], 0.0)?,
                 ],
             },
+            EffectKind::Wander => {
+                return Err(
+                    "wander is what diagnose reports of a measurement, not an effect to inject"
+                        .into(),
+                );
+            }
             EffectKind::ErrorMotion => {
                 let axis = one_axis()?;
                 let (terms, span, arc) = motion_from_parameters(&axis, params)?;
@@ -576,60 +614,6 @@ impl EffectSpec {
             ),
         };
         Ok(EffectSpec { effect, from_block })
-    }
-}
-
-/// Tracks the direction of the last motion of one axis, with a dead band so
-/// that trace jitter does not count as a reversal: the direction changes
-/// only once the axis has moved back by more than the dead band from its
-/// turning point. Before the first motion the direction is 0.
-#[derive(Debug, Clone, Copy)]
-pub struct DirectionTracker {
-    dead_band: f64,
-    dir: f64,
-    extreme: Option<f64>,
-}
-
-/// Default dead band of [`DirectionTracker`] (mm or deg).
-pub const DIRECTION_DEAD_BAND: f64 = 1e-4;
-
-impl DirectionTracker {
-    /// A tracker with the given dead band (mm or deg).
-    pub fn new(dead_band: f64) -> Self {
-        DirectionTracker {
-            dead_band,
-            dir: 0.0,
-            extreme: None,
-        }
-    }
-
-    /// Feeds the next commanded position; returns the direction of the last
-    /// motion (−1, 0 or +1).
-    pub fn update(&mut self, q: f64) -> f64 {
-        match self.extreme {
-            None => self.extreme = Some(q),
-            Some(e) => {
-                if self.dir > 0.0 {
-                    if q > e {
-                        self.extreme = Some(q);
-                    } else if q < e - self.dead_band {
-                        self.dir = -1.0;
-                        self.extreme = Some(q);
-                    }
-                } else if self.dir < 0.0 {
-                    if q < e {
-                        self.extreme = Some(q);
-                    } else if q > e + self.dead_band {
-                        self.dir = 1.0;
-                        self.extreme = Some(q);
-                    }
-                } else if (q - e).abs() > self.dead_band {
-                    self.dir = (q - e).signum();
-                    self.extreme = Some(q);
-                }
-            }
-        }
-        self.dir
     }
 }
 
@@ -743,7 +727,9 @@ impl BoundEffect {
                 }
                 (Some(j), None)
             }
-            Effect::PivotLength { .. } | Effect::Registration { .. } => (None, None),
+            Effect::PivotLength { .. } | Effect::Registration { .. } | Effect::Wander { .. } => {
+                (None, None)
+            }
         };
         Ok(BoundEffect {
             spec: spec.clone(),
@@ -794,6 +780,7 @@ impl BoundEffect {
             Effect::RotaryCenterOffset { .. }
             | Effect::PivotLength { .. }
             | Effect::Registration { .. }
+            | Effect::Wander { .. }
             | Effect::ErrorMotion { .. } => 0.0,
         }
     }

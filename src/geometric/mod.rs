@@ -19,6 +19,7 @@ pub mod axis_errors;
 pub mod bound;
 pub mod bspline;
 pub mod cache;
+pub mod direction;
 pub mod effect_spec;
 pub mod effects;
 pub mod error_motion;
@@ -27,6 +28,7 @@ pub mod merged;
 pub mod model;
 pub mod synth;
 pub mod table;
+pub mod wander;
 
 pub use bspline::{BSpline, Extrapolation, KnotChoice};
 pub use iso230_2::Iso230_2;

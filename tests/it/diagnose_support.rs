@@ -229,6 +229,7 @@ pub fn scale_effect(e: &mut kinpost::diagnose::Effect, k: f64) {
             offset_mm.iter_mut().for_each(|v| *v *= k)
         }
         PivotLength { delta_mm } => *delta_mm *= k,
+        Wander { coef_mm, .. } => coef_mm.iter_mut().flatten().for_each(|v| *v *= k),
         ErrorMotion { terms, .. } => terms.iter_mut().for_each(|t| {
             t.2 *= k;
             t.3 *= k;

@@ -44,6 +44,7 @@ mod diagnose_sampling;
 mod diagnose_thermal;
 mod diagnose_untidy;
 mod diagnose_vibration;
+mod diagnose_wander;
 mod fifth_hunt;
 mod filter_corpus;
 mod fit;

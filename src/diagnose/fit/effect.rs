@@ -62,6 +62,13 @@ pub fn term_effect(prep: &Prepared, term: &Term, beta: &[f64]) -> Effect {
         Family::Registration => Effect::Registration {
             offset_mm: [beta[0], beta[1], beta[2]],
         },
+        Family::Wander => Effect::Wander {
+            span: wander_span(prep)
+                .unwrap_or_else(|| MotionSpan::new(0.0, 1.0, WANDER_BASIS).expect("a valid basis")),
+            coef_mm: (0..WANDER_BASIS)
+                .map(|b| [0, 1, 2].map(|c| beta[c * WANDER_BASIS + b]))
+                .collect(),
+        },
         Family::ErrorMotion(j, mask) => {
             let mut terms = Vec::new();
             for (p, c) in mask_components(mask).enumerate() {
@@ -163,6 +170,17 @@ pub fn parameter_sd(prep: &Prepared, term: &Term, beta: &[f64], cov: &DMatrix<f6
             v
         }
         Family::Registration => vec![sd(0), sd(1), sd(2)],
+        // A range's uncertainty: about √2 times its coordinate's largest
+        // coefficient's; the knots are chosen, not fitted.
+        Family::Wander => {
+            let coord = |c: usize| {
+                (0..WANDER_BASIS)
+                    .map(|b| sd(c * WANDER_BASIS + b))
+                    .fold(0.0, f64::max)
+                    * std::f64::consts::SQRT_2
+            };
+            vec![coord(0), coord(1), coord(2), 0.0, 0.0, 0.0]
+        }
         _ => vec![sd(0)],
     }
 }

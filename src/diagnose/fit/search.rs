@@ -245,7 +245,7 @@ pub fn search_family(
                 return None;
             }
             let prof = scan(prep, sel, &base, onsets, None, ctx.min_after);
-            let (k, d, pen) = if fam == Family::Registration {
+            let (k, d, pen) = if fam.kind().is_measurement() {
                 // The measuring system's registration holds for the whole
                 // recording: from part-way it would take up the mean of
                 // an effect that starts moving there (a backlash).

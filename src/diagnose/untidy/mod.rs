@@ -12,7 +12,9 @@
 //! * [`rate`](mod@rate): a clock that runs fast or slow ([`with_rate`]);
 //! * [`align`](mod@align): the commands moved to the machine's clock;
 //! * [`registration`](mod@registration): a constant offset of the
-//!   measured tip, weighed among the machine effects.
+//!   measured tip, weighed among the machine effects;
+//! * [`wander`](mod@wander): a slow wander of the measured tip with time,
+//!   weighed alike.
 
 // Numerical code: several parallel arrays are indexed by one counter.
 #![allow(clippy::needless_range_loop)]
@@ -24,6 +26,7 @@ pub mod outliers;
 pub mod rate;
 pub mod registration;
 pub mod resolution;
+pub mod wander;
 
 use std::collections::BTreeMap;
 
@@ -33,6 +36,7 @@ pub use outliers::{OUTLIER_SIGMAS, departure, gross_outliers};
 pub use rate::{Rate, with_rate};
 pub use registration::registration_finding;
 pub use resolution::{Resolution, quantum};
+pub use wander::wander_finding;
 
 use super::prepare::{ModelMachine, Prepared, noise_floor, prepare};
 use super::recording::Recording;
