@@ -72,8 +72,10 @@ pub enum Family {
 }
 
 /// Basis functions in time of a [`Family::Wander`], per coordinate: cubic
-/// B-splines with uniform knots, five intervals over the recording.
-pub const WANDER_BASIS: usize = 8;
+/// B-splines with uniform knots, 13 intervals over the recording (with 5,
+/// the faster part of a wander of periods down to a minute was left, and
+/// error motions took it up).
+pub const WANDER_BASIS: usize = 16;
 
 /// The B-spline basis in time of a wander over the recording of `prep`.
 pub fn wander_span(prep: &Prepared) -> Option<MotionSpan> {

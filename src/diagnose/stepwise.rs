@@ -225,6 +225,11 @@ fn forward(
                     fit::holdout_rss_chunked(prep, &fit::design(prep, &terms)),
                     fit::holdout_rss_chunked(prep, &cols),
                 )
+            } else if terms.iter().any(|t| t.family == Family::Wander) {
+                (
+                    fit::holdout_rss(prep, &fit::design(prep, &terms)),
+                    fit::holdout_rss(prep, &cols),
+                )
             } else {
                 (hold_prev, fit::holdout_rss(prep, &cols))
             };

@@ -15,7 +15,8 @@ pub fn wander_at(span: &MotionSpan, coef_mm: &[[f64; 3]], t: f64) -> [f64; 3] {
 }
 
 /// Peak-to-peak of a wander's x, y and z over its span (sampled at 400
-/// points; a cubic between knots a fifth of the span apart), mm.
+/// points; a cubic between knots at least a thirteenth of the span
+/// apart), mm.
 pub fn wander_range(span: &MotionSpan, coef_mm: &[[f64; 3]]) -> [f64; 3] {
     let mut lo = [f64::INFINITY; 3];
     let mut hi = [f64::NEG_INFINITY; 3];
