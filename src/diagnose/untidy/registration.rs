@@ -15,6 +15,20 @@ use super::super::report::{Finding, MeasurementFinding};
 /// stepwise selection reported it).
 pub fn registration_finding(finding: &Finding) -> MeasurementFinding {
     let p = |k: &str| finding.parameters.get(k).copied().unwrap_or(0.0) * 1e3;
+    let condition = format!(
+        "everywhere: the measured tip is ({:.3}, {:.3}, {:.3}) µm off in the workpiece frame whatever the axes do — the registration of the measuring system (a tracker or probe zeroed off, a workpiece frame set up off), not machine physics",
+        p("dx_mm"),
+        p("dy_mm"),
+        p("dz_mm"),
+    );
+    measurement_term(finding, "registration", condition)
+}
+
+/// A measurement term the selection fitted (a registration, a wander) as
+/// a measurement finding: `condition` says what it is; the note that it is
+/// never written into a model and the best machine explanation it beat
+/// are added.
+pub fn measurement_term(finding: &Finding, effect: &str, condition: String) -> MeasurementFinding {
     let alternative = finding.runner_up.as_ref().map_or(String::new(), |r| {
         format!(
             "; the best machine explanation, {}{}, fits it worse by ΔBIC {:.1}",
@@ -27,13 +41,10 @@ pub fn registration_finding(finding: &Finding) -> MeasurementFinding {
     });
     let mut where_ = finding.where_.clone();
     where_.condition = format!(
-        "everywhere: the measured tip is ({:.3}, {:.3}, {:.3}) µm off in the workpiece frame whatever the axes do — the registration of the measuring system (a tracker or probe zeroed off, a workpiece frame set up off), not machine physics; fitted with the machine effects and never written into a model{alternative}",
-        p("dx_mm"),
-        p("dy_mm"),
-        p("dz_mm"),
+        "{condition}; fitted with the machine effects and never written into a model{alternative}"
     );
     MeasurementFinding {
-        effect: "registration".into(),
+        effect: effect.into(),
         axis: None,
         parameters: finding.parameters.clone(),
         uncertainty: finding.uncertainty.clone(),

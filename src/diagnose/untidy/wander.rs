@@ -10,37 +10,18 @@
 //! never written into a model.
 
 use super::super::report::{Finding, MeasurementFinding};
+use super::registration::measurement_term;
 
 /// The measurement finding of a fitted wander (`finding` as the stepwise
 /// selection reported it).
 pub fn wander_finding(finding: &Finding) -> MeasurementFinding {
     let p = |k: &str| finding.parameters.get(k).copied().unwrap_or(0.0);
-    let alternative = finding.runner_up.as_ref().map_or(String::new(), |r| {
-        format!(
-            "; the best machine explanation, {}{}, fits it worse by ΔBIC {:.1}",
-            r.effect,
-            r.axis
-                .as_deref()
-                .map_or(String::new(), |a| format!(" of {a}")),
-            r.delta_bic
-        )
-    });
-    let mut where_ = finding.where_.clone();
-    where_.condition = format!(
-        "with time: the measured tip wanders by ({:.3}, {:.3}, {:.3}) µm peak to peak in the workpiece frame whatever the axes do (a curve with knots every {:.0} s) — the measuring system's drift (a tracker's air path or mount warming, a probe's drift), not machine physics; fitted with the machine effects and never written into a model{alternative}",
+    let condition = format!(
+        "with time: the measured tip wanders by ({:.3}, {:.3}, {:.3}) µm peak to peak in the workpiece frame whatever the axes do (a curve with knots every {:.0} s) — the measuring system's drift (a tracker's air path or mount warming, a probe's drift), not machine physics",
         p("range_x_mm") * 1e3,
         p("range_y_mm") * 1e3,
         p("range_z_mm") * 1e3,
         p("knot_spacing_s"),
     );
-    MeasurementFinding {
-        effect: "wander".into(),
-        axis: None,
-        parameters: finding.parameters.clone(),
-        uncertainty: finding.uncertainty.clone(),
-        where_,
-        rms_explained_mm: finding.rms_explained_mm,
-        machine_physics: false,
-        samples: Vec::new(),
-    }
+    measurement_term(finding, "wander", condition)
 }
