@@ -512,7 +512,7 @@ pub fn diagnose(
         .as_ref()
         .map_or(String::new(), |u| format!(": it shows {}", u.condition));
     // The residual the machine effects are judged on: after the
-    // measurement faults fitted with them (a registration).
+    // measurement faults fitted with them (a registration, a wander).
     let (chi_physics, rms_physics) = if measurement
         .iter()
         .any(|m| matches!(m.effect.as_str(), "registration" | "wander"))

@@ -219,7 +219,9 @@ fn forward(
             }
             tried += 1;
             // A wander of the measurement is a function of time: judged on
-            // short stretches of time.
+            // short stretches of time. A term after a wander is judged on
+            // contiguous folds with and without it, as every machine
+            // effect is (the carried `hold_prev` was read on stretches).
             let (hold_prev, hold) = if c.term.family == Family::Wander {
                 (
                     fit::holdout_rss_chunked(prep, &fit::design(prep, &terms)),
