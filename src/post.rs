@@ -344,6 +344,24 @@ impl<'m> AxisWriter<'m> {
             }
             let d = self.decimals[k];
             match (absolute, value.scaled, previous) {
+                // LinuxCNC's wrapped rotary: the position in [0, 360) with
+                // the sign of the block's turn (`machine::wrapped`).
+                (true, Some(i), _) if axis.rotary == crate::machine::RotaryMode::Wrapped => {
+                    let turn = (360.0 * scale) as i64;
+                    let from = previous.and_then(|p| p.scaled);
+                    let (negative, m) = crate::machine::wrapped::wrapped_word(from, i, turn)
+                        .map_err(|m| format!("axis {}: {m}", axis.name))?;
+                    if negative {
+                        out.push(b'-');
+                    }
+                    push_scaled(out, m, d);
+                }
+                (true, None, _) if axis.rotary == crate::machine::RotaryMode::Wrapped => {
+                    return Err(format!(
+                        "axis {} at {:.3e}°: beyond the turns a wrapped rotary axis is followed over",
+                        axis.name, value.raw
+                    ));
+                }
                 (true, Some(i), _) => push_scaled(out, i, d),
                 (true, None, _) => {
                     push_fixed_bytes(out, &mut self.scratch, value.rounded(scale), d)

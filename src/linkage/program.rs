@@ -245,8 +245,15 @@ impl<'m> Axes<'m> {
         ra.iter().zip(&rb).filter(|(x, y)| x != y).count()
     }
 
-    /// Axis words for the axes that differ between `from` and `to`.
-    fn words(&self, from: &[f64], to: &[f64], units: Units, absolute: bool) -> String {
+    /// Axis words for the axes that differ between `from` and `to`; `Err`
+    /// where a wrapped rotary would turn a full turn or more.
+    fn words(
+        &self,
+        from: &[f64],
+        to: &[f64],
+        units: Units,
+        absolute: bool,
+    ) -> std::result::Result<String, String> {
         let rf = self.rounded(from, units);
         let rt = self.rounded(to, units);
         let mut s = String::new();
@@ -259,6 +266,22 @@ impl<'m> Axes<'m> {
             }
             s.push_str(&a.name);
             let v = match (absolute, a.rotary) {
+                // LinuxCNC's wrapped rotary: the position in [0, 360) with
+                // the sign of the turn (`machine::wrapped`).
+                (true, RotaryMode::Wrapped) => {
+                    let scale = 10f64.powi(self.decimals[k] as i32);
+                    let int = |v: f64| (v * scale).round() as i64;
+                    let (negative, m) = crate::machine::wrapped::wrapped_word(
+                        Some(int(rf[k])),
+                        int(rt[k]),
+                        int(360.0),
+                    )
+                    .map_err(|m| format!("axis {}: {m}", a.name))?;
+                    if negative {
+                        s.push('-');
+                    }
+                    m as f64 / scale
+                }
                 (true, _) => rt[k],
                 // The short way, as the controller turns a modulo axis.
                 (false, RotaryMode::Modulo) => unwind_near_degrees(rt[k], rf[k]) - rf[k],
@@ -266,7 +289,7 @@ impl<'m> Axes<'m> {
             };
             push_fixed(&mut s, v, self.decimals[k]);
         }
-        s
+        Ok(s)
     }
 }
 
@@ -692,7 +715,11 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                     s.push(' ');
                 }
             }
-            s.push_str(&axes.words(&from, p, block.units, block.absolute));
+            s.push_str(
+                &axes
+                    .words(&from, p, block.units, block.absolute)
+                    .map_err(|m| Error::input_with(at(None), m, mline.text_lossy()))?,
+            );
             if block.feed.mode == FeedMode::InverseTime {
                 feed_text(&mut s);
             } else if retimed.is_some() {
@@ -727,7 +754,9 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                 Some(_) => block_minutes / segments as f64,
                 None => move_minutes(machine, &from, qb, &segment_feed),
             };
-        let mut words = axes.words(&from, qb, block.units, block.absolute);
+        let mut words = axes
+            .words(&from, qb, block.units, block.absolute)
+            .map_err(|m| Error::input_with(at(None), m, mline.text_lossy()))?;
         let mut replace = block.axis_items.clone();
         if let (FeedMode::InverseTime, Some(item)) = (block.feed.mode, block.feed_item) {
             replace.push(item);

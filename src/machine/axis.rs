@@ -15,6 +15,13 @@ pub enum RotaryMode {
     Continuous,
     /// Output wrapped to `[0, 360)`; the controller takes the shortest way.
     Modulo,
+    /// LinuxCNC's wrapped rotary (`WRAPPED_ROTARY = 1`): an absolute word
+    /// is the position in `[0, 360)` and its sign the direction the
+    /// controller turns to it, less than a turn (after `C10`, `C350` turns
+    /// +340° and `C-350` −20°). Unlimited travel; kinpost follows the turns
+    /// unwound, as for [`RotaryMode::Continuous`], and writes each word
+    /// with the sign of its block's turn ([`super::wrapped`]).
+    Wrapped,
 }
 
 impl RotaryMode {
@@ -24,6 +31,7 @@ impl RotaryMode {
             RotaryMode::Limited => "limited",
             RotaryMode::Continuous => "continuous",
             RotaryMode::Modulo => "modulo",
+            RotaryMode::Wrapped => "wrapped",
         }
     }
 }

@@ -242,11 +242,7 @@ impl Machine {
                 o.insert("max".into(), hi.into());
             }
             if a.kind == JointKind::Revolute && a.rotary != RotaryMode::Limited {
-                let mode = match a.rotary {
-                    RotaryMode::Continuous => "continuous",
-                    _ => "modulo",
-                };
-                o.insert("rotary".into(), mode.into());
+                o.insert("rotary".into(), a.rotary.name().into());
             }
             o.insert("decimals".into(), a.decimals.into());
             axes.insert(a.name.clone(), Value::Object(o));
@@ -802,11 +798,12 @@ impl Parser<'_> {
                     "limited" => RotaryMode::Limited,
                     "continuous" => RotaryMode::Continuous,
                     "modulo" => RotaryMode::Modulo,
+                    "wrapped" => RotaryMode::Wrapped,
                     other => {
                         return Err(self.err(
                             &mode_at,
                             Target::Value,
-                            format!("unknown rotary mode \"{other}\"; expected \"limited\", \"continuous\" or \"modulo\""),
+                            format!("unknown rotary mode \"{other}\"; expected \"limited\", \"continuous\", \"modulo\" or \"wrapped\""),
                         ));
                     }
                 }),

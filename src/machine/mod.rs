@@ -21,6 +21,7 @@ pub mod midblock;
 pub mod newton_ik;
 pub mod rotary;
 pub mod template;
+pub mod wrapped;
 
 pub use axis::{AxisSpec, RotaryMode};
 pub use chain::{

@@ -45,7 +45,7 @@ const TEMPLATE_2R3T: &str = r#"{
      "translate": [0, 0, 60]}
   ],
   "axes": {
-    "_": "Travel limits (mm, degrees) and decimals written per axis. A rotary axis needs limits or a rotary mode (continuous or modulo).",
+    "_": "Travel limits (mm, degrees) and decimals written per axis. A rotary axis needs limits or a rotary mode (continuous, modulo or wrapped).",
     "X": {"min": -500, "max": 500, "decimals": 4},
     "Y": {"min": -400, "max": 400, "decimals": 4},
     "Z": {"min": -400, "max": 400, "decimals": 4},

@@ -283,7 +283,7 @@ impl BlockReader<'_> {
                 )));
             }
             if !self.modal.pose_mode {
-                self.follow_machine_words(line, &meaning);
+                self.follow_machine_words(line, &meaning)?;
                 self.unfollowed = meaning.unfollowed.take();
             } else if meaning.non_modal && goes_where_not_known(line) {
                 // `G28`, `G53 G0 Z0` between poses: the next pose starts
@@ -546,7 +546,11 @@ impl BlockReader<'_> {
     /// and tell the modal state where the tool tip now is, so that a pose
     /// block after `G43.4`/`TRAORI` that gives only some coordinates
     /// continues from the machine's position.
-    fn follow_machine_words(&mut self, line: &Line, meaning: &crate::program::BlockMeaning) {
+    fn follow_machine_words(
+        &mut self,
+        line: &Line,
+        meaning: &crate::program::BlockMeaning,
+    ) -> Result<()> {
         if meaning.non_modal {
             let g = |v: f64| {
                 line.words()
@@ -567,7 +571,7 @@ impl BlockReader<'_> {
                 // `G10 L2 P1 X100`, `G52 X5`, `G68 X10 Y10 R30`, `G111 X0
                 // Y0`: data, not a position. `G92 X100` says where the tool
                 // is now, and is followed.
-                return;
+                return Ok(());
             }
         }
         if std::mem::take(&mut self.machine_ext_stale)
@@ -579,19 +583,39 @@ impl BlockReader<'_> {
         }
         let mut moved = false;
         let mut given = 0usize;
-        for w in line.words() {
+        for (item, w) in line.items.iter().filter_map(|i| match &i.kind {
+            ItemKind::Word(w) => Some((i, w)),
+            _ => None,
+        }) {
             if let Some(k) = self.machine.axes.iter().position(|a| a.name == w.address) {
                 given |= 1 << k;
-                let scale = if self.machine.axes[k].kind == crate::machine::JointKind::Prismatic {
+                let axis = &self.machine.axes[k];
+                let scale = if axis.kind == crate::machine::JointKind::Prismatic {
                     meaning.units.mm_per_unit()
                 } else {
                     1.0
                 };
                 let v = w.value * scale;
-                self.machine_ext[k] = if meaning.absolute {
-                    v
-                } else {
-                    self.machine_ext[k] + v
+                self.machine_ext[k] = match (meaning.absolute, axis.rotary) {
+                    (false, _) => self.machine_ext[k] + v,
+                    // LinuxCNC's wrapped rotary: |v| reached the way v's
+                    // sign says.
+                    (true, crate::machine::RotaryMode::Wrapped) => {
+                        crate::machine::wrapped::unwrap_wrapped(v, self.machine_ext[k]).ok_or_else(
+                            || {
+                                Error::input_with(
+                                    Location::new(
+                                        &self.opts.file_name,
+                                        line.number,
+                                        item.start + 1,
+                                    ),
+                                    crate::machine::wrapped::word_too_large(&w.address, w.value),
+                                    line.text_lossy(),
+                                )
+                            },
+                        )?
+                    }
+                    (true, _) => v,
                 };
                 moved = true;
             }
@@ -616,6 +640,7 @@ impl BlockReader<'_> {
             self.modal.seed_from_machine(pose.tip, pose.axis);
             self.previous = Some(q);
         }
+        Ok(())
     }
 }
 

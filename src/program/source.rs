@@ -663,6 +663,9 @@ impl MachineAxisTracker {
         // Only where the start is not known: the positions before, and
         // which axes were not known.
         let before = (!start_known).then(|| (self.ext.clone(), self.unknown.clone()));
+        if meaning.absolute {
+            check_wrapped_words(machine, line, &axis_items, file)?;
+        }
         self.set_axes(machine, line, &axis_items, &meaning, meaning.absolute);
         self.check_rotary_limits(machine, line, &axis_items, file)?;
         // A rotary that turns, or one not known that is programmed to a
@@ -751,20 +754,55 @@ impl MachineAxisTracker {
                 1.0
             };
             let v = w.value * scale;
-            let modulo = machine.axes[k].rotary == crate::machine::RotaryMode::Modulo;
-            self.ext[k] = match (absolute, modulo) {
+            use crate::machine::RotaryMode;
+            self.ext[k] = match (absolute, machine.axes[k].rotary) {
                 (false, _) => self.ext[k] + v,
                 // A modulo axis turns the short way to an absolute target
                 // (a roll-over axis set to the shortest path): followed
                 // on that path, not across the 0/360° seam.
-                (true, true) => crate::machine::rotary::unwind_near_degrees(v, self.ext[k]),
-                (true, false) => v,
+                (true, RotaryMode::Modulo) => {
+                    crate::machine::rotary::unwind_near_degrees(v, self.ext[k])
+                }
+                // LinuxCNC's wrapped rotary: to |v| the way v's sign says
+                // (`check_wrapped_words` refused |v| ≥ 360°).
+                (true, RotaryMode::Wrapped) => {
+                    crate::machine::wrapped::unwrap_wrapped(v, self.ext[k]).unwrap_or(v)
+                }
+                (true, _) => v,
             };
             if absolute {
                 self.unknown[k] = false;
             }
         }
     }
+}
+
+/// Refuses an absolute word of a wrapped rotary axis
+/// ([`crate::machine::RotaryMode::Wrapped`]) of 360° or more in size,
+/// which LinuxCNC refuses: where it would take the axis is not defined.
+fn check_wrapped_words(
+    machine: &crate::machine::Machine,
+    line: &crate::gcode::Line,
+    axis_items: &[usize],
+    file: &str,
+) -> Result<()> {
+    for &i in axis_items {
+        let ItemKind::Word(w) = &line.items[i].kind else {
+            continue;
+        };
+        let wrapped = machine
+            .axes
+            .iter()
+            .any(|a| a.name == w.address && a.rotary == crate::machine::RotaryMode::Wrapped);
+        if wrapped && w.value.abs() >= 360.0 {
+            return Err(Error::input_with(
+                Location::new(file, line.number, line.items[i].start + 1),
+                crate::machine::wrapped::word_too_large(&w.address, w.value),
+                line.text_lossy(),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Reads the axis positions of a program in machine axes; blocks that carry

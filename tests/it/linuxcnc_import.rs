@@ -271,31 +271,51 @@ fn limits_modes_and_refusals() {
     );
     // A wrapped rotary turns the way its word's sign says (LinuxCNC's
     // `unwrap_rotary`): A350 after A10 is +340°, where kinpost's modulo axis
-    // takes the short way (−20°). It was written `modulo`, and `post` and
-    // `linkage` output turned the table the long way: refused now, in each
-    // spelling LinuxCNC reads as true; a value that is no boolean too.
+    // takes the short way (−20°). It was written `modulo` once (the table
+    // turned the long way), then refused; now it is kinpost's `wrapped`
+    // mode, whose words carry the turn's sign (`wrapped_rotary.rs`), in
+    // each spelling LinuxCNC reads as true, also with a comment after it
+    // as real configurations write (`WRAPPED_ROTARY = 1 ; indexing`,
+    // which LinuxCNC's `sscanf` reads as 1; before, "not a boolean"). A
+    // value that is no boolean is refused.
     let path = config(dir.path(), "xyzbc-trt.ini", 0);
     let text = std::fs::read_to_string(&path).unwrap();
-    for (value, want) in [
-        (
-            "1",
-            "xyzbc-trt.ini:20:18: WRAPPED_ROTARY: LinuxCNC turns a wrapped rotary axis the way the sign of its word says",
-        ),
-        ("Yes", "xyzbc-trt.ini:20:18: WRAPPED_ROTARY: LinuxCNC turns"),
-        ("ON", "xyzbc-trt.ini:20:18: WRAPPED_ROTARY: LinuxCNC turns"),
-        (
-            "maybe",
-            "xyzbc-trt.ini:20:18: WRAPPED_ROTARY `maybe` is not a boolean",
-        ),
-    ] {
+    let with = |value: &str| {
         std::fs::write(
             &path,
-            text.replace("WRAPPED_ROTARY = no", &format!("WRAPPED_ROTARY = {value}")),
+            text.replace("WRAPPED_ROTARY = no", &format!("WRAPPED_ROTARY = {value}"))
+                .replace("MAX_LIMIT = 110", "MAX_LIMIT = 110      ; soft limit, deg")
+                .replace("LINEAR_UNITS = mm", "LINEAR_UNITS = mm # metric"),
         )
         .unwrap();
-        let e = machine_from_linuxcnc(&path, None).unwrap_err().to_string();
-        assert!(e.contains(want), "{value}: {e}");
+        machine_from_linuxcnc(&path, None)
+    };
+    for value in [
+        "1",
+        "Yes",
+        "ON",
+        "1       ; for indexing only",
+        "true # wraps",
+    ] {
+        let v = with(value).unwrap_or_else(|e| panic!("{value}: {e}"));
+        let m = Machine::from_json_str(&v.to_string(), "g.json").unwrap();
+        assert_eq!(
+            m.axis("C").unwrap().rotary,
+            kinpost::machine::RotaryMode::Wrapped,
+            "{value}"
+        );
+        let b = m.axis("B").unwrap();
+        assert_eq!((b.min, b.max), (Some(-35.0), Some(110.0)), "{value}");
     }
+    let e = with("maybe").unwrap_err().to_string();
+    assert!(
+        e.contains("xyzbc-trt.ini:20:18: WRAPPED_ROTARY `maybe` is not a boolean"),
+        "{e}"
+    );
+    // Text after a number that is not a comment is still refused.
+    std::fs::write(&path, text.replace("MAX_LIMIT = 110", "MAX_LIMIT = 110deg")).unwrap();
+    let e = machine_from_linuxcnc(&path, None).unwrap_err().to_string();
+    assert!(e.contains("MAX_LIMIT `110deg` is not a number"), "{e}");
     // maxkins is refused with the reason, at the KINEMATICS value.
     let e = machine_from_linuxcnc(&config(dir.path(), "maxkins.ini", 0), None)
         .unwrap_err()

@@ -85,3 +85,4 @@ mod simulate_arcs;
 mod simulate_stream;
 mod sixth_hunt;
 mod valid_jobs;
+mod wrapped_rotary;

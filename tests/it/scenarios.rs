@@ -4,7 +4,8 @@
 //!
 //! Machines: every shipped machine with its fixed offsets moved at random
 //! (±40 mm per component), so the analytic IK meets geometry it was not
-//! written for. Programs: a smooth random walk in joint space, turned into
+//! written for; on odd seeds its continuous rotaries are LinuxCNC wrapped
+//! rotaries, their words read back by LinuxCNC's rule. Programs: a smooth random walk in joint space, turned into
 //! tool poses by forward kinematics (so every pose is reachable), that
 //! - keeps a continuous rotary turning one way for several turns,
 //! - passes the tilt axis through 0 (the singular pose of a table-table or
@@ -76,7 +77,11 @@ fn run(dir: &Path, args: &[&str]) -> (i32, String, String) {
 /// component, each move kept only where the machine stays in its IK family
 /// (an RTTR lens machine's tool tip must stay in the plane of its C axis;
 /// moved out of it, the machine is another family's).
-fn random_machine(file: &Path, rng: &mut SplitMix64, out: &Path) -> Machine {
+///
+/// With `wrapped`, its continuous rotaries are LinuxCNC wrapped rotaries
+/// (`"rotary": "wrapped"`), whose words the checks read as LinuxCNC does
+/// ([`axes_by_line`]).
+fn random_machine(file: &Path, rng: &mut SplitMix64, out: &Path, wrapped: bool) -> Machine {
     let family = |json: &serde_json::Value| {
         std::fs::write(out, serde_json::to_string_pretty(json).unwrap()).unwrap();
         let m = Machine::load(out).unwrap();
@@ -85,6 +90,13 @@ fn random_machine(file: &Path, rng: &mut SplitMix64, out: &Path) -> Machine {
     let mut json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
     json["name"] = format!("{}-random", json["name"].as_str().unwrap()).into();
+    if wrapped {
+        for (_, axis) in json["axes"].as_object_mut().unwrap().iter_mut() {
+            if axis.get("rotary").and_then(|r| r.as_str()) == Some("continuous") {
+                axis["rotary"] = "wrapped".into();
+            }
+        }
+    }
     let (original, _) = family(&json);
     let elements = json["chain"].as_array().unwrap().len();
     for e in 0..elements {
@@ -196,7 +208,9 @@ fn axis_rows(machine: &Machine, text: &str, from_line: usize) -> Vec<Vec<f64>> {
 }
 
 /// The axis values (output order) after each line of `text` (1-based
-/// line number) that has an axis word, with modal carry-over.
+/// line number) that has an axis word, with modal carry-over; the words of
+/// a wrapped rotary read as LinuxCNC reads them, from 0° (the program is
+/// absolute).
 fn axes_by_line(machine: &Machine, text: &str) -> std::collections::BTreeMap<usize, Vec<f64>> {
     let mut current = vec![0.0; machine.axes.len()];
     let mut out = std::collections::BTreeMap::new();
@@ -208,7 +222,11 @@ fn axes_by_line(machine: &Machine, text: &str) -> std::collections::BTreeMap<usi
                 .iter()
                 .position(|a| w.starts_with(a.name.as_str()) && w.len() > a.name.len());
             if let (Some(k), Ok(v)) = (k, w.get(1..).unwrap_or("").parse::<f64>()) {
-                current[k] = v;
+                current[k] = if machine.axes[k].rotary == kinpost::machine::RotaryMode::Wrapped {
+                    crate::wrapped_rotary::linuxcnc_unwrap(v, current[k])
+                } else {
+                    v
+                };
                 any = true;
             }
         }
@@ -385,7 +403,8 @@ fn random_machines_and_programs_through_every_command() {
     for file in &files {
         for seed in seeds.clone() {
             let mut rng = SplitMix64::new(1000 * seed + checked + 17);
-            let m = random_machine(file, &mut rng, &d.join("m.json"));
+            // Odd seeds: the continuous rotaries wrapped (LinuxCNC).
+            let m = random_machine(file, &mut rng, &d.join("m.json"), seed % 2 == 1);
             if m.chain
                 .joints()
                 .iter()

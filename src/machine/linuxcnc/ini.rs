@@ -17,6 +17,26 @@ pub(super) struct IniEntry {
     pub(super) col: usize,
 }
 
+impl IniEntry {
+    /// The value read as LinuxCNC reads a number, a boolean or a unit
+    /// (`IniFile::Find` with `sscanf`): what stands before a comment that
+    /// follows it (`MAX_LIMIT = 110 ; soft limit`, `WRAPPED_ROTARY = 1 #
+    /// indexing`), blanks trimmed. Real configurations write such
+    /// comments; LinuxCNC's `sscanf` reads the number and ignores them.
+    pub(super) fn before_comment(&self) -> &str {
+        self.value.split([';', '#']).next().unwrap_or("").trim()
+    }
+
+    /// The value as a finite number ([`IniEntry::before_comment`]), or
+    /// `None`.
+    pub(super) fn number(&self) -> Option<f64> {
+        self.before_comment()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+    }
+}
+
 /// One file of an INI: the INI itself or a file it includes.
 pub(super) struct IniSource {
     pub(super) file: String,

@@ -463,7 +463,7 @@ fn linear_unit(ini: &Ini) -> Result<f64> {
     let Some(u) = ini.get("TRAJ", "LINEAR_UNITS") else {
         return Ok(1.0);
     };
-    match u.value.to_ascii_lowercase().as_str() {
+    match u.before_comment().to_ascii_lowercase().as_str() {
         "mm" | "metric" | "millimeter" | "millimetre" => Ok(1.0),
         "inch" | "in" | "imperial" => Ok(MM_PER_INCH),
         _ => Err(ini.err(
@@ -481,7 +481,7 @@ fn angular_unit(ini: &Ini) -> Result<()> {
     match ini.get("TRAJ", "ANGULAR_UNITS") {
         Some(u)
             if !matches!(
-                u.value.to_ascii_lowercase().as_str(),
+                u.before_comment().to_ascii_lowercase().as_str(),
                 "deg" | "degree" | "degrees"
             ) =>
         {
@@ -569,9 +569,9 @@ fn axis_limits(
         let num = |section: &str, key: &str| -> Result<Option<f64>> {
             match ini.get(section, key) {
                 None => Ok(None),
-                Some(e) => match e.value.parse::<f64>() {
-                    Ok(v) if v.is_finite() => Ok(Some(v)),
-                    _ => Err(ini.err(
+                Some(e) => match e.number() {
+                    Some(v) => Ok(Some(v)),
+                    None => Err(ini.err(
                         e,
                         format!("[{section}] {key} `{}` is not a number", e.value),
                     )),
@@ -591,17 +591,16 @@ fn axis_limits(
         }
         let mut o = Map::new();
         let rotary = matches!(*name, "A" | "B" | "C");
-        // LinuxCNC's booleans (`IniFile::convertBool`), in any case.
+        // LinuxCNC's booleans (`IniFile::convertBool`), in any case. A
+        // wrapped rotary turns the way the sign of its word says
+        // (`machine::wrapped`): kinpost's `wrapped` mode, whose words it
+        // writes so; its travel wraps, and MIN_LIMIT / MAX_LIMIT are not
+        // used.
+        let mut wrapped = false;
         if let Some(e) = ini.get(&section, "WRAPPED_ROTARY") {
-            match e.value.to_ascii_lowercase().as_str() {
+            match e.before_comment().to_ascii_lowercase().as_str() {
                 "false" | "no" | "0" | "off" => {}
-                "true" | "yes" | "1" | "on" if rotary => {
-                    return Err(ini.err(
-                        e,
-                        format!("WRAPPED_ROTARY: LinuxCNC turns a wrapped rotary axis the way the sign of its word says ({name}350 turns positive to 350°, {name}-350 negative), and kinpost does not write such words: its modulo axes are for controllers that take the short way; set WRAPPED_ROTARY = 0 (kinpost then writes unwound positions), or describe the machine by hand"),
-                    ));
-                }
-                "true" | "yes" | "1" | "on" => {}
+                "true" | "yes" | "1" | "on" => wrapped = rotary,
                 other => {
                     return Err(ini.err(
                         e,
@@ -611,6 +610,9 @@ fn axis_limits(
             }
         }
         match (rotary, lo, hi) {
+            (true, _, _) if wrapped => {
+                o.insert("rotary".into(), "wrapped".into());
+            }
             // Limits a turn-counting controller uses for "no limit".
             (true, Some(lo), Some(hi)) if hi - lo < 36_000.0 && lo <= hi => {
                 o.insert("min".into(), lo.into());
