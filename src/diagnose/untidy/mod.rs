@@ -298,15 +298,7 @@ fn refine_offset(
         }
         let pa = prepare(machine, &al.rec)?;
         let (keep, sigma) = usable(&al, &pa);
-        // Once roughly aligned, the axes that share the offset are chosen
-        // again, strictly: an axis that lags beyond the others keeps that
-        // as its own servo lag.
-        if round == 1
-            && let Some(strict) = clock_offset(&pa, &keep, sigma, 0.0, None, STRICT)
-        {
-            shared = strict.shared;
-        }
-        let Some(step) = clock_offset(&pa, &keep, sigma, 0.0, Some(&shared), STRICT) else {
+        let Some(step) = offset::refine_step(&pa, &keep, sigma, round, &mut shared) else {
             break;
         };
         d += step.offset_s;

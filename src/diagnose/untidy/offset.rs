@@ -183,6 +183,26 @@ pub struct OffsetEstimate {
     pub delta_chi2: f64,
 }
 
+/// One offset step of a refinement round `round` (0-based) of an
+/// alignment: the common lag of the axes `shared` ([`STRICT`]), which in
+/// round 1, once roughly aligned, are chosen again, strictly (an axis
+/// that lags beyond the others keeps that as its own servo lag). Used by
+/// the offset's refinement and by the rate's, which refine alike.
+pub fn refine_step(
+    prep: &Prepared,
+    keep: &[bool],
+    sigma: f64,
+    round: usize,
+    shared: &mut Vec<usize>,
+) -> Option<OffsetEstimate> {
+    if round == 1
+        && let Some(strict) = clock_offset(prep, keep, sigma, 0.0, None, STRICT)
+    {
+        *shared = strict.shared;
+    }
+    clock_offset(prep, keep, sigma, 0.0, Some(shared), STRICT)
+}
+
 /// The clock offset of a residual, if it shows one.
 ///
 /// A clock offset delays every axis by the same time; a servo lag delays

@@ -6,7 +6,7 @@
 //! and removed by moving the commands to the machine's clock.
 
 use super::align::{Aligned, Clock, align_clock};
-use super::offset::{STRICT, Tolerance, clock_offset, clock_rate};
+use super::offset::{STRICT, Tolerance, clock_rate};
 use super::{
     MIN_OFFSET_SAMPLES, MIN_OFFSET_SHARE, Offset, alignment_gain, excess_chi2, median_interval,
     usable,
@@ -90,16 +90,8 @@ pub fn with_rate(
         }
         let pa = prepare(machine, &al.rec)?;
         let (keep, sigma) = usable(&al, &pa);
-        // Once roughly aligned, the axes that share the offset are chosen
-        // again, strictly: an axis that lags beyond the others keeps that
-        // as its own servo lag.
-        if round == 1
-            && let Some(strict) = clock_offset(&pa, &keep, sigma, 0.0, None, STRICT)
-        {
-            lag_axes = strict.shared;
-        }
         let mut moved = 0.0;
-        if let Some(lag) = clock_offset(&pa, &keep, sigma, 0.0, Some(&lag_axes), STRICT) {
+        if let Some(lag) = super::offset::refine_step(&pa, &keep, sigma, round, &mut lag_axes) {
             clock.offset_s += lag.offset_s;
             moved = lag.offset_s.abs();
             estimate = Some(lag);
