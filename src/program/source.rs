@@ -700,13 +700,7 @@ impl MachineAxisTracker {
         axis_items: &[usize],
         file: &str,
     ) -> Result<()> {
-        for &i in axis_items {
-            let ItemKind::Word(w) = &line.items[i].kind else {
-                continue;
-            };
-            let Some(k) = machine.axes.iter().position(|a| a.name == w.address) else {
-                continue;
-            };
+        for (i, k, _) in axis_words(machine, line, axis_items) {
             let axis = &machine.axes[k];
             if axis.kind != crate::machine::JointKind::Revolute
                 || crate::machine::rotary::within_limits(axis, self.ext[k].to_radians())
@@ -741,13 +735,7 @@ impl MachineAxisTracker {
         meaning: &super::BlockMeaning,
         absolute: bool,
     ) {
-        for &i in axis_items {
-            let ItemKind::Word(w) = &line.items[i].kind else {
-                continue;
-            };
-            let Some(k) = machine.axes.iter().position(|a| a.name == w.address) else {
-                continue;
-            };
+        for (_, k, w) in axis_words(machine, line, axis_items) {
             let scale = if machine.axes[k].kind == crate::machine::JointKind::Prismatic {
                 meaning.units.mm_per_unit()
             } else {
@@ -777,6 +765,22 @@ impl MachineAxisTracker {
     }
 }
 
+/// The machine axis words among `axis_items` of `line`: each word's item
+/// index, its axis (index in `machine.axes`) and the word.
+fn axis_words<'l>(
+    machine: &'l crate::machine::Machine,
+    line: &'l crate::gcode::Line,
+    axis_items: &'l [usize],
+) -> impl Iterator<Item = (usize, usize, &'l crate::gcode::Word)> + 'l {
+    axis_items.iter().filter_map(move |&i| {
+        let ItemKind::Word(w) = &line.items[i].kind else {
+            return None;
+        };
+        let k = machine.axes.iter().position(|a| a.name == w.address)?;
+        Some((i, k, w))
+    })
+}
+
 /// Refuses an absolute word of a wrapped rotary axis
 /// ([`crate::machine::RotaryMode::Wrapped`]) of 360° or more in size,
 /// which LinuxCNC refuses: where it would take the axis is not defined.
@@ -786,15 +790,8 @@ fn check_wrapped_words(
     axis_items: &[usize],
     file: &str,
 ) -> Result<()> {
-    for &i in axis_items {
-        let ItemKind::Word(w) = &line.items[i].kind else {
-            continue;
-        };
-        let wrapped = machine
-            .axes
-            .iter()
-            .any(|a| a.name == w.address && a.rotary == crate::machine::RotaryMode::Wrapped);
-        if wrapped && w.value.abs() >= 360.0 {
+    for (i, k, w) in axis_words(machine, line, axis_items) {
+        if machine.axes[k].rotary == crate::machine::RotaryMode::Wrapped && w.value.abs() >= 360.0 {
             return Err(Error::input_with(
                 Location::new(file, line.number, line.items[i].start + 1),
                 crate::machine::wrapped::word_too_large(&w.address, w.value),

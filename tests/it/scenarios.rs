@@ -179,13 +179,8 @@ fn pose_program(machine: &Machine, qs: &[Vec<f64>]) -> (String, Vec<kinpost::mac
         }
         let feed = if (i / 100) % 2 == 0 { " F800" } else { " F120" };
         s.push_str(&format!(
-            "G1 X{:.9} Y{:.9} Z{:.9} I{:.12} J{:.12} K{:.12}{}\n",
-            p.tip.x,
-            p.tip.y,
-            p.tip.z,
-            p.axis.x,
-            p.axis.y,
-            p.axis.z,
+            "{}{}\n",
+            crate::util::pose_block(&p),
             if (i / 100) % 2 == 0 && i % 100 != 0 {
                 ""
             } else {

@@ -99,3 +99,12 @@ pub fn post_file(machine: &str, name: &str, bytes: &[u8]) -> (i32, Vec<u8>, Stri
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
 }
+
+/// A straight pose block `G1 X Y Z I J K` for `pose` (tip to 9 decimals,
+/// tool axis to 12), without a line end.
+pub fn pose_block(pose: &kinpost::machine::Pose) -> String {
+    format!(
+        "G1 X{:.9} Y{:.9} Z{:.9} I{:.12} J{:.12} K{:.12}",
+        pose.tip.x, pose.tip.y, pose.tip.z, pose.axis.x, pose.axis.y, pose.axis.z
+    )
+}

@@ -6,7 +6,7 @@
 //! kinpost's code) and compared with the same job on the axis declared
 //! `continuous`, whose words are the unwound positions themselves.
 
-use crate::util::BIN;
+use crate::util::{BIN, pose_block};
 use kinpost::machine::{Machine, NoErrors};
 use std::path::Path;
 use std::process::Command;
@@ -50,6 +50,18 @@ fn run(args: &[&str]) -> (i32, String, String) {
     )
 }
 
+/// `kinpost CMD --machine MACHINE PROGRAM`, which must succeed: its output.
+fn run_ok(cmd: &str, machine: &Path, program: &Path) -> String {
+    let (code, out, err) = run(&[
+        cmd,
+        "--machine",
+        machine.to_str().unwrap(),
+        program.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{cmd}: {err}");
+    out
+}
+
 /// The value of word `address` on a line, as written (a `-0` kept).
 fn word(line: &str, address: char) -> Option<f64> {
     line.split_whitespace()
@@ -89,16 +101,8 @@ fn pose_program(m: &Machine) -> String {
     for (k, c) in cs.iter().enumerate() {
         let ext = [10.0 + 0.1 * k as f64, -20.0, 5.0, 30.0, *c];
         let p = m.chain.pose(&m.to_internal(&ext), &NoErrors);
-        text.push_str(&format!(
-            "G1 X{:.9} Y{:.9} Z{:.9} I{:.9} J{:.9} K{:.9}{}\n",
-            p.tip.x,
-            p.tip.y,
-            p.tip.z,
-            p.axis.x,
-            p.axis.y,
-            p.axis.z,
-            if k == 0 { " F500" } else { "" }
-        ));
+        text.push_str(&pose_block(&p));
+        text.push_str(if k == 0 { " F500\n" } else { "\n" });
     }
     text.push_str("G49\nM30\n");
     text
@@ -175,21 +179,13 @@ fn a_negative_turn_to_zero_is_written_minus_zero() {
         let p = m
             .chain
             .pose(&m.to_internal(&[10.0, -20.0, 5.0, 30.0, c]), &NoErrors);
-        text.push_str(&format!(
-            "G1 X{:.9} Y{:.9} Z{:.9} I{:.12} J{:.12} K{:.12} F500\n",
-            p.tip.x, p.tip.y, p.tip.z, p.axis.x, p.axis.y, p.axis.z
-        ));
+        text.push_str(&pose_block(&p));
+        text.push_str(" F500\n");
     }
     text.push_str("G49\nM30\n");
     let program = dir.path().join("p.ngc");
     std::fs::write(&program, text).unwrap();
-    let (code, out, err) = run(&[
-        "post",
-        "--machine",
-        wrapped.to_str().unwrap(),
-        program.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{err}");
+    let out = run_ok("post", &wrapped, &program);
     let words: Vec<&str> = out
         .split_whitespace()
         .filter(|w| w.starts_with('C'))
@@ -239,17 +235,10 @@ fn linkage_divides_wrapped_blocks_along_the_turn_linuxcnc_makes() {
     let (pw, pc) = (dir.path().join("w.ngc"), dir.path().join("c.ngc"));
     std::fs::write(&pw, &w_text).unwrap();
     std::fs::write(&pc, &c_text).unwrap();
-    let link = |m: &Path, p: &Path| {
-        let (code, out, err) = run(&[
-            "linkage",
-            "--machine",
-            m.to_str().unwrap(),
-            p.to_str().unwrap(),
-        ]);
-        assert_eq!(code, 0, "{err}");
-        out
-    };
-    let (ow, oc) = (link(&wrapped, &pw), link(&continuous, &pc));
+    let (ow, oc) = (
+        run_ok("linkage", &wrapped, &pw),
+        run_ok("linkage", &continuous, &pc),
+    );
     let (qw, qc) = (c_positions(&ow, true), c_positions(&oc, false));
     assert!(qw.iter().filter(|q| q.1).count() > 10, "{ow}");
     assert_eq!(qw.len(), qc.len(), "{ow}\n{oc}");
