@@ -178,10 +178,8 @@ fn gcode_trajectory<R: BufRead>(
     let mut restart = false;
     let mut arcs = ArcModes::default();
     let mut scratch = Vec::new();
-    let feed_of = |m: &crate::program::ModalState| match m.feed_mode {
-        FeedMode::PerMinute => m.feed.map(|v| v * m.units.mm_per_unit()),
-        _ => None,
-    };
+    // The spindle's speed, for feeds per revolution.
+    let mut spindle = crate::program::spindle::Spindle::default();
     let inverse_of = |m: &crate::program::ModalState| match m.feed_mode {
         FeedMode::InverseTime => m.feed,
         _ => None,
@@ -190,6 +188,7 @@ fn gcode_trajectory<R: BufRead>(
         let line = line.map_err(|e| Error::io(file, e))?;
         scratch.clear();
         arcs.apply(&line);
+        spindle.line(&line);
         let begun = reader.begin(None, &line, &mut scratch)?;
         crate::program::unfollowed::check_line(&line, file, reader.take_unfollowed())?;
         let Some(pending) = begun else {
@@ -231,7 +230,7 @@ fn gcode_trajectory<R: BufRead>(
                         line: line.number,
                         q,
                         pose: None,
-                        feed_mm_min: feed_of(modal),
+                        feed_mm_min: spindle.feed_mm_min(modal.feed_mode, modal.feed, modal.units),
                         inverse_time: inverse_of(modal),
                         rapid: modal.motion == Motion::Rapid,
                         restart: std::mem::take(&mut restart),
@@ -275,7 +274,7 @@ fn gcode_trajectory<R: BufRead>(
             line: line.number,
             q,
             pose: Some(pending.pose),
-            feed_mm_min: feed_of(modal),
+            feed_mm_min: spindle.feed_mm_min(modal.feed_mode, modal.feed, modal.units),
             inverse_time: inverse_of(modal),
             rapid: pending.meaning.motion == Motion::Rapid,
             restart: std::mem::take(&mut restart),

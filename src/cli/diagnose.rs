@@ -171,8 +171,8 @@ pub fn program_waypoints(
                 if length > 0.0 { length * f } else { rapid_feed }
             }
             (false, _, before) => b.feed_mm_min.unwrap_or_else(|| {
-                // No feed per minute (none given, or per revolution):
-                // said on standard error.
+                // No feed per minute (none given, or per revolution
+                // without a spindle speed): said on standard error.
                 if before.is_some() {
                     no_feed.push(b.line);
                 }
@@ -206,7 +206,7 @@ pub fn program_waypoints(
     }
     if !no_feed.is_empty() {
         eprintln!(
-            "warning: {name}: {} block(s) move without a feed per minute (no F, or F per revolution: line {}): they run at --rapid-feed {rapid_feed} mm/min",
+            "warning: {name}: {} block(s) move without a feed per minute (no F, or F per revolution without a known spindle speed: line {}): they run at --rapid-feed {rapid_feed} mm/min",
             no_feed.count, no_feed
         );
     }

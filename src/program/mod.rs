@@ -14,8 +14,10 @@ pub mod inverse_time;
 pub mod length_comp;
 pub mod modal;
 pub mod opaque;
+pub mod pose_program;
 pub mod rewrite;
 pub mod source;
+pub mod spindle;
 pub mod unfollowed;
 
 pub use modal::{

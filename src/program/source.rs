@@ -5,6 +5,7 @@
 
 use super::arc::ArcModes;
 use super::modal::{Motion, PoseStart, TOOL_VECTOR_TOLERANCE, WordRef};
+pub use super::pose_program::looks_like_poses;
 use super::{ModalState, Units};
 use crate::cl::{ClReader, ClStatement, FeedUnit};
 use crate::error::{Error, Location, Result};
@@ -43,6 +44,9 @@ pub fn cl_poses<R: BufRead>(
     let mut units = Units::Mm;
     let mut feed = None;
     let mut per_rev = false;
+    // A feed per revolution (mm/rev) and the spindle's speed that makes it
+    // a feed per minute.
+    let (mut rev_feed, mut spindle) = (None, super::spindle::Spindle::default());
     let mut rapid = false;
     let mut records = crate::cl::lower(
         ClReader::new(input, file),
@@ -98,7 +102,11 @@ pub fn cl_poses<R: BufRead>(
                     line: record.line,
                     n: None,
                     pose: Pose::new(Vector3::from(tip) * units.mm_per_unit(), axis / norm),
-                    feed_mm_min: feed,
+                    feed_mm_min: if per_rev {
+                        rev_feed.zip(spindle.rpm()).map(|(f, n)| f * n)
+                    } else {
+                        feed
+                    },
                     rapid,
                 })?;
                 rapid = false;
@@ -112,14 +120,26 @@ pub fn cl_poses<R: BufRead>(
                 }
             }
             // The lowering gives a feed per revolution as `G95` and the
-            // feed in mm/rev (`cl::lower`): no feed per minute until `G94`.
+            // feed in mm/rev (`cl::lower`): a feed per minute only with the
+            // spindle's speed (its `S M3` blocks), until `G94`.
             ClStatement::Block(ref b) if b == "G95" || b == "G94" => {
                 per_rev = b == "G95";
                 if per_rev {
                     feed = None;
                 }
             }
-            ClStatement::Fedrat { .. } if per_rev => feed = None,
+            ClStatement::Block(ref b) => {
+                spindle.line(&crate::gcode::parse_line(b.as_bytes(), record.line));
+            }
+            ClStatement::Spindle { rpm, off, .. } => spindle.apt(rpm, off),
+            ClStatement::Fedrat { value, unit } if per_rev => {
+                feed = None;
+                rev_feed = Some(match unit {
+                    FeedUnit::Mmpr | FeedUnit::Mmpm => value,
+                    FeedUnit::Ipr | FeedUnit::Ipm => value * 25.4,
+                    FeedUnit::Unspecified => value * units.mm_per_unit(),
+                });
+            }
             ClStatement::Fedrat { value, unit } => {
                 feed = match unit {
                     FeedUnit::Mmpm => Some(value),
@@ -823,9 +843,11 @@ pub fn machine_axis_blocks<R: BufRead>(
     let mut gap = false;
     // Where the last event ended.
     let mut last: Option<Vec<f64>> = None;
+    let mut spindle = super::spindle::Spindle::default();
     while let Some(line) = lines.next_line() {
         let line = line.map_err(|e| Error::io(file, e))?;
         arcs.apply(line);
+        spindle.line(line);
         let Some(b) = tracker.line(machine, line, file)? else {
             continue;
         };
@@ -848,10 +870,7 @@ pub fn machine_axis_blocks<R: BufRead>(
             via,
             restart,
             line: line.number,
-            feed_mm_min: match m.feed_mode {
-                super::FeedMode::PerMinute => m.feed.map(|v| v * m.units.mm_per_unit()),
-                _ => None,
-            },
+            feed_mm_min: spindle.feed_mm_min(m.feed_mode, m.feed, m.units),
             inverse_time: match m.feed_mode {
                 super::FeedMode::InverseTime => m.feed,
                 _ => None,
@@ -863,67 +882,9 @@ pub fn machine_axis_blocks<R: BufRead>(
     Ok(())
 }
 
-/// Whether the start of a program looks like a pose program (APT CL, or
-/// G-code carrying tool vectors `I J K` / `A3= B3= C3=` or a TCP code) rather
-/// than a program in machine axes.
-pub fn looks_like_poses(head: &[u8]) -> bool {
-    if crate::cl::looks_like_cl(head) {
-        return true;
-    }
-    // I J K are a tool vector only on straight moves: on an arc (G2/G3,
-    // modal) they are its centre, on threads, splines, G68.2, G87/G88,
-    // Haas G12/G13 and Fanuc G22 and with G40–G42, G54–G59, G65 something
-    // else again (`program::ijk`, `program::unfollowed`).
-    let mut straight = true;
-    for (n, raw) in head.split(|b| *b == b'\n').enumerate() {
-        let line = crate::gcode::parse_line(raw, n + 1);
-        let pairs: Vec<(&str, f64)> = line
-            .words()
-            .map(|w| (w.address.as_str(), w.value))
-            .collect();
-        let mut other_ijk = super::ijk::owner(pairs.iter().copied()).is_some();
-        for w in line.words() {
-            if w.address == "G" {
-                let g = w.value;
-                let c = (g * 10.0).round() as i64;
-                if g == 0.0 || g == 1.0 {
-                    straight = true;
-                } else if g == 2.0 || g == 3.0 {
-                    straight = false;
-                } else if super::ijk::other_motion(c, pairs.iter().copied())
-                    || [682, 870, 880, 120, 130, 220].contains(&c)
-                {
-                    other_ijk = true;
-                }
-            }
-        }
-        for w in line.words() {
-            let vector = matches!(w.address.as_str(), "A3" | "B3" | "C3")
-                || (matches!(w.address.as_str(), "I" | "J" | "K") && straight && !other_ijk);
-            if vector {
-                return true;
-            }
-            if w.address == "G" && ((w.value - 43.4).abs() < 1e-9 || (w.value - 43.5).abs() < 1e-9)
-            {
-                return true;
-            }
-        }
-        if line.keywords().any(|k| k == "TRAORI")
-            || line.items.iter().any(|it| {
-                it.kind == ItemKind::Opaque
-                    && super::opaque::known_call(&String::from_utf8_lossy(line.item_bytes(it)))
-                        .is_some_and(|c| c.starts_with("TRAORI"))
-            })
-        {
-            return true;
-        }
-    }
-    false
-}
-
 #[cfg(test)]
 mod tests {
-    use super::{cl_poses, looks_like_poses};
+    use super::cl_poses;
 
     /// The tool tips of the poses `cl_poses` reads from `text`.
     fn tips(text: &str) -> Vec<[f64; 3]> {
@@ -962,25 +923,5 @@ mod tests {
         );
         assert!(hole.contains(&[7.0, 8.0, -5.0]), "{hole:?}");
         assert!(hole.contains(&[7.0, 8.0, 30.0]), "{hole:?}");
-    }
-
-    #[test]
-    fn arc_centres_are_not_tool_vectors() {
-        // Found by tests/it/scenarios.rs: a machine-axis program with arcs was
-        // taken for a pose program, and linkage then passed it through
-        // without dividing a single five-axis block.
-        assert!(!looks_like_poses(
-            b"G0 X10 Y0\nG2 X0 Y10 I-10 J0 F500\nX-10 Y0 I0 J-10\nG1 X1 A5 B3\n"
-        ));
-        assert!(!looks_like_poses(
-            b"G33.1 Z-10 K1.5\nG76 P2 Z-5 I-0.1 J0.1 K1\n"
-        ));
-        assert!(!looks_like_poses(b"G68.2 X0 Y0 Z0 I0 J45 K0\n"));
-        // A straight move with a tool vector, also after an arc.
-        assert!(looks_like_poses(
-            b"G2 X0 Y10 I-10 J0\nG1 X1 Y2 Z3 I0 J0 K1\n"
-        ));
-        assert!(looks_like_poses(b"G1 X1 Y2 Z3 A3=0 B3=0 C3=1\n"));
-        assert!(looks_like_poses(b"G43.4 H1\n"));
     }
 }

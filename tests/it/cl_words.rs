@@ -130,46 +130,54 @@ fn a_creo_comment_continued_with_a_dollar_takes_its_lines_of_numbers() {
 /// `FEDRAT/f,MMPR` (a feed per revolution) was read by `simulate` and
 /// `analyze` as f mm/min: the lowering writes it as `G95` and the feed, and
 /// the pose reader did not follow the `G95` (0.1 mm/rev: 2,400 s for 4 mm
-/// of travel). Now, as `G95` in G-code, there is no feed per minute: those
-/// blocks run at the rapid feed, with the warning that says so, until a
-/// feed per minute comes back.
+/// of travel). Then, as `G95` in G-code, those blocks ran at the rapid
+/// feed with a warning. Now they run at F × the spindle's speed that
+/// `SPINDL/500,RPM` sets (50 mm/min), and without a speed (`SPINDL/OFF`)
+/// at the rapid feed, with the warning.
 #[test]
-fn a_feed_per_revolution_is_not_read_as_a_feed_per_minute() {
+fn a_feed_per_revolution_runs_at_the_spindle_speed() {
     let dir = tempfile::tempdir().unwrap();
-    let prog = dir.path().join("rev.apt");
-    std::fs::write(
-        &prog,
-        "UNITS/MM\nFEDRAT/0.1000,MMPR\nSPINDL/500.0,RPM,CLW\nGOTO/17.0,0.0,2.0\nGOTO/17.0,0.0,0.0\nGOTO/15.0,0.0,0.0\nFEDRAT/600,MMPM\nGOTO/15.0,10.0,0.0\nFINI\n",
-    )
-    .unwrap();
-    let rec = dir.path().join("r.csv");
-    let out = crate::cl_support::kinpost(&[
-        "simulate",
-        "-m",
-        "xyzac-trt",
-        "--sample-interval",
-        "0.01",
-        "-p",
-        prog.to_str().unwrap(),
-        "-o",
-        rec.to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
+    let run = |spindle: &str| -> (f64, String) {
+        let prog = dir.path().join("rev.apt");
+        std::fs::write(
+            &prog,
+            format!("UNITS/MM\nFEDRAT/0.1000,MMPR\n{spindle}\nGOTO/17.0,0.0,2.0\nGOTO/17.0,0.0,0.0\nGOTO/15.0,0.0,0.0\nFEDRAT/600,MMPM\nGOTO/15.0,10.0,0.0\nFINI\n"),
+        )
+        .unwrap();
+        let rec = dir.path().join("r.csv");
+        let out = crate::cl_support::kinpost(&[
+            "simulate",
+            "-m",
+            "xyzac-trt",
+            "--sample-interval",
+            "0.01",
+            "-p",
+            prog.to_str().unwrap(),
+            "-o",
+            rec.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(out.status.success(), "{err}");
+        let last_t: f64 = std::fs::read_to_string(&rec)
+            .unwrap()
+            .lines()
+            .last()
+            .and_then(|l| l.split(',').next().map(|t| t.parse().unwrap()))
+            .unwrap();
+        (last_t, err)
+    };
+    // 4 mm at 50 mm/min (4.8 s), then 10 mm at 600 mm/min (1 s), with
+    // acceleration a little more: 5.8 s.
+    let (t, err) = run("SPINDL/500.0,RPM,CLW");
+    assert!(t > 5.8 && t < 6.3, "{t} s\n{err}");
+    assert!(!err.contains("without a feed per minute"), "{err}");
+    // 4 mm at the rapid feed (3,000 mm/min: 0.08 s), then the 10 mm: 1.45 s.
+    let (t, err) = run("SPINDL/OFF");
     assert!(
         err.contains("2 block(s) move without a feed per minute") && err.contains("line 5, 6"),
         "{err}"
     );
-    // 4 mm at the rapid feed (3,000 mm/min: 0.08 s, with acceleration a
-    // little more), then 10 mm at 600 mm/min (1 s, with acceleration a
-    // little more): 1.45 s; it was 2,401 s.
-    let last_t: f64 = std::fs::read_to_string(&rec)
-        .unwrap()
-        .lines()
-        .last()
-        .and_then(|l| l.split(',').next().map(|t| t.parse().unwrap()))
-        .unwrap();
-    assert!(last_t > 1.0 && last_t < 2.0, "{last_t} s");
+    assert!(t > 1.0 && t < 2.0, "{t} s");
 }
 
 /// CATIA's ICAM output comments a statement out with a synonym,

@@ -323,6 +323,43 @@ fn simulate_runs_inverse_time_blocks_in_their_time() {
     }
 }
 
+/// A feed per revolution with the spindle turning at a known speed runs at
+/// F × S: `G95 F0.1` with `S600 M3` is 60 mm/min, 10 mm in 10 s. Before,
+/// every `G95` block ran at `--rapid-feed` (10 mm in 0.2 s). The speed
+/// must be known: after `M5`, and under a constant surface speed (`G96`),
+/// the block runs at the rapid feed with the warning; an `S` with `G50` is
+/// a speed clamp, not a speed.
+#[test]
+fn a_feed_per_revolution_runs_at_the_spindle_speed() {
+    let time_of = |program: &str| -> (f64, String) {
+        let (rec, stderr) = simulate_with("xyz-3axis", program, &[]);
+        let end: f64 = rec
+            .lines()
+            .last()
+            .and_then(|l| l.split(',').next())
+            .unwrap()
+            .parse()
+            .unwrap();
+        (end, stderr)
+    };
+    let (t, err) =
+        time_of("G21 G90 G94\nG0 X0 Y0 Z0\nS600 M3\nG50 S3000\nG95 G1 X10 F0.1\nM5\nM2\n");
+    // 10 s at 60 mm/min.
+    assert!(t > 9.99 && t < 10.5, "{t} s\n{err}");
+    assert!(!err.contains("without a feed per minute"), "{err}");
+    for stopped in [
+        "G21 G90 G94\nG0 X0 Y0 Z0\nS600 M3\nM5\nG95 G1 X10 F0.1\nM2\n",
+        "G21 G90 G94\nG0 X0 Y0 Z0\nG96 S200 M3\n(surface speed)\nG95 G1 X10 F0.1\nM2\n",
+    ] {
+        let (t, err) = time_of(stopped);
+        assert!(t < 1.0, "{t} s: {stopped}");
+        assert!(
+            err.contains("1 block(s) move without a feed per minute") && err.contains("line 5)"),
+            "{err}"
+        );
+    }
+}
+
 /// A cutting block without a feed per minute (F per revolution under
 /// `G95`, or no F at all) runs at `--rapid-feed`, and `simulate` says so,
 /// naming the line; before, it ran so without a word.
