@@ -108,4 +108,42 @@ mod tests {
         assert_eq!(after(&["S500 M3", "G96 S200", "G97"]).rpm(), None);
         assert_eq!(after(&["G96 S200 M3", "G97 S1200"]).rpm(), Some(1200.0));
     }
+
+    #[test]
+    fn feeds_per_revolution_become_feeds_per_minute() {
+        let s = after(&["S500 M3"]);
+        let mm = Some(0.1);
+        assert_eq!(
+            s.feed_mm_min(FeedMode::PerRevolution, mm, Units::Mm),
+            Some(50.0)
+        );
+        // 0.004 in/rev at 500 rev/min: 2 in/min, 50.8 mm/min.
+        let inch = s.feed_mm_min(FeedMode::PerRevolution, Some(0.004), Units::Inch);
+        assert!((inch.unwrap() - 50.8).abs() < 1e-12);
+        assert_eq!(
+            s.feed_mm_min(FeedMode::PerMinute, Some(600.0), Units::Mm),
+            Some(600.0)
+        );
+        assert_eq!(
+            s.feed_mm_min(FeedMode::InverseTime, Some(2.0), Units::Mm),
+            None
+        );
+        assert_eq!(
+            s.feed_mm_min(FeedMode::PerRevolution, None, Units::Mm),
+            None
+        );
+        // APT: SPINDL/n,RPM sets the speed and turns; SPINDL/OFF stops;
+        // SPINDL/ON turns at the last speed.
+        let mut apt = Spindle::default();
+        apt.apt(Some(800.0), false);
+        assert_eq!(apt.rpm(), Some(800.0));
+        apt.apt(None, true);
+        assert_eq!(apt.rpm(), None);
+        apt.apt(None, false);
+        assert_eq!(apt.rpm(), Some(800.0));
+        assert_eq!(
+            apt.feed_mm_min(FeedMode::PerRevolution, mm, Units::Mm),
+            Some(80.0)
+        );
+    }
 }
