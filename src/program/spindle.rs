@@ -35,7 +35,7 @@ impl Spindle {
         if has_g(96.0) {
             self.css = true;
         }
-        if has_g(97.0) {
+        if has_g(97.0) && self.css {
             self.css = false;
             // The speed the surface speed left: not known.
             self.rpm = None;
@@ -107,6 +107,8 @@ mod tests {
         assert_eq!(after(&["G96 S200 M3"]).rpm(), None);
         assert_eq!(after(&["S500 M3", "G96 S200", "G97"]).rpm(), None);
         assert_eq!(after(&["G96 S200 M3", "G97 S1200"]).rpm(), Some(1200.0));
+        // G97 while already in G97 keeps the speed.
+        assert_eq!(after(&["S500 M3", "G97 G95 G1 X1"]).rpm(), Some(500.0));
     }
 
     #[test]
