@@ -16,6 +16,7 @@ use crate::program::{PoseStart, Units};
 use pipeline::{Format, SolveFirst, Stage, Whole};
 use std::io::{BufRead, Write};
 
+pub mod choose_in_order;
 mod cl;
 mod cl_motion;
 mod gcode;
@@ -41,6 +42,52 @@ pub trait PoseSolver {
     /// then gets the moves.
     fn plans_freely(&self) -> bool {
         true
+    }
+
+    /// The solver in two parts, where it has them: `post` then finds each
+    /// pose's branches in parallel and chooses among them in order
+    /// ([`choose_in_order`]).
+    fn split(&self) -> Option<&dyn SplitSolver> {
+        None
+    }
+}
+
+/// A [`PoseSolver`] in two parts: the branches of a pose, which do not
+/// depend on the pose before (any thread), and the choice among them,
+/// which does (in order). Together they give what
+/// [`PoseSolver::solve`] gives.
+pub trait SplitSolver: Sync {
+    /// The order-free part of `pose` (programmed at `line`).
+    fn prepare(&self, pose: &Pose, line: usize) -> crate::machine::PreparedPose;
+    /// The joint values of `pose` from its `prepared` part, continuing
+    /// from `previous`.
+    fn choose(
+        &self,
+        pose: &Pose,
+        prepared: &crate::machine::PreparedPose,
+        previous: Option<&[f64]>,
+        line: usize,
+    ) -> std::result::Result<SolvedPose, String>;
+}
+
+impl SplitSolver for IkSolver {
+    fn prepare(&self, pose: &Pose, _line: usize) -> crate::machine::PreparedPose {
+        IkSolver::prepare(self, pose)
+    }
+    fn choose(
+        &self,
+        pose: &Pose,
+        prepared: &crate::machine::PreparedPose,
+        previous: Option<&[f64]>,
+        _line: usize,
+    ) -> std::result::Result<SolvedPose, String> {
+        IkSolver::choose(self, pose, prepared, previous)
+            .map(|s| SolvedPose {
+                q: s.q,
+                axis_miss_rad: s.axis_miss_rad,
+                theoretical: None,
+            })
+            .map_err(|e| e.to_string())
     }
 }
 
@@ -92,6 +139,10 @@ impl PoseSolver for IkSolver {
                 theoretical: None,
             })
             .map_err(|e| e.to_string())
+    }
+
+    fn split(&self) -> Option<&dyn SplitSolver> {
+        Some(self)
     }
 }
 
@@ -422,6 +473,17 @@ pub fn post_gcode<R: BufRead, W: Write + ?Sized>(
             opts,
             progress,
         )
+    } else if let Some(split) = solver.split() {
+        convert_gcode(
+            machine,
+            &mut choose_in_order::ChooseInOrder::new(split),
+            &|pose, job| choose_in_order::ChooseInOrder::work(split, pose, job),
+            |_| Ok(()),
+            input,
+            out,
+            opts,
+            progress,
+        )
     } else {
         convert_gcode(
             machine,
@@ -525,6 +587,22 @@ impl<'a> Format for GcodeFormat<'a> {
     }
     fn begun(reader: &mut BlockReader<'a>, q: &[f64]) {
         reader.begun(q);
+    }
+    const DEFERRABLE: bool = true;
+    fn deferred(reader: &mut BlockReader<'a>) {
+        reader.deferred();
+    }
+    fn needs_committed(reader: &BlockReader<'a>, unit: &GcodeUnit) -> bool {
+        reader.needs_committed(&unit.line)
+    }
+    fn continues_from<'r>(
+        writer: &'r BlockWriter<'a>,
+        pending: &'r PendingPose,
+    ) -> Option<&'r [f64]> {
+        pending.continues.resolve(writer.last_joints())
+    }
+    fn sync(reader: &mut BlockReader<'a>, writer: &BlockWriter<'a>) {
+        reader.sync(writer.last_joints());
     }
     fn front_error(
         reader: &BlockReader<'a>,

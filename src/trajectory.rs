@@ -245,7 +245,7 @@ fn gcode_trajectory<R: BufRead>(
         };
         // Where the block starts is not known (after G28, G53 between
         // poses): the path goes on afresh from its end.
-        if pending.from.is_none() && last.is_some() {
+        if pending.from(None).is_none() && last.is_some() {
             restart = true;
         }
         let q = reachable(

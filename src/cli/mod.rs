@@ -185,12 +185,42 @@ impl crate::post::PoseSolver for ToolSolvers {
         previous: Option<&[f64]>,
         line: usize,
     ) -> std::result::Result<crate::post::SolvedPose, String> {
-        let k = self
-            .solvers
+        let k = self.index(line);
+        crate::post::PoseSolver::solve(&mut self.solvers[k].1, pose, previous, line)
+    }
+
+    fn split(&self) -> Option<&dyn crate::post::SplitSolver> {
+        Some(self)
+    }
+}
+
+impl ToolSolvers {
+    /// The index of the tool at `line`.
+    fn index(&self, line: usize) -> usize {
+        self.solvers
             .iter()
             .rposition(|(from, _)| *from <= line)
-            .unwrap_or(0);
-        crate::post::PoseSolver::solve(&mut self.solvers[k].1, pose, previous, line)
+            .unwrap_or(0)
+    }
+
+    /// The solver of the tool at `line`.
+    fn at(&self, line: usize) -> &IkSolver {
+        &self.solvers[self.index(line)].1
+    }
+}
+
+impl crate::post::SplitSolver for ToolSolvers {
+    fn prepare(&self, pose: &crate::machine::Pose, line: usize) -> crate::machine::PreparedPose {
+        self.at(line).prepare(pose)
+    }
+    fn choose(
+        &self,
+        pose: &crate::machine::Pose,
+        prepared: &crate::machine::PreparedPose,
+        previous: Option<&[f64]>,
+        line: usize,
+    ) -> std::result::Result<crate::post::SolvedPose, String> {
+        crate::post::SplitSolver::choose(self.at(line), pose, prepared, previous, line)
     }
 }
 

@@ -71,12 +71,13 @@ impl<'s, 'm> Stage for Compensating<'s, 'm> {
         pose: &Pose,
         job: &Job,
         line: usize,
+        _: Option<&[f64]>,
     ) -> std::result::Result<SolvedPose, String> {
         let refined = job.refined.as_ref().expect("refined in parallel");
         solver.commit(pose, &job.th, refined, job.written, line)
     }
-    fn joints(job: &Job) -> &[f64] {
-        &job.th
+    fn joints(job: &Job) -> Option<&[f64]> {
+        Some(&job.th)
     }
 }
 

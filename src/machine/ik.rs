@@ -37,7 +37,10 @@ use nalgebra::{DMatrix, DVector, Matrix3, Matrix4, Vector3};
 use std::f64::consts::PI;
 
 mod orient;
+mod prepared;
 mod subproblem;
+
+pub use prepared::PreparedPose;
 
 use subproblem::{gram_schmidt_solve, rot3, subproblem1, subproblem2};
 
@@ -196,6 +199,7 @@ type Branches = arrayvec::ArrayVec<IkSolution, MAX_BRANCHES>;
 type RawBranches = arrayvec::ArrayVec<Raw, MAX_BRANCHES>;
 
 /// A branch before unwinding and the linear solve.
+#[derive(Debug, Clone, PartialEq)]
 struct Raw {
     /// Joint values (the first `dof` are used).
     q: [f64; super::chain::MAX_JOINTS],
@@ -365,7 +369,14 @@ impl IkSolver {
     /// The solution for `pose` nearest the previous block's joint values
     /// `previous` (chain order, internal units), within the axis limits.
     pub fn solve(&self, pose: &Pose, previous: Option<&[f64]>) -> Result<IkSolution, IkError> {
-        let mut cands = self.candidates(pose, previous, true)?;
+        let cands = self.candidates(pose, previous, true)?;
+        self.select(cands, previous)
+    }
+
+    /// The choice among the unwound branches `cands` of a pose: the one
+    /// with the least tool-axis miss nearest `previous` within the limits,
+    /// else the nearest one's limit error.
+    fn select(&self, mut cands: Branches, previous: Option<&[f64]>) -> Result<IkSolution, IkError> {
         // A single branch within the limits is the choice.
         if cands.len() == 1 && self.within_all_limits(&cands[0].q) {
             return Ok(cands.remove(0));
@@ -373,37 +384,37 @@ impl IkSolver {
         let reference = self.reference(previous);
         let valid: [bool; MAX_BRANCHES] =
             std::array::from_fn(|i| cands.get(i).is_some_and(|s| self.within_all_limits(&s.q)));
+        let distance: [f64; MAX_BRANCHES] = std::array::from_fn(|i| {
+            cands
+                .get(i)
+                .map_or(f64::INFINITY, |s| self.distance(&s.q, &reference))
+        });
         // The branch with the least axis miss (ties within MISS_TIE_RAD)
         // nearest the reference, among those `keep` admits.
-        let pick = |keep: &dyn Fn(usize) -> bool| -> Option<&IkSolution> {
-            let set = || {
-                cands
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, _)| keep(*i))
-                    .map(|(_, s)| s)
-            };
-            let best_miss = set().map(|s| s.axis_miss_rad).fold(f64::INFINITY, f64::min);
+        let pick = |keep: &dyn Fn(usize) -> bool| -> Option<usize> {
+            let set = || cands.iter().enumerate().filter(|(i, _)| keep(*i));
+            let best_miss = set()
+                .map(|(_, s)| s.axis_miss_rad)
+                .fold(f64::INFINITY, f64::min);
             set()
-                .filter(|s| s.axis_miss_rad <= best_miss + MISS_TIE_RAD)
-                .min_by(|a, b| {
-                    self.distance(&a.q, &reference)
-                        .total_cmp(&self.distance(&b.q, &reference))
+                .filter(|(_, s)| s.axis_miss_rad <= best_miss + MISS_TIE_RAD)
+                .min_by(|(i, a), (j, b)| {
+                    distance[*i]
+                        .total_cmp(&distance[*j])
                         .then(a.branch.cmp(&b.branch))
                 })
+                .map(|(i, _)| i)
         };
-        if let Some(s) = pick(&|i| valid[i]) {
-            return Ok(s.clone());
+        if let Some(i) = pick(&|i| valid[i]) {
+            return Ok(cands.swap_remove(i));
         }
         match pick(&|_| true) {
-            Some(nearest) => {
-                Err(self
-                    .check_limits(&nearest.q)
-                    .err()
-                    .unwrap_or(IkError::Unreachable {
-                        reason: "no solution branch".into(),
-                    }))
-            }
+            Some(i) => Err(self
+                .check_limits(&cands[i].q)
+                .err()
+                .unwrap_or(IkError::Unreachable {
+                    reason: "no solution branch".into(),
+                })),
             None => Err(IkError::Unreachable {
                 reason: "no solution branch".into(),
             }),
@@ -481,17 +492,10 @@ impl IkSolver {
         r
     }
 
-    /// The solution branches of `pose`, rotaries unwound towards
-    /// `previous`. With `nearest_only`, a second branch is not completed when
-    /// it cannot be chosen: the first (the one whose rotaries are nearer the
-    /// reference) is within the limits, meets the tool axis (miss within
-    /// `MISS_TIE_RAD`), and is nearer than the second's rotaries alone.
-    fn candidates(
-        &self,
-        pose: &Pose,
-        previous: Option<&[f64]>,
-        nearest_only: bool,
-    ) -> Result<Branches, IkError> {
+    /// Refuses a pose no branch can be computed for: not finite, a zero
+    /// tool axis, a tip beyond any travel, or a chain the evaluator does
+    /// not handle.
+    fn check_pose(&self, pose: &Pose) -> Result<(), IkError> {
         let axis_norm = pose.axis.norm();
         if !pose.tip.iter().all(|v| v.is_finite())
             || axis_norm.is_nan()
@@ -520,6 +524,21 @@ impl IkSolver {
                 ),
             });
         }
+        Ok(())
+    }
+
+    /// The solution branches of `pose`, rotaries unwound towards
+    /// `previous`. With `nearest_only`, a second branch is not completed when
+    /// it cannot be chosen: the first (the one whose rotaries are nearer the
+    /// reference) is within the limits, meets the tool axis (miss within
+    /// `MISS_TIE_RAD`), and is nearer than the second's rotaries alone.
+    fn candidates(
+        &self,
+        pose: &Pose,
+        previous: Option<&[f64]>,
+        nearest_only: bool,
+    ) -> Result<Branches, IkError> {
+        self.check_pose(pose)?;
         let target = Pose::new(pose.tip, pose.axis);
         let reference = self.reference(previous);
         if self.family == Family::Generic {
@@ -547,33 +566,8 @@ impl IkSolver {
             });
             return Ok(one);
         }
-        // The linear axes and the miss of one branch, its rotaries unwound.
-        let complete = |raw: &Raw| -> Result<IkSolution, IkError> {
-            let mut q: JointValues = raw.q[..n].iter().copied().collect();
-            self.unwind(&mut q, &reference);
-            // The tool axis does not depend on the linear axes.
-            let reached = self.solve_prismatics(&mut q, &target)?;
-            Ok(IkSolution {
-                q,
-                axis_miss_rad: reached.axis_angle(&target),
-                singular: raw.singular,
-                branch: raw.branch,
-            })
-        };
-        // With `nearest_only`, the branch `first` is completed alone and
-        // returned when it is certainly the one chosen: it meets the axis,
-        // is within the limits, and is nearer than `lower`, a lower bound of
-        // the other branch's distance.
-        let nearest = |first: Result<IkSolution, IkError>, lower: f64| match first {
-            Ok(s)
-                if s.axis_miss_rad <= MISS_TIE_RAD
-                    && self.within_all_limits(&s.q)
-                    && self.distance(&s.q, &reference) < lower =>
-            {
-                Ok(s)
-            }
-            other => Err(other),
-        };
+        let complete = |raw: &Raw| self.complete_unwound(raw, &target, &reference);
+        let nearest = |first, lower| self.nearest(first, lower, &reference);
         let mut done: [Option<Result<IkSolution, IkError>>; MAX_BRANCHES] = [None, None];
         let raws = match self.family {
             Family::ThreeAxis => [Raw {
@@ -616,21 +610,73 @@ impl IkSolver {
             },
             Family::Generic => RawBranches::new(),
         };
+        self.complete_branches(&raws, done, &target, &reference, nearest_only)
+    }
+
+    /// The linear axes and the miss of one branch, its rotaries unwound
+    /// towards `reference`.
+    fn complete_unwound(
+        &self,
+        raw: &Raw,
+        target: &Pose,
+        reference: &[f64],
+    ) -> Result<IkSolution, IkError> {
+        let mut s = self.complete(raw, target)?;
+        self.unwind(&mut s.q, reference);
+        Ok(s)
+    }
+
+    /// With `nearest_only`, a branch `first` is completed alone and
+    /// returned when it is certainly the one chosen: it meets the axis, is
+    /// within the limits, and is nearer `reference` than `lower`, a lower
+    /// bound of the other branch's distance. Otherwise the branch is given
+    /// back as `Err`.
+    fn nearest(
+        &self,
+        first: Result<IkSolution, IkError>,
+        lower: f64,
+        reference: &[f64],
+    ) -> Result<IkSolution, Result<IkSolution, IkError>> {
+        match first {
+            Ok(s)
+                if s.axis_miss_rad <= MISS_TIE_RAD
+                    && self.within_all_limits(&s.q)
+                    && self.distance(&s.q, reference) < lower =>
+            {
+                Ok(s)
+            }
+            other => Err(other),
+        }
+    }
+
+    /// The branches `raws` completed and unwound towards `reference` (those
+    /// in `done` completed already); with `nearest_only` only the nearer
+    /// one where it is certainly the choice ([`IkSolver::nearest`]).
+    fn complete_branches(
+        &self,
+        raws: &RawBranches,
+        mut done: [Option<Result<IkSolution, IkError>>; MAX_BRANCHES],
+        target: &Pose,
+        reference: &[f64],
+        nearest_only: bool,
+    ) -> Result<Branches, IkError> {
+        let n = self.chain.dof();
+        let complete = |raw: &Raw| self.complete_unwound(raw, target, reference);
         if nearest_only && raws.len() == 2 && done.iter().all(Option::is_none) {
             let lower: [f64; 2] = std::array::from_fn(|i| {
                 let mut q: JointValues = raws[i].q[..n].iter().copied().collect();
-                self.unwind(&mut q, &reference);
-                self.rotary_distance(&q, &reference)
+                self.unwind(&mut q, reference);
+                self.rotary_distance(&q, reference)
             });
             let (first, other) = if lower[1] < lower[0] { (1, 0) } else { (0, 1) };
-            match nearest(complete(&raws[first]), lower[other]) {
+            match self.nearest(complete(&raws[first]), lower[other], reference) {
                 Ok(s) => return Ok(Branches::from_iter([s])),
                 Err(sol) => done[first] = Some(sol),
             }
         }
         let mut out = Branches::new();
         let mut last_err = None;
-        for (slot, raw) in done.iter_mut().zip(&raws) {
+        for (slot, raw) in done.iter_mut().zip(raws) {
             match slot.take().unwrap_or_else(|| complete(raw)) {
                 Ok(s) => out.push(s),
                 Err(e) => last_err = Some(e),
@@ -640,6 +686,22 @@ impl IkSolver {
             (true, Some(e)) => Err(e),
             _ => Ok(out),
         }
+    }
+
+    /// The linear axes and the tool-axis miss of a branch at the rotary
+    /// angles of its enumeration (before they are unwound: a turn more or
+    /// less leaves the linear axes where they are, and the angle nearer 0
+    /// keeps every bit of their precision).
+    fn complete(&self, raw: &Raw, target: &Pose) -> Result<IkSolution, IkError> {
+        let mut q: JointValues = raw.q[..self.chain.dof()].iter().copied().collect();
+        // The tool axis does not depend on the linear axes.
+        let reached = self.solve_prismatics(&mut q, target)?;
+        Ok(IkSolution {
+            q,
+            axis_miss_rad: reached.axis_angle(target),
+            singular: raw.singular,
+            branch: raw.branch,
+        })
     }
 
     /// The rotary part of [`IkSolver::distance`]: a lower bound of it (the

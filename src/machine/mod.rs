@@ -28,5 +28,5 @@ pub use chain::{
     Chain, ChainPart, ErrorMotion, JointErrors, JointKind, JointValues, NoErrors, Pose,
 };
 pub use file::Machine;
-pub use ik::{Family, IkError, IkOptions, IkSolution, IkSolver};
+pub use ik::{Family, IkError, IkOptions, IkSolution, IkSolver, PreparedPose};
 pub use rotary::output_value;

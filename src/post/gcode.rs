@@ -55,7 +55,7 @@ pub struct BlockReader<'a> {
     /// pose begun (as the first pass solved it: `post`'s solution,
     /// `compensate`'s theoretical one; [`BlockReader::begun`]) or of the
     /// machine position followed since.
-    previous: Option<JointValues>,
+    previous: Continuation,
     /// A line with words was passed through since the last pose begun, or
     /// that pose was a block-delete one: the next pose's axis words are
     /// all written, also with `--modal-axes` ([`PendingPose::after_other`]).
@@ -110,6 +110,8 @@ pub struct BlockWriter<'a> {
     poses: usize,
     /// Largest tool-axis miss, rad.
     max_axis_miss_rad: f64,
+    /// The joint values of the last pose written.
+    last: Option<JointValues>,
     warnings: Warnings,
 }
 
@@ -133,7 +135,7 @@ impl<'a> GcodeConverter<'a> {
                         .tool_machines
                         .iter()
                         .any(|(_, m)| m.tool_length_mm != 0.0),
-                previous: None,
+                previous: Continuation::Nowhere,
                 other_since_pose: false,
                 moved_since_pose: false,
                 unfollowed: None,
@@ -152,6 +154,7 @@ impl<'a> GcodeConverter<'a> {
                 feed: Default::default(),
                 poses: 0,
                 max_axis_miss_rad: 0.0,
+                last: None,
                 warnings: Vec::new(),
             },
         }
@@ -346,10 +349,8 @@ impl BlockReader<'_> {
             after_other,
             moved: std::mem::take(&mut self.moved_since_pose),
             pose: Pose::new(tip, axis),
-            from: match self.start {
-                Start::Unknown => None,
-                _ => self.previous.clone(),
-            },
+            continues: self.previous.clone(),
+            start_known: self.start != Start::Unknown,
             start_tip: match start_tip {
                 [Some(x), Some(y), Some(z)] => Some(Vector3::new(x, y, z)),
                 _ => None,
@@ -371,7 +372,21 @@ impl BlockReader<'_> {
 
     /// The joint values the program continues from.
     pub fn previous(&self) -> Option<&[f64]> {
-        self.previous.as_deref()
+        self.previous.resolve(None)
+    }
+
+    /// Whether `line` needs the joint values of the last pose while they
+    /// are not known yet ([`BlockReader::deferred`]): a block in machine
+    /// coordinates (pose mode off, or switched off in the line) with an axis
+    /// word, whose other axes stay where that pose put them.
+    pub fn needs_committed(&self, line: &Line) -> bool {
+        self.previous == Continuation::LastPose
+            && (!self.modal.pose_mode
+                || line.words().any(|w| w.address == "G" && w.value == 49.0)
+                || line.keywords().any(|k| k == "TRAFOOF"))
+            && line
+                .words()
+                .any(|w| self.machine.axes.iter().any(|a| a.name == w.address))
     }
 
     /// The error of a failed solve of `pending` (programmed at `line`).
@@ -417,6 +432,8 @@ impl BlockWriter<'_> {
             let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);
             Location::new(&opts.file_name, line.number, col)
         };
+        let last = self.last.take();
+        let from = pending.from(last.as_deref());
         if solved.axis_miss_rad > opts.axis_tolerance_rad {
             return Err(Error::input_with(
                 loc(meaning.pose_items.first().copied()),
@@ -435,7 +452,7 @@ impl BlockWriter<'_> {
             self.axes.write_all_next();
         }
         if pending.moved && !meaning.absolute {
-            self.axes.moved_to(pending.from.as_deref());
+            self.axes.moved_to(from);
         }
         let words_text = self
             .axes
@@ -448,7 +465,7 @@ impl BlockWriter<'_> {
             )
             .map_err(|m| Error::input(loc(meaning.pose_items.first().copied()), m))?;
         let feed = opts.inverse_time.then(|| {
-            let moved = pending.from.as_ref().is_some_and(|p| {
+            let moved = from.is_some_and(|p| {
                 self.machine
                     .chain
                     .joints()
@@ -498,7 +515,7 @@ impl BlockWriter<'_> {
             );
         }
         if matches!(meaning.motion, Motion::Linear | Motion::Rapid)
-            && let Some(prev) = &pending.from
+            && let Some(prev) = from
             && let Some(w) = crate::machine::midblock::branch_change_warning(
                 machine_at(self.machine, self.opts, line.number),
                 prev,
@@ -509,7 +526,13 @@ impl BlockWriter<'_> {
             let at = loc(meaning.pose_items.first().copied());
             self.warnings.push(((line.number, 1), format!("{at}: {w}")));
         }
+        self.last = Some(solved.q.clone());
         Ok(())
+    }
+
+    /// The joint values of the last pose written.
+    pub fn last_joints(&self) -> Option<&[f64]> {
+        self.last.as_deref()
     }
 }
 
@@ -521,10 +544,32 @@ impl BlockReader<'_> {
     /// `compensate` a chunk's poses are written after the next chunk is
     /// begun), so nothing `begin` reads depends on it.
     pub fn begun(&mut self, q: &[f64]) {
-        self.previous = Some(q.iter().copied().collect());
+        self.previous = Continuation::At(q.iter().copied().collect());
         // `machine_ext` follows from `previous` when next needed.
         self.machine_ext_stale = true;
         self.start = Start::AtPose;
+    }
+
+    /// The pose last begun is solved later, in order (`post`'s driver
+    /// solves in its last pass): the blocks after it continue from its
+    /// joint values, which [`BlockWriter::last_joints`] gives once it is
+    /// written. A block that needs them before
+    /// ([`BlockReader::needs_committed`]) waits for [`BlockReader::sync`].
+    pub fn deferred(&mut self) {
+        self.previous = Continuation::LastPose;
+        self.machine_ext_stale = true;
+        self.start = Start::AtPose;
+    }
+
+    /// Every pose begun is written, the last with the joint values `last`:
+    /// the blocks after it continue from there.
+    pub fn sync(&mut self, last: Option<&[f64]>) {
+        if self.previous == Continuation::LastPose {
+            self.previous = match last {
+                Some(q) => Continuation::At(q.iter().copied().collect()),
+                None => Continuation::Nowhere,
+            };
+        }
     }
 
     /// The code or transformation kinpost does not follow, with its item,
@@ -574,8 +619,20 @@ impl BlockReader<'_> {
                 return Ok(());
             }
         }
+        let axis_word =
+            |w: &crate::gcode::Word| self.machine.axes.iter().any(|a| a.name == w.address);
+        if !line.words().any(axis_word) {
+            return Ok(());
+        }
+        if self.previous == Continuation::LastPose {
+            return Err(Error::input_with(
+                Location::new(&self.opts.file_name, line.number, 1),
+                "internal error: a block in machine coordinates was followed before the pose before it was solved; please report it",
+                line.text_lossy(),
+            ));
+        }
         if std::mem::take(&mut self.machine_ext_stale)
-            && let Some(q) = &self.previous
+            && let Continuation::At(q) = &self.previous
         {
             for (e, axis) in self.machine_ext.iter_mut().zip(&self.machine.axes) {
                 *e = crate::machine::output_value(axis, q.get(axis.joint).copied().unwrap_or(0.0));
@@ -638,7 +695,7 @@ impl BlockReader<'_> {
                 .chain
                 .pose(&q, &crate::machine::NoErrors);
             self.modal.seed_from_machine(pose.tip, pose.axis);
-            self.previous = Some(q);
+            self.previous = Continuation::At(q);
         }
         Ok(())
     }
@@ -679,14 +736,52 @@ pub struct PendingPose {
     pub moved: bool,
     /// The tool pose to solve.
     pub pose: Pose,
-    /// The joint values the block starts from: the pose before's (as
-    /// solved in the first pass) or the machine position followed since;
-    /// `None` where that is not known (after `G28`, `G53`, …).
-    pub from: Option<crate::machine::chain::JointValues>,
+    /// The joint values the block continues from: the pose before's or
+    /// the machine position followed since (what a solver continues from).
+    pub continues: Continuation,
+    /// Where the machine stands before the block is known: not after
+    /// `G28`, `G53`, … ([`PendingPose::from`]).
+    pub start_known: bool,
     /// The tool tip before the block, mm, when known.
     pub start_tip: Option<Vector3<f64>>,
     /// What the block means.
     pub meaning: crate::program::BlockMeaning,
+}
+
+impl PendingPose {
+    /// The joint values the block starts from, where that is known (not
+    /// after `G28`, `G53`, …); `last`: the joint values of the pose before
+    /// as written, for a pose begun before it was solved.
+    pub fn from<'a>(&'a self, last: Option<&'a [f64]>) -> Option<&'a [f64]> {
+        if self.start_known {
+            self.continues.resolve(last)
+        } else {
+            None
+        }
+    }
+}
+
+/// The joint values a block continues from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Continuation {
+    /// None: no pose or machine position came yet.
+    Nowhere,
+    /// These (chain order, mm / rad).
+    At(JointValues),
+    /// The last pose's, solved after the block was read
+    /// ([`BlockReader::deferred`]).
+    LastPose,
+}
+
+impl Continuation {
+    /// The joint values, `last` standing for the last pose's.
+    pub fn resolve<'a>(&'a self, last: Option<&'a [f64]>) -> Option<&'a [f64]> {
+        match self {
+            Continuation::Nowhere => None,
+            Continuation::At(q) => Some(q),
+            Continuation::LastPose => last,
+        }
+    }
 }
 
 /// `v` emptied, keeping its allocation, as a vector whose elements borrow

@@ -118,6 +118,35 @@ pub trait Format: Send {
     /// continues from there, whether or not the pose is written yet (a
     /// block in machine coordinates moves on from the machine's position).
     fn begun(front: &mut Self::Front, q: &[f64]);
+    /// Whether the format follows a stage that solves its poses in the
+    /// last pass ([`Stage::DEFERS`]): [`Format::deferred`],
+    /// [`Format::needs_committed`], [`Format::continues_from`] and
+    /// [`Format::sync`] are its.
+    const DEFERRABLE: bool = false;
+    /// In order, in the first pass: the pose last begun is solved in the
+    /// last pass; what is begun after it continues from joint values not
+    /// known yet.
+    fn deferred(front: &mut Self::Front) {
+        let _ = front;
+    }
+    /// Whether `unit` needs the joint values of a pose not solved yet (a
+    /// block in machine coordinates after a deferred pose): the driver then
+    /// writes everything before it and [`Format::sync`]s first.
+    fn needs_committed(front: &Self::Front, unit: &Self::Unit) -> bool {
+        let _ = (front, unit);
+        false
+    }
+    /// In the last pass: the joint values `pending` continues from (the
+    /// pose before's, as written, or the machine position followed since).
+    fn continues_from<'r>(back: &'r Self::Back, pending: &'r Self::Pending) -> Option<&'r [f64]> {
+        let _ = (back, pending);
+        None
+    }
+    /// Between the passes, everything begun being written: the front
+    /// continues from the joint values the back wrote last.
+    fn sync(front: &mut Self::Front, back: &Self::Back) {
+        let _ = (front, back);
+    }
     /// The error of a failed solve of `pending` in the first pass.
     fn front_error(
         front: &Self::Front,
@@ -177,15 +206,18 @@ pub trait Stage: Send {
         line: usize,
     ) -> std::result::Result<Step<Self::Job>, String>;
     /// In order, in the writing pass: the joint values of a job that was
-    /// worked on.
+    /// worked on; `previous`: the joint values the pose continues from
+    /// ([`Format::continues_from`], for a stage that [`Stage::DEFERS`]).
     fn commit(
         back: &mut Self::Back,
         pose: &Pose,
         job: &Self::Job,
         line: usize,
+        previous: Option<&[f64]>,
     ) -> std::result::Result<SolvedPose, String>;
-    /// The joint values the first pass gave a job's pose ([`Format::begun`]).
-    fn joints(job: &Self::Job) -> &[f64];
+    /// The joint values the first pass gave a job's pose
+    /// ([`Format::begun`]); `None` for a stage that [`Stage::DEFERS`].
+    fn joints(job: &Self::Job) -> Option<&[f64]>;
     /// The solver, when the stage solves every pose in the first pass
     /// ([`Step::Done`]): the format may plan with it in
     /// [`Format::begin`], where everything before is converted.
@@ -196,6 +228,12 @@ pub trait Stage: Send {
     /// Whether the stage's jobs have work between the passes (the
     /// driver's `work`); without, no task is started for it.
     const WORKS: bool = true;
+    /// Whether the stage solves its poses in the last pass, in order
+    /// ([`Stage::commit`]), its first pass giving no joint values: the
+    /// format must be [`Format::DEFERRABLE`]. A commit that fails then
+    /// leaves the text before the pose written, as a first pass's error
+    /// does.
+    const DEFERS: bool = false;
 }
 
 /// The stage of `post`: a [`PoseSolver`] solves each pose in order, so
@@ -234,10 +272,11 @@ impl<'s> Stage for Whole<'s> {
         _: &Pose,
         job: &Self::Job,
         _: usize,
+        _: Option<&[f64]>,
     ) -> std::result::Result<SolvedPose, String> {
         match *job {}
     }
-    fn joints(job: &Self::Job) -> &[f64] {
+    fn joints(job: &Self::Job) -> Option<&[f64]> {
         match *job {}
     }
     fn planner(solver: &mut Self::Front) -> Option<&mut dyn PoseSolver> {
@@ -284,11 +323,12 @@ impl<'s> Stage for SolveFirst<'s> {
         _: &Pose,
         job: &Self::Job,
         _: usize,
+        _: Option<&[f64]>,
     ) -> std::result::Result<SolvedPose, String> {
         Ok(job.clone())
     }
-    fn joints(job: &Self::Job) -> &[f64] {
-        &job.q
+    fn joints(job: &Self::Job) -> Option<&[f64]> {
+        Some(&job.q)
     }
 }
 
@@ -321,6 +361,12 @@ struct Chunk<F: Format, J> {
     /// The first pass stopped at an error (raised once the units before it
     /// are written).
     stop: Option<Error>,
+    /// The first pass stopped before this unit, which needs the joint
+    /// values of poses solved in the last pass ([`Format::needs_committed`]).
+    suspended: Option<usize>,
+    /// The chunk is the rest of a suspended one: its first unit is not
+    /// suspended again.
+    resumed: bool,
 }
 
 impl<F: Format, J> Default for Chunk<F, J> {
@@ -332,6 +378,8 @@ impl<F: Format, J> Default for Chunk<F, J> {
             entries: Vec::new(),
             jobs: Vec::new(),
             stop: None,
+            suspended: None,
+            resumed: false,
         }
     }
 }
@@ -387,6 +435,7 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
     // Reads the next chunk's units into `c` (this thread).
     let mut read_chunk = |c: &mut Chunk<F, S::Job>| -> Result<()> {
         c.count = 0;
+        c.resumed = false;
         while c.count < CHUNK_UNITS && !eof {
             if c.units.len() == c.count {
                 c.units.push(Default::default());
@@ -417,9 +466,29 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
     let mut previous: Option<Chunk<F, S::Job>> = None;
     let mut stopped = false;
     let split = format.splits() && S::planner(stage.halves().0).is_none();
-    while prepared.is_some() || current.is_some() || previous.is_some() {
-        let mut to_prepare = (reading.count > 0 && !stopped).then(|| std::mem::take(&mut reading));
-        let mut next_reading = spare.pop().unwrap_or_default();
+    if S::DEFERS && !F::DEFERRABLE {
+        return Err(Error::Usage(
+            "internal error: a stage that solves in the last pass with a format that cannot wait for it; please report it".into(),
+        ));
+    }
+    // The rest of a chunk whose first pass was suspended
+    // ([`Format::needs_committed`]), first in line for the next first pass;
+    // `waiting`: its first part is not written yet, so the next first pass
+    // waits (and reading and preparing with it).
+    let mut held: Option<Chunk<F, S::Job>> = None;
+    let mut waiting = false;
+    while prepared.is_some() || held.is_some() || current.is_some() || previous.is_some() {
+        // Whether this round's first pass takes the prepared chunk (so
+        // that another is read and prepared behind it).
+        let advance = !waiting && held.is_none();
+        let mut to_prepare =
+            (advance && reading.count > 0 && !stopped).then(|| std::mem::take(&mut reading));
+        let reads = to_prepare.is_some();
+        let mut next_reading = if reads {
+            spare.pop().unwrap_or_default()
+        } else {
+            Chunk::default()
+        };
         let mut written: Result<()> = Ok(());
         let mut next: Option<Chunk<F, S::Job>> = None;
         let mut read_result: Result<()> = Ok(());
@@ -430,12 +499,17 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
             // pool's other threads take the oldest task first.
             let (front, back) = format.halves();
             let (stage_front, stage_back) = stage.halves();
-            let (previous, prepared) = (&mut previous, &mut prepared);
+            let prepared = match (waiting, held.is_some()) {
+                (true, _) => None,
+                (false, true) => Some(&mut held),
+                (false, false) => Some(&mut prepared),
+            };
+            let previous = &mut previous;
             let (written, next, buf) = (&mut written, &mut next, &mut buf);
             let stopped = stopped;
             if split {
                 scope.spawn(move |_| {
-                    if !stopped && let Some(mut c) = prepared.take() {
+                    if !stopped && let Some(mut c) = prepared.and_then(Option::take) {
                         first_pass::<F, S>(front, None, stage_front, &mut c);
                         *next = Some(c);
                     }
@@ -452,7 +526,7 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
                     }
                     if written.is_ok()
                         && !stopped
-                        && let Some(mut c) = prepared.take()
+                        && let Some(mut c) = prepared.and_then(Option::take)
                     {
                         first_pass::<F, S>(front, Some(back), stage_front, &mut c);
                         *next = Some(c);
@@ -477,13 +551,20 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
             // Write the chunk before and read the chunk after while the
             // pool works.
             out_result = write_out(out, &ready);
-            if !stopped {
+            if !stopped && reads {
                 read_result = read_chunk(&mut next_reading);
             }
         });
         out_result?;
         ready.clear();
-        if let Some(p) = previous.take() {
+        if let Some(mut p) = previous.take() {
+            if p.suspended.take().is_some() {
+                // The poses before the unit that waits are written: it
+                // continues from the joint values written last.
+                let (front, back) = format.halves();
+                F::sync(front, back);
+                waiting = false;
+            }
             spare.push(p);
             // Written out in the next round (or after the last).
             std::mem::swap(&mut buf, &mut ready);
@@ -498,16 +579,42 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
         if !stopped {
             read_result?;
         }
+        if let Some(c) = next.as_mut()
+            && let Some(at) = c.suspended
+        {
+            held = Some(rest_of(c, at, spare.pop().unwrap_or_default()));
+            waiting = true;
+        }
         previous = current.take();
         current = next;
-        prepared = if stopped { None } else { to_prepare };
-        reading = next_reading;
+        if stopped {
+            prepared = None;
+            held = None;
+        } else if advance {
+            prepared = to_prepare;
+            reading = next_reading;
+        }
     }
     write_out(out, &ready)?;
     buf.clear();
     format.end(&mut buf);
     write_out(out, &buf)?;
     Ok(format.stats())
+}
+
+/// The units of `c` from `at` on, moved into `rest` (a spare chunk), for a
+/// first pass of their own; `c` keeps those before.
+fn rest_of<F: Format, J>(c: &mut Chunk<F, J>, at: usize, mut rest: Chunk<F, J>) -> Chunk<F, J> {
+    rest.count = c.count - at;
+    rest.resumed = true;
+    for (i, unit) in c.units[at..c.count].iter_mut().enumerate() {
+        if rest.units.len() == i {
+            rest.units.push(Default::default());
+        }
+        std::mem::swap(&mut rest.units[i], unit);
+    }
+    c.count = at;
+    rest
 }
 
 /// Writes converted text to the driver's output.
@@ -527,6 +634,10 @@ fn first_pass<F: Format, S: Stage>(
     for i in 0..c.count {
         if let Some(ahead) = c.units[..c.count].get(i + PREFETCH_AHEAD) {
             F::prefetch(ahead);
+        }
+        if S::DEFERS && !(c.resumed && i == 0) && F::needs_committed(front, &c.units[i]) {
+            c.suspended = Some(i);
+            return;
         }
         loop {
             if let Err(e) = first_of::<F, S>(front, back.as_deref_mut(), stage, c, i) {
@@ -577,7 +688,10 @@ fn first_of<F: Format, S: Stage>(
             Ok(())
         }
         Ok(Step::Later(job)) => {
-            F::begun(front, S::joints(&job));
+            match S::joints(&job) {
+                Some(q) => F::begun(front, q),
+                None => F::deferred(front),
+            }
             c.entries.push(Entry::Pose);
             c.jobs.push(Job {
                 unit: i,
@@ -609,12 +723,22 @@ fn write<F: Format, S: Stage>(
                     prefetch_bytes(ahead);
                 }
                 let unit = &c.units[job.unit];
-                let converted = S::commit(stage, F::pose(&job.pending), &job.job, F::line(unit))
-                    .map_err(|m| F::back_error(back, unit, &job.pending, m))
-                    .and_then(|solved| F::finish(back, unit, &job.pending, &solved, buf));
+                let before = buf.len();
+                let previous = F::continues_from(back, &job.pending);
+                let converted = S::commit(
+                    stage,
+                    F::pose(&job.pending),
+                    &job.job,
+                    F::line(unit),
+                    previous,
+                )
+                .map_err(|m| F::back_error(back, unit, &job.pending, m))
+                .and_then(|solved| F::finish(back, unit, &job.pending, &solved, buf));
                 if let Err(e) = converted {
-                    // Nothing of a chunk that fails here is written.
-                    buf.clear();
+                    // A stage that solves here writes the text before the
+                    // pose, as a first pass's error does; otherwise
+                    // nothing of a chunk that fails here is written.
+                    buf.truncate(if S::DEFERS { before } else { 0 });
                     return Err(e);
                 }
             }

@@ -77,6 +77,7 @@ mod output_safety;
 mod panic_cleanup;
 mod parse_throughput;
 mod post;
+mod post_parallel_ik;
 mod robustness_parse;
 mod scenarios;
 mod seed000;

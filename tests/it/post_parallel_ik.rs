@@ -1,0 +1,155 @@
+//! `post` on G-code finds the branches of its poses in parallel and
+//! chooses among them in order (`post::choose_in_order`): its output,
+//! warnings and errors are those of the solver that solves each pose
+//! whole, in order, also where blocks in machine coordinates between the
+//! poses make the first pass wait for the poses before them to be solved,
+//! at any place in a chunk of the driver.
+
+use kinpost::machine::{IkSolver, Machine, NoErrors, Pose};
+use kinpost::post::{PoseSolver, PostOptions, SolvedPose, post_gcode};
+
+use crate::util::pose_block;
+
+/// The in-order solver: the analytic IK without its two parts, so that
+/// `post` solves each pose whole in its first pass.
+struct Whole(IkSolver);
+
+impl PoseSolver for Whole {
+    fn solve(
+        &mut self,
+        pose: &Pose,
+        previous: Option<&[f64]>,
+        line: usize,
+    ) -> Result<SolvedPose, String> {
+        PoseSolver::solve(&mut self.0, pose, previous, line)
+    }
+}
+
+/// Output (or the error's text), warnings and poses written.
+type Run = (Result<Vec<u8>, String>, Vec<String>, usize);
+
+fn run(solver: &mut (dyn PoseSolver + Send), machine: &Machine, text: &str) -> Run {
+    let opts = PostOptions {
+        decimals: Some(6),
+        file_name: "p.nc".into(),
+        ..PostOptions::default()
+    };
+    let mut out = Vec::new();
+    match post_gcode(machine, solver, text.as_bytes(), &mut out, &opts, |_| {}) {
+        Ok(stats) => (Ok(out), stats.warnings, stats.poses),
+        // What was written before the error stays compared.
+        Err(e) => (
+            Err(format!("{e}\n{}", String::from_utf8_lossy(&out))),
+            Vec::new(),
+            0,
+        ),
+    }
+}
+
+/// Pose blocks of a smooth joint path whose rotaries turn several times
+/// and whose tilt passes through 0 (a singular pose on both machines).
+fn pose_lines(machine: &Machine, n: usize) -> Vec<String> {
+    let joints = machine.chain.joints();
+    (0..n)
+        .map(|i| {
+            let t = i as f64 / n as f64;
+            let mut tilts = 0;
+            let q: Vec<f64> = joints
+                .iter()
+                .enumerate()
+                .map(|(k, j)| match j.kind {
+                    kinpost::machine::JointKind::Prismatic => {
+                        40.0 * (7.0 * t + k as f64).sin() + 5.0
+                    }
+                    kinpost::machine::JointKind::Revolute => {
+                        tilts += 1;
+                        if tilts == 1 {
+                            // The rotary nearer the base: three turns.
+                            6.0 * std::f64::consts::PI * t
+                        } else {
+                            // The tilt: through 0 twice.
+                            0.5 * (9.0 * t).sin()
+                        }
+                    }
+                })
+                .collect();
+            pose_block(&machine.chain.pose(&q, &NoErrors))
+        })
+        .collect()
+}
+
+/// A program of `n` poses with, before the lines at `breaks`, a section in
+/// machine coordinates: pose mode off, moves of some axes (absolute and
+/// incremental), pose mode on again, and a pose that gives only Z (the
+/// rest from where the machine stands).
+fn program(machine: &Machine, n: usize, breaks: &[usize]) -> String {
+    let lines = pose_lines(machine, n);
+    let axis = |k: usize| machine.axes[k % machine.axes.len()].name.clone();
+    let mut text = String::from("G21 G90 G94\nG1 F500.\n");
+    for (i, l) in lines.iter().enumerate() {
+        if breaks.contains(&i) {
+            text.push_str("G49\n");
+            text.push_str(&format!("G0 {}12.5\n", axis(i)));
+            text.push_str(&format!("G91 G0 {}-2.5\nG90\n", axis(i + 1)));
+            text.push_str("G43.4 H1\n");
+            text.push_str("Z30.\n");
+        }
+        text.push_str(l);
+        text.push('\n');
+    }
+    text.push_str("M30\n");
+    text
+}
+
+fn compare(machine: &Machine, text: &str) -> Run {
+    let mut split = IkSolver::new(machine);
+    assert!(
+        split.split().is_some(),
+        "the analytic IK comes in two parts"
+    );
+    let parallel = run(&mut split, machine, text);
+    let whole = run(&mut Whole(IkSolver::new(machine)), machine, text);
+    assert_eq!(parallel.0, whole.0, "{}", machine.name);
+    assert_eq!(parallel.1, whole.1, "{}: warnings", machine.name);
+    assert_eq!(parallel.2, whole.2, "{}: poses", machine.name);
+    parallel
+}
+
+#[test]
+fn branches_found_in_parallel_give_the_in_order_solution() {
+    for name in [
+        "zhao2022-xzbc",
+        "wang2023-xyzab",
+        "xyzac-trt",
+        "xyzbc-nutating",
+    ] {
+        let machine = Machine::embedded(name).unwrap();
+        // Machine blocks (5 lines, after the 2 of the header) before
+        // poses 0, 100, at the start of the driver's third chunk of 512
+        // lines and right after it, and a run of them close together.
+        let breaks = [0, 100, 1024 - 2 - 15, 1500, 1501, 1503, 2999];
+        let (out, _, poses) = compare(&machine, &program(&machine, 3000, &breaks));
+        assert_eq!(poses, 3000 + breaks.len(), "{name}");
+        assert!(out.is_ok(), "{name}: {out:?}");
+    }
+}
+
+#[test]
+fn a_pose_that_fails_in_the_last_pass_fails_as_in_order() {
+    let machine = Machine::embedded("wang2023-xyzab").unwrap();
+    let mut text = program(&machine, 2000, &[700, 1300]);
+    // A tool tip beyond X's travel (±1000 mm; A turns about X, so no
+    // branch helps) in the middle of the second chunk.
+    let lines: Vec<&str> = text.lines().collect();
+    let at = 800;
+    let mut bad = lines[..at].join("\n");
+    bad.push_str("\nX5000. Y10. Z10. I0. J0. K1.\n");
+    bad.push_str(&lines[at..].join("\n"));
+    bad.push('\n');
+    text = bad;
+    let (out, _, _) = compare(&machine, &text);
+    let Err(e) = out else {
+        panic!("X5000 was converted")
+    };
+    assert!(e.starts_with(&format!("p.nc:{}:", at + 1)), "{e}");
+}
