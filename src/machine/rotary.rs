@@ -147,6 +147,31 @@ pub fn choose_turn(axis: &AxisSpec, angle: f64, reference: f64) -> f64 {
     best.unwrap_or(nearest)
 }
 
+/// Where a word of `axis` in machine coordinates takes it from `current`
+/// (mm / deg): `word` in program units (`mm_per_unit` turns a linear
+/// axis's into mm), absolute or an increment. An absolute word takes a
+/// modulo axis the short way (a roll-over axis set to the shortest path)
+/// and a wrapped rotary the way its sign says (LinuxCNC); `None` for a
+/// wrapped word of 360° or more, which LinuxCNC refuses.
+pub fn follow_word(
+    axis: &AxisSpec,
+    word: f64,
+    mm_per_unit: f64,
+    absolute: bool,
+    current: f64,
+) -> Option<f64> {
+    let v = match axis.kind {
+        JointKind::Prismatic => word * mm_per_unit,
+        JointKind::Revolute => word,
+    };
+    Some(match (absolute, axis.rotary) {
+        (false, _) => current + v,
+        (true, RotaryMode::Modulo) => unwind_near_degrees(v, current),
+        (true, RotaryMode::Wrapped) => super::wrapped::unwrap_wrapped(v, current)?,
+        (true, _) => v,
+    })
+}
+
 /// Signed smallest difference `a − b` between two angles (rad), in `(−π, π]`.
 pub fn angle_diff(a: f64, b: f64) -> f64 {
     unwind_near(a, b) - b
@@ -198,6 +223,27 @@ mod tests {
             rotary: mode,
             decimals: 4,
         }
+    }
+
+    #[test]
+    fn a_machine_word_is_followed_as_the_controller_moves() {
+        let mut x = rot(RotaryMode::Limited, None, None);
+        x.kind = JointKind::Prismatic;
+        // Inches to mm; an increment adds.
+        assert_eq!(follow_word(&x, 2.0, 25.4, true, 7.0), Some(50.8));
+        assert_eq!(follow_word(&x, 2.0, 25.4, false, 7.0), Some(57.8));
+        // A rotary's word is in degrees whatever the units.
+        let c = rot(RotaryMode::Continuous, None, None);
+        assert_eq!(follow_word(&c, 10.0, 25.4, true, 715.0), Some(10.0));
+        // A modulo axis the short way: from 350° to 10° is +20°.
+        let m = rot(RotaryMode::Modulo, None, None);
+        assert_eq!(follow_word(&m, 10.0, 1.0, true, 350.0), Some(370.0));
+        // A wrapped rotary the way the sign says: from 10° to −0 turns
+        // back to 0°; 360° is refused.
+        let w = rot(RotaryMode::Wrapped, None, None);
+        assert_eq!(follow_word(&w, -0.0, 1.0, true, 10.0), Some(0.0));
+        assert_eq!(follow_word(&w, 20.0, 1.0, true, 10.0), Some(20.0));
+        assert_eq!(follow_word(&w, 360.0, 1.0, true, 10.0), None);
     }
 
     #[test]

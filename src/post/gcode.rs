@@ -646,34 +646,20 @@ impl BlockReader<'_> {
         }) {
             if let Some(k) = self.machine.axes.iter().position(|a| a.name == w.address) {
                 given |= 1 << k;
-                let axis = &self.machine.axes[k];
-                let scale = if axis.kind == crate::machine::JointKind::Prismatic {
-                    meaning.units.mm_per_unit()
-                } else {
-                    1.0
-                };
-                let v = w.value * scale;
-                self.machine_ext[k] = match (meaning.absolute, axis.rotary) {
-                    (false, _) => self.machine_ext[k] + v,
-                    // LinuxCNC's wrapped rotary: |v| reached the way v's
-                    // sign says.
-                    (true, crate::machine::RotaryMode::Wrapped) => {
-                        crate::machine::wrapped::unwrap_wrapped(v, self.machine_ext[k]).ok_or_else(
-                            || {
-                                Error::input_with(
-                                    Location::new(
-                                        &self.opts.file_name,
-                                        line.number,
-                                        item.start + 1,
-                                    ),
-                                    crate::machine::wrapped::word_too_large(&w.address, w.value),
-                                    line.text_lossy(),
-                                )
-                            },
-                        )?
-                    }
-                    (true, _) => v,
-                };
+                self.machine_ext[k] = crate::machine::rotary::follow_word(
+                    &self.machine.axes[k],
+                    w.value,
+                    meaning.units.mm_per_unit(),
+                    meaning.absolute,
+                    self.machine_ext[k],
+                )
+                .ok_or_else(|| {
+                    Error::input_with(
+                        Location::new(&self.opts.file_name, line.number, item.start + 1),
+                        crate::machine::wrapped::word_too_large(&w.address, w.value),
+                        line.text_lossy(),
+                    )
+                })?;
                 moved = true;
             }
         }

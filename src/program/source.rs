@@ -756,28 +756,15 @@ impl MachineAxisTracker {
         absolute: bool,
     ) {
         for (_, k, w) in axis_words(machine, line, axis_items) {
-            let scale = if machine.axes[k].kind == crate::machine::JointKind::Prismatic {
-                meaning.units.mm_per_unit()
-            } else {
-                1.0
-            };
-            let v = w.value * scale;
-            use crate::machine::RotaryMode;
-            self.ext[k] = match (absolute, machine.axes[k].rotary) {
-                (false, _) => self.ext[k] + v,
-                // A modulo axis turns the short way to an absolute target
-                // (a roll-over axis set to the shortest path): followed
-                // on that path, not across the 0/360° seam.
-                (true, RotaryMode::Modulo) => {
-                    crate::machine::rotary::unwind_near_degrees(v, self.ext[k])
-                }
-                // LinuxCNC's wrapped rotary: to |v| the way v's sign says
-                // (`check_wrapped_words` refused |v| ≥ 360°).
-                (true, RotaryMode::Wrapped) => {
-                    crate::machine::wrapped::unwrap_wrapped(v, self.ext[k]).unwrap_or(v)
-                }
-                (true, _) => v,
-            };
+            // (`check_wrapped_words` refused a wrapped word of 360° or more.)
+            self.ext[k] = crate::machine::rotary::follow_word(
+                &machine.axes[k],
+                w.value,
+                meaning.units.mm_per_unit(),
+                absolute,
+                self.ext[k],
+            )
+            .unwrap_or(w.value);
             if absolute {
                 self.unknown[k] = false;
             }
