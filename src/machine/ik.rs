@@ -207,6 +207,17 @@ struct Raw {
     branch: u8,
 }
 
+impl Raw {
+    /// The one branch of a machine without rotaries.
+    fn fixed() -> Self {
+        Raw {
+            q: [0.0; super::chain::MAX_JOINTS],
+            singular: false,
+            branch: 0,
+        }
+    }
+}
+
 impl IkSolver {
     /// The solver for `machine` with default options.
     pub fn new(machine: &Machine) -> Self {
@@ -570,13 +581,7 @@ impl IkSolver {
         let nearest = |first, lower| self.nearest(first, lower, &reference);
         let mut done: [Option<Result<IkSolution, IkError>>; MAX_BRANCHES] = [None, None];
         let raws = match self.family {
-            Family::ThreeAxis => [Raw {
-                q: [0.0; super::chain::MAX_JOINTS],
-                singular: false,
-                branch: 0,
-            }]
-            .into_iter()
-            .collect(),
+            Family::ThreeAxis => RawBranches::from_iter([Raw::fixed()]),
             Family::FourAxis1R3T => self.orient_1r(&target, &reference),
             Family::FiveAxis2R3T => self.orient_2r(&target, &reference),
             Family::FourAxisRTTR => match self.rttr_angles(&target, &reference) {

@@ -47,13 +47,7 @@ impl IkSolver {
         let zeros = [0.0; crate::machine::chain::MAX_JOINTS];
         let raws: RawBranches = match self.family {
             Family::Generic => return PreparedPose(Prepared::InOrder),
-            Family::ThreeAxis => [Raw {
-                q: zeros,
-                singular: false,
-                branch: 0,
-            }]
-            .into_iter()
-            .collect(),
+            Family::ThreeAxis => RawBranches::from_iter([Raw::fixed()]),
             Family::FourAxis1R3T => self.orient_1r(&target, &zeros),
             Family::FiveAxis2R3T => self.orient_2r(&target, &zeros),
             Family::FourAxisRTTR => match self.rttr_angles(&target, &zeros) {
