@@ -228,6 +228,12 @@ pub trait Stage: Send {
     /// Whether the stage's jobs have work between the passes (the
     /// driver's `work`); without, no task is started for it.
     const WORKS: bool = true;
+    /// The first pass had to wait before a unit ([`Format::needs_committed`]):
+    /// a stage that [`Stage::DEFERS`] may solve the poses after it in the
+    /// first pass for a while, where waits come often.
+    fn waited(front: &mut Self::Front) {
+        let _ = front;
+    }
     /// Whether the stage solves its poses in the last pass, in order
     /// ([`Stage::commit`]), its first pass giving no joint values: the
     /// format must be [`Format::DEFERRABLE`]. A commit that fails then
@@ -584,6 +590,7 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
         {
             held = Some(rest_of(c, at, spare.pop().unwrap_or_default()));
             waiting = true;
+            S::waited(stage.halves().0);
         }
         previous = current.take();
         current = next;

@@ -126,8 +126,12 @@ fn branches_found_in_parallel_give_the_in_order_solution() {
         let machine = Machine::embedded(name).unwrap();
         // Machine blocks (5 lines, after the 2 of the header) before
         // poses 0, 100, at the start of the driver's third chunk of 512
-        // lines and right after it, and a run of them close together.
-        let breaks = [0, 100, 1024 - 2 - 15, 1500, 1501, 1503, 2999];
+        // lines, a run of them close together, and two more. The first
+        // pass waits at 0, 1007, 2200 and 2999; after each wait it solves
+        // the next 512 poses itself (`IN_ORDER_AFTER_WAIT`), so that the
+        // blocks at 100 and 1500–1503 are read with their joint values
+        // known.
+        let breaks = [0, 100, 1024 - 2 - 15, 1500, 1501, 1503, 2200, 2999];
         let (out, _, poses) = compare(&machine, &program(&machine, 3000, &breaks));
         assert_eq!(poses, 3000 + breaks.len(), "{name}");
         assert!(out.is_ok(), "{name}: {out:?}");
