@@ -127,10 +127,10 @@ fn branches_found_in_parallel_give_the_in_order_solution() {
         // Machine blocks (5 lines, after the 2 of the header) before
         // poses 0, 100, at the start of the driver's third chunk of 512
         // lines, a run of them close together, and two more. The first
-        // pass waits at 0, 1007, 2200 and 2999; after each wait it solves
-        // the next 512 poses itself (`IN_ORDER_AFTER_WAIT`), so that the
-        // blocks at 100 and 1500–1503 are read with their joint values
-        // known.
+        // pass waits at 100, 1007, 2200 and 2999 (at 0 no pose came
+        // before); after each wait it solves the next 512 poses itself
+        // (`IN_ORDER_AFTER_WAIT`), so that the blocks at 1500–1503 are
+        // read with their joint values known.
         let breaks = [0, 100, 1024 - 2 - 15, 1500, 1501, 1503, 2200, 2999];
         let (out, _, poses) = compare(&machine, &program(&machine, 3000, &breaks));
         assert_eq!(poses, 3000 + breaks.len(), "{name}");
