@@ -375,6 +375,12 @@ impl BlockReader<'_> {
         self.previous.resolve(None)
     }
 
+    /// Whether `line` holds a word of one of the machine's axes.
+    fn has_axis_word(&self, line: &Line) -> bool {
+        line.words()
+            .any(|w| self.machine.axes.iter().any(|a| a.name == w.address))
+    }
+
     /// Whether `line` needs the joint values of the last pose while they
     /// are not known yet ([`BlockReader::deferred`]): a block in machine
     /// coordinates (pose mode off, or switched off in the line) with an axis
@@ -384,9 +390,7 @@ impl BlockReader<'_> {
             && (!self.modal.pose_mode
                 || line.words().any(|w| w.address == "G" && w.value == 49.0)
                 || line.keywords().any(|k| k == "TRAFOOF"))
-            && line
-                .words()
-                .any(|w| self.machine.axes.iter().any(|a| a.name == w.address))
+            && self.has_axis_word(line)
     }
 
     /// The error of a failed solve of `pending` (programmed at `line`).
@@ -619,9 +623,7 @@ impl BlockReader<'_> {
                 return Ok(());
             }
         }
-        let axis_word =
-            |w: &crate::gcode::Word| self.machine.axes.iter().any(|a| a.name == w.address);
-        if !line.words().any(axis_word) {
+        if !self.has_axis_word(line) {
             return Ok(());
         }
         if self.previous == Continuation::LastPose {
