@@ -1,18 +1,25 @@
-//! The stage of `post` on G-code whose solver comes in two parts
+//! The stage of `post` whose solver comes in two parts
 //! ([`super::SplitSolver`]: the analytic IK): the first pass only reads the
 //! program, the branches of each pose are found in parallel, and the last
 //! pass chooses among them in order (branch and turn) and writes the pose.
 //! The part that must see the poses in order is then a few comparisons per
 //! pose, and the IK's trigonometry and linear solves use every core.
+//!
+//! A unit that needs what is written before it (a G-code block in machine
+//! coordinates, an APT CL arc or hole planned with the solver:
+//! [`super::pipeline::Format::needs_committed`]) makes the first pass
+//! wait; after a wait the stage solves the next poses whole in the first
+//! pass, as [`super::pipeline::Whole`] does, and lends the format its
+//! solver to plan with ([`Stage::planner`]).
 
 use super::pipeline::{Stage, Step};
-use super::{SolvedPose, SplitSolver};
+use super::{PoseSolver, SolvedPose, SplitSolver};
 use crate::machine::{Pose, PreparedPose};
 
 /// Poses solved whole in the first pass after the first pass had to wait
-/// for the last (a block in machine coordinates, [`Stage::waited`]): where
-/// such blocks come often, each wait would stall the pipeline; one chunk's
-/// worth of poses solved in order costs less than the two rounds of a wait.
+/// for the last ([`Stage::waited`]): where such units come often, each
+/// wait would stall the pipeline; one chunk's worth of poses solved in
+/// order costs less than the two rounds of a wait.
 pub const IN_ORDER_AFTER_WAIT: usize = super::pipeline::CHUNK_UNITS;
 
 /// A pose between the passes.
@@ -22,13 +29,26 @@ pub struct Choice {
     line: usize,
     /// Its branches, found between the passes.
     prepared: Option<PreparedPose>,
-    /// Solved whole in the first pass (after a wait).
-    solved: Option<SolvedPose>,
+}
+
+/// A [`SplitSolver`] as a [`PoseSolver`]: both parts at once.
+pub struct Whole<'s>(&'s dyn SplitSolver);
+
+impl PoseSolver for Whole<'_> {
+    fn solve(
+        &mut self,
+        pose: &Pose,
+        previous: Option<&[f64]>,
+        line: usize,
+    ) -> std::result::Result<SolvedPose, String> {
+        self.0
+            .choose(pose, &self.0.prepare(pose, line), previous, line)
+    }
 }
 
 /// The first half of the stage.
 pub struct Front<'s> {
-    solver: &'s dyn SplitSolver,
+    solver: Whole<'s>,
     /// Poses still to solve whole in the first pass.
     in_order: usize,
 }
@@ -44,19 +64,16 @@ impl<'s> ChooseInOrder<'s> {
     pub fn new(solver: &'s dyn SplitSolver) -> Self {
         ChooseInOrder {
             front: Front {
-                solver,
+                solver: Whole(solver),
                 in_order: 0,
             },
             solver,
         }
     }
 
-    /// The work between the passes: the branches of the pose (unless it
-    /// was solved whole).
+    /// The work between the passes: the branches of the pose.
     pub fn work(solver: &dyn SplitSolver, pose: &Pose, job: &mut Choice) {
-        if job.solved.is_none() {
-            job.prepared = Some(solver.prepare(pose, job.line));
-        }
+        job.prepared = Some(solver.prepare(pose, job.line));
     }
 }
 
@@ -74,20 +91,23 @@ impl<'s> Stage for ChooseInOrder<'s> {
         previous: Option<&[f64]>,
         line: usize,
     ) -> std::result::Result<Step<Choice>, String> {
-        // After a wait the joint values before are known, and stay known
-        // while poses are solved here.
-        let solved = if front.in_order > 0 {
+        // After a wait everything before is written, and stays so while
+        // poses are solved (and written) here.
+        if front.in_order > 0 {
             front.in_order -= 1;
-            let s = front.solver;
-            Some(s.choose(pose, &s.prepare(pose, line), previous, line)?)
-        } else {
-            None
-        };
+            return front.solver.solve(pose, previous, line).map(Step::Done);
+        }
         Ok(Step::Later(Choice {
             line,
             prepared: None,
-            solved,
         }))
+    }
+    fn planner<'f>(front: &'f mut Front<'s>) -> Option<&'f mut dyn PoseSolver> {
+        if front.in_order > 0 {
+            Some(&mut front.solver)
+        } else {
+            None
+        }
     }
     fn waited(front: &mut Front<'s>) {
         front.in_order = IN_ORDER_AFTER_WAIT;
@@ -99,16 +119,13 @@ impl<'s> Stage for ChooseInOrder<'s> {
         line: usize,
         previous: Option<&[f64]>,
     ) -> std::result::Result<SolvedPose, String> {
-        if let Some(s) = &job.solved {
-            return Ok(s.clone());
-        }
         match &job.prepared {
             Some(p) => solver.choose(pose, p, previous, line),
             // (The driver works on every job; this is what it would give.)
             None => solver.choose(pose, &solver.prepare(pose, line), previous, line),
         }
     }
-    fn joints(job: &Choice) -> Option<&[f64]> {
-        job.solved.as_ref().map(|s| s.q.as_slice())
+    fn joints(_: &Choice) -> Option<&[f64]> {
+        None
     }
 }

@@ -2,6 +2,7 @@
 //! in order ([`crate::cl::lower`]) on the driver's thread, converted
 //! through the driver ([`super::pipeline::drive`]) like G-code.
 
+use super::choose_in_order::ChooseInOrder;
 use super::cl_motion::{self, CutcomOn};
 use super::pipeline::{Format, Stage, Whole};
 use super::{AxisWriter, PoseSolver, PostOptions, PostStats, SolvedPose, unreachable_axis};
@@ -17,7 +18,11 @@ use std::io::{BufRead, Write};
 mod plan;
 
 /// Converts APT CL data to a G-code program for `machine`, with `solver`
-/// solving each pose in order.
+/// solving each pose in order. A solver in two parts
+/// ([`PoseSolver::split`]) finds the branches of the poses on every core
+/// and chooses among them in order ([`super::choose_in_order`]), as on
+/// G-code; an arc or a hole then waits for the poses before it to be
+/// written, and is planned with the solver.
 ///
 /// Statements are translated: `GOTO` → `G0`/`G1` with the machine's axes,
 /// `FEDRAT` → `F`, `RAPID` → `G0` for the next `GOTO`, `LOADTL` → `T.. M6`,
@@ -36,16 +41,30 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
     opts: &PostOptions,
     progress: impl FnMut(u64),
 ) -> Result<PostStats> {
-    convert_cl(
-        machine,
-        &mut Whole::new(solver),
-        &|_, j| match *j {},
-        |_| Ok(()),
-        input,
-        out,
-        opts,
-        progress,
-    )
+    // Under inverse time a statement that is not a pose may go back to
+    // G94, which depends on what is written before it.
+    match solver.split() {
+        Some(split) if !opts.inverse_time => convert_cl(
+            machine,
+            &mut ChooseInOrder::new(split),
+            &|pose, job| ChooseInOrder::work(split, pose, job),
+            |_| Ok(()),
+            input,
+            out,
+            opts,
+            progress,
+        ),
+        _ => convert_cl(
+            machine,
+            &mut Whole::new(solver),
+            &|_, j| match *j {},
+            |_| Ok(()),
+            input,
+            out,
+            opts,
+            progress,
+        ),
+    }
 }
 
 /// Converts APT CL data as [`post_cl`] does, with `stage` doing each pose,
@@ -98,6 +117,7 @@ pub fn convert_cl<S: Stage, R: BufRead, W: Write + ?Sized>(
             g80: 0,
             cutcom: None,
             previous: None,
+            deferred: false,
         },
         back: ClBack {
             machine,
@@ -223,6 +243,9 @@ struct ClFront<'a> {
     /// first pass solved it ([`Format::begun`]), or a planned arc's or
     /// hole's end.
     previous: Option<JointValues>,
+    /// The last pose begun is solved in the last pass ([`Format::deferred`]):
+    /// `previous` is not known yet.
+    deferred: bool,
 }
 
 /// What is written ([`Format::finish`]; [`Format::begin`] with a planner).
@@ -572,10 +595,33 @@ impl<'a> Format for ClFormat<'a> {
         &pending.pose
     }
     fn previous<'r>(front: &'r ClFront<'a>) -> Option<&'r [f64]> {
-        front.previous.as_deref()
+        if front.deferred {
+            None
+        } else {
+            front.previous.as_deref()
+        }
     }
     fn begun(front: &mut ClFront<'a>, q: &[f64]) {
         front.previous = Some(q.iter().copied().collect());
+        front.deferred = false;
+    }
+    const DEFERRABLE: bool = true;
+    fn deferred(front: &mut ClFront<'a>) {
+        front.deferred = true;
+    }
+    fn needs_committed(_: &ClFront<'a>, unit: &ClUnit) -> bool {
+        // An arc or a hole is planned with the solver, from the joint
+        // values before it, and written at once (`plan.rs`).
+        matches!(unit, Some(Ok(r)) if matches!(r.statement, ClStatement::Arc(_) | ClStatement::Hole(_)))
+    }
+    fn continues_from<'r>(back: &'r ClBack<'a>, _: &'r ClPending) -> Option<&'r [f64]> {
+        back.previous.as_deref()
+    }
+    fn sync(front: &mut ClFront<'a>, back: &ClBack<'a>) {
+        if front.deferred {
+            front.previous = back.previous.clone();
+            front.deferred = false;
+        }
     }
     fn front_error(front: &ClFront<'a>, unit: &ClUnit, _: &ClPending, message: String) -> Error {
         error_at(front.opts, record(unit), message)

@@ -7,11 +7,13 @@
 //! What is converted is a [`Format`] (G-code: [`super::GcodeConverter`];
 //! APT CL: the CL format of `post/cl.rs`, its statements read and lowered
 //! on the calling thread); what is done with each pose is a [`Stage`]
-//! (`post`: the whole solve in order, [`Whole`], whose solver the format
-//! may plan with, [`Stage::planner`], or on G-code [`SolveFirst`], which
-//! leaves the writing to the last pass; `compensate`: the analytic IK in
-//! order, the Newton refinement in parallel, the failure policy and records
-//! in order).
+//! (`post`: the IK's branches found in parallel and chosen among in order,
+//! [`super::choose_in_order`]; or, for other solvers, the whole solve in
+//! order, [`Whole`], whose solver the format may plan with,
+//! [`Stage::planner`], or on G-code [`SolveFirst`], which leaves the
+//! writing to the last pass; `compensate`: the analytic IK in order, the
+//! Newton refinement in parallel, the failure policy and records in
+//! order).
 
 use super::{PoseSolver, PostStats, SolvedPose};
 use crate::error::{Error, Result};
@@ -87,11 +89,11 @@ pub trait Format: Send {
     fn line(unit: &Self::Unit) -> usize;
     /// In order: the modal state of the unit. A unit that is not a pose
     /// appends its output to `out` and gives `None`; a pose is returned to
-    /// be solved. `planner`: the stage's solver when it solves every pose
-    /// in this pass ([`Stage::planner`]), so that everything written before
-    /// the unit is converted already (a format may plan with it: APT CL
-    /// arcs and holes). `back`: the back half, unless the format
-    /// [`Format::splits`] and there is no planner.
+    /// be solved. `planner`: the stage's solver while it solves the poses
+    /// in this pass ([`Stage::planner`]), so that everything before the
+    /// unit is written already (a format may plan with it: APT CL arcs and
+    /// holes). `back`: the back half, unless the format [`Format::splits`]
+    /// and the stage had no planner when the pass began.
     fn begin(
         front: &mut Self::Front,
         back: Option<&mut Self::Back>,
@@ -129,9 +131,12 @@ pub trait Format: Send {
     fn deferred(front: &mut Self::Front) {
         let _ = front;
     }
-    /// Whether `unit` needs the joint values of a pose not solved yet (a
-    /// block in machine coordinates after a deferred pose): the driver then
-    /// writes everything before it and [`Format::sync`]s first.
+    /// Whether `unit` needs what is written before it: the joint values of
+    /// a pose not solved yet (a G-code block in machine coordinates after a
+    /// deferred pose), or the stage's planner and the back (an APT CL arc
+    /// or hole). Unless the stage has a planner already, the driver then
+    /// writes everything before the unit, [`Format::sync`]s and begins the
+    /// unit after [`Stage::waited`].
     fn needs_committed(front: &Self::Front, unit: &Self::Unit) -> bool {
         let _ = (front, unit);
         false
@@ -218,9 +223,13 @@ pub trait Stage: Send {
     /// The joint values the first pass gave a job's pose
     /// ([`Format::begun`]); `None` for a stage that [`Stage::DEFERS`].
     fn joints(job: &Self::Job) -> Option<&[f64]>;
-    /// The solver, when the stage solves every pose in the first pass
+    /// The solver, while the stage solves the poses in the first pass
     /// ([`Step::Done`]): the format may plan with it in
-    /// [`Format::begin`], where everything before is converted.
+    /// [`Format::begin`], where everything before is written. While the
+    /// stage has one, the driver runs each first pass after the last pass
+    /// before it, in one task, and gives it the format's back. (A stage
+    /// that [`Stage::DEFERS`] has one only after [`Stage::waited`], when
+    /// nothing begun is left unwritten.)
     fn planner(front: &mut Self::Front) -> Option<&mut dyn PoseSolver> {
         let _ = front;
         None
@@ -228,9 +237,11 @@ pub trait Stage: Send {
     /// Whether the stage's jobs have work between the passes (the
     /// driver's `work`); without, no task is started for it.
     const WORKS: bool = true;
-    /// The first pass had to wait before a unit ([`Format::needs_committed`]):
-    /// a stage that [`Stage::DEFERS`] may solve the poses after it in the
-    /// first pass for a while, where waits come often.
+    /// The first pass had to wait before a unit ([`Format::needs_committed`]),
+    /// or met one while the stage had a planner: a stage that
+    /// [`Stage::DEFERS`] may solve the poses after it in the first pass
+    /// for a while (and lend its [`Stage::planner`]), where such units come
+    /// often.
     fn waited(front: &mut Self::Front) {
         let _ = front;
     }
@@ -418,9 +429,15 @@ impl<F: Format, J> Default for Chunk<F, J> {
 /// at most five chunks are alive. Stages 2 and 4 touch different halves of
 /// the format and the stage ([`Format::Front`], [`Format::Back`]), and run
 /// as two tasks at the same time, unless the stage solves in the first
-/// pass ([`Stage::planner`]: `post`, where the last pass has nothing to
-/// do) or the format's first pass needs its back ([`Format::splits`]);
-/// then they run as one task, stage 4 first.
+/// pass (it has a [`Stage::planner`]: [`Whole`], or a stage that defers
+/// after a wait) or the format's first pass needs its back
+/// ([`Format::splits`]); then they run as one task, stage 4 first.
+///
+/// A unit that [`Format::needs_committed`] stops the first pass of a
+/// stage that [`Stage::DEFERS`] (unless the stage has a planner): the
+/// chunk's units before it go on through stages 3 and 4, the first pass
+/// waits until they are written, [`Format::sync`]s, and goes on from the
+/// unit after [`Stage::waited`].
 #[allow(clippy::too_many_arguments)]
 pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
     mut format: F,
@@ -471,7 +488,6 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
     let mut current: Option<Chunk<F, S::Job>> = None;
     let mut previous: Option<Chunk<F, S::Job>> = None;
     let mut stopped = false;
-    let split = format.splits() && S::planner(stage.halves().0).is_none();
     if S::DEFERS && !F::DEFERRABLE {
         return Err(Error::Usage(
             "internal error: a stage that solves in the last pass with a format that cannot wait for it; please report it".into(),
@@ -487,6 +503,10 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
         // Whether this round's first pass takes the prepared chunk (so
         // that another is read and prepared behind it).
         let advance = !waiting && held.is_none();
+        // A stage that solves in the first pass (now) lends the format its
+        // planner there, and the format its back: the last pass then runs
+        // first, in the same task.
+        let split = format.splits() && S::planner(stage.halves().0).is_none();
         let mut to_prepare =
             (advance && reading.count > 0 && !stopped).then(|| std::mem::take(&mut reading));
         let reads = to_prepare.is_some();
@@ -643,8 +663,12 @@ fn first_pass<F: Format, S: Stage>(
             F::prefetch(ahead);
         }
         if S::DEFERS && !(c.resumed && i == 0) && F::needs_committed(front, &c.units[i]) {
-            c.suspended = Some(i);
-            return;
+            if S::planner(stage).is_none() {
+                c.suspended = Some(i);
+                return;
+            }
+            // Everything before is written: solving in order goes on.
+            S::waited(stage);
         }
         loop {
             if let Err(e) = first_of::<F, S>(front, back.as_deref_mut(), stage, c, i) {

@@ -1,12 +1,13 @@
-//! `post` on G-code finds the branches of its poses in parallel and
-//! chooses among them in order (`post::choose_in_order`): its output,
-//! warnings and errors are those of the solver that solves each pose
-//! whole, in order, also where blocks in machine coordinates between the
-//! poses make the first pass wait for the poses before them to be solved,
-//! at any place in a chunk of the driver.
+//! `post` on G-code and on APT CL finds the branches of its poses in
+//! parallel and chooses among them in order (`post::choose_in_order`): its
+//! output, warnings and errors are those of the solver that solves each
+//! pose whole, in order, also where a unit makes the first pass wait for
+//! the poses before it to be written, at any place in a chunk of the
+//! driver: a G-code block in machine coordinates, an APT CL arc or hole
+//! (planned with the solver as `G2`/`G3` or a canned cycle).
 
 use kinpost::machine::{IkSolver, Machine, NoErrors, Pose};
-use kinpost::post::{PoseSolver, PostOptions, SolvedPose, post_gcode};
+use kinpost::post::{PoseSolver, PostOptions, SolvedPose, post_cl, post_gcode};
 
 use crate::util::pose_block;
 
@@ -29,13 +30,19 @@ impl PoseSolver for Whole {
 type Run = (Result<Vec<u8>, String>, Vec<String>, usize);
 
 fn run(solver: &mut (dyn PoseSolver + Send), machine: &Machine, text: &str) -> Run {
+    let cl = text.starts_with("UNITS/");
     let opts = PostOptions {
         decimals: Some(6),
-        file_name: "p.nc".into(),
+        file_name: if cl { "p.cls" } else { "p.nc" }.into(),
         ..PostOptions::default()
     };
     let mut out = Vec::new();
-    match post_gcode(machine, solver, text.as_bytes(), &mut out, &opts, |_| {}) {
+    let posted = if cl {
+        post_cl(machine, solver, text.as_bytes(), &mut out, &opts, |_| {})
+    } else {
+        post_gcode(machine, solver, text.as_bytes(), &mut out, &opts, |_| {})
+    };
+    match posted {
         Ok(stats) => (Ok(out), stats.warnings, stats.poses),
         // What was written before the error stays compared.
         Err(e) => (
@@ -101,6 +108,41 @@ fn program(machine: &Machine, n: usize, breaks: &[usize]) -> String {
     text
 }
 
+/// APT CL of `n` poses (the path of [`pose_lines`]) with, before the
+/// poses at `arcs`, an arc, and before those at `holes`, a drilled hole
+/// (each with the tool along Z, after a rapid move above it, so that
+/// both are planned: `G2`/`G3` and `G81`), and a hole at the start, before
+/// any pose (planned without a position before it). A hole right after
+/// a tilted pose is positioned first (a rapid move, then the cycle).
+fn cl_program(machine: &Machine, n: usize, arcs: &[usize], holes: &[usize]) -> String {
+    let lines = pose_lines(machine, n);
+    let mut text = String::from("UNITS/MM\nFEDRAT/MMPM,500\n");
+    let hole = |text: &mut String, x: f64| {
+        text.push_str(&format!(
+            "CYCLE/DRILL,FEDTO,-1,RAPTO,2,RTRCTO,10\nGOTO/{x:.3},5,0,0,0,1\nCYCLE/OFF\n"
+        ));
+    };
+    hole(&mut text, 1.0);
+    for (i, l) in lines.iter().enumerate() {
+        let x = 0.001 * i as f64;
+        if arcs.contains(&i) {
+            text.push_str(&format!(
+                "RAPID\nGOTO/{:.3},0,5,0,0,1\nGOTO/{:.3},0,5,0,0,1\nCIRCLE/{x:.3},0,5,0,0,1,10\nGOTO/{x:.3},10,5\n",
+                x + 10.0,
+                x + 10.0,
+            ));
+        }
+        if holes.contains(&i) {
+            hole(&mut text, x);
+        }
+        // `G1 X.. Y.. Z.. I.. J.. K..` as a GOTO.
+        let v: Vec<&str> = l.split(' ').skip(1).map(|w| &w[1..]).collect();
+        text.push_str(&format!("GOTO/{}\n", v.join(",")));
+    }
+    text.push_str("FINI\n");
+    text
+}
+
 fn compare(machine: &Machine, text: &str) -> Run {
     let mut split = IkSolver::new(machine);
     assert!(
@@ -156,4 +198,25 @@ fn a_pose_that_fails_in_the_last_pass_fails_as_in_order() {
         panic!("X5000 was converted")
     };
     assert!(e.starts_with(&format!("p.nc:{}:", at + 1)), "{e}");
+}
+
+#[test]
+fn cl_arcs_and_holes_wait_and_are_planned_as_in_order() {
+    for name in ["xyzac-trt", "zhao2022-xzbc", "xyzbc-nutating"] {
+        let machine = Machine::embedded(name).unwrap();
+        // Arcs (5 statements each) and holes (3) before poses 0, 100, at
+        // and near the start of the driver's third chunk of 512
+        // statements, a run of them close together (solved in order after
+        // the first wait, each one renewing that), and two more; a hole
+        // before the first pose.
+        let arcs = [0, 100, 1000, 1003, 1500, 1501, 1502, 2999];
+        let holes = [300, 1000, 1501, 2200, 2600];
+        let (out, _, _) = compare(&machine, &cl_program(&machine, 3000, &arcs, &holes));
+        let out = String::from_utf8(out.unwrap_or_else(|e| panic!("{name}: {e}"))).unwrap();
+        if name == "xyzac-trt" {
+            // Planned, not given as moves.
+            assert_eq!(out.matches("G3 ").count(), arcs.len(), "{out}");
+            assert_eq!(out.matches("G81 ").count(), holes.len() + 1, "{out}");
+        }
+    }
 }
