@@ -32,9 +32,9 @@ pub struct Choice {
 }
 
 /// A [`SplitSolver`] as a [`PoseSolver`]: both parts at once.
-pub struct Whole<'s>(&'s dyn SplitSolver);
+pub struct Joined<'s>(&'s dyn SplitSolver);
 
-impl PoseSolver for Whole<'_> {
+impl PoseSolver for Joined<'_> {
     fn solve(
         &mut self,
         pose: &Pose,
@@ -48,7 +48,7 @@ impl PoseSolver for Whole<'_> {
 
 /// The first half of the stage.
 pub struct Front<'s> {
-    solver: Whole<'s>,
+    solver: Joined<'s>,
     /// Poses still to solve whole in the first pass.
     in_order: usize,
 }
@@ -64,7 +64,7 @@ impl<'s> ChooseInOrder<'s> {
     pub fn new(solver: &'s dyn SplitSolver) -> Self {
         ChooseInOrder {
             front: Front {
-                solver: Whole(solver),
+                solver: Joined(solver),
                 in_order: 0,
             },
             solver,

@@ -18,7 +18,8 @@
 //! Checks, each against something the command did not compute itself:
 //! - `post`: closure — the written axes, through forward kinematics, land on
 //!   the programmed pose (tip and axis); continuity — no rotary jumps by a
-//!   turn between blocks; limits respected; the arcs unchanged;
+//!   turn between blocks; limits respected; the arcs unchanged; the same
+//!   poses as APT CL give the same axis values;
 //! - `compensate` succeeds wherever `post` does, and moves no axis by more
 //!   than the error table could explain;
 //! - `linkage`: no block moves more than four axes, and the tool tip sampled
@@ -191,6 +192,19 @@ fn pose_program(machine: &Machine, qs: &[Vec<f64>]) -> (String, Vec<kinpost::mac
     }
     s.push_str("G49\nG94\nM30\n%\n");
     (s, poses)
+}
+
+/// The poses as APT CL: `GOTO`s with the tool axis, feeds per minute.
+fn cl_program(poses: &[kinpost::machine::Pose]) -> String {
+    let mut s = String::from("UNITS/MM\nMULTAX\nFEDRAT/MMPM,800\n");
+    for p in poses {
+        s.push_str(&format!(
+            "GOTO/{:.9},{:.9},{:.9},{:.12},{:.12},{:.12}\n",
+            p.tip.x, p.tip.y, p.tip.z, p.axis.x, p.axis.y, p.axis.z
+        ));
+    }
+    s.push_str("FINI\n");
+    s
 }
 
 /// The axis values (output order) of every block of `text` with an axis
@@ -490,6 +504,31 @@ fn random_machines_and_programs_through_every_command() {
                 worst_axis < 1e-7,
                 "{name} seed {seed}: axis closure {worst_axis} rad"
             );
+
+            // The same poses as APT CL: `post` gives the same axis values
+            // (its own path through the driver: statements read and lowered
+            // on the calling thread, arcs planned after a wait).
+            std::fs::write(d.join("p.cls"), cl_program(&poses)).unwrap();
+            let (code, _, err) = run(
+                d,
+                &[
+                    "post",
+                    "-m",
+                    "m.json",
+                    "--decimals",
+                    "9",
+                    "p.cls",
+                    "-o",
+                    "post-cl.nc",
+                ],
+            );
+            assert_eq!(code, 0, "{name} seed {seed}: post on APT CL failed: {err}");
+            let from_cl = axis_rows(
+                &m,
+                &std::fs::read_to_string(d.join("post-cl.nc")).unwrap(),
+                0,
+            );
+            assert_eq!(from_cl, rows, "{name} seed {seed}: APT CL against G-code");
 
             // compensate succeeds wherever post does.
             let (code, _, err) = run(
