@@ -26,9 +26,14 @@ use std::collections::{BTreeMap, VecDeque};
 use std::io::BufRead;
 
 pub use super::state::Lowered;
+
+/// How far two frames (`MCS/`, `MSYS/`: unit axes, origins in the CL's
+/// units) may differ in any number and still be the same frame: CAM
+/// systems print them with 4 to 9 decimals.
+const FRAME_TOLERANCE: f64 = 1e-6;
 use super::state::{Circle, MAX_FEED_MM_MIN, MAX_FEED_MM_REV, absurd_feed, det};
 use super::vec3::{add, norm, num, scale};
-use super::{ClReader, ClRecord, ClStatement, ClUnits, split_args};
+use super::{Arg, ClReader, ClRecord, ClStatement, ClUnits, split_args};
 use crate::error::Error;
 
 /// Default chord tolerance of linearised arcs, mm.
@@ -135,6 +140,7 @@ pub fn lower<R: BufRead>(
         commented: BTreeMap::new(),
         silenced: Default::default(),
         rapid_pending: false,
+        first_msys: None,
     }
 }
 
@@ -449,6 +455,13 @@ impl<R: BufRead> Lowered<R> {
             "NURBS" | "KNOT" | "CNTRL" => {
                 return Err(self.err(r, format!("{major}: a NURBS spline (the path between two GOTO points) is not converted; refused rather than kept as a comment, which would move the tool straight past it; have the CAM system write the path as GOTO points")));
             }
+            "MCS" | "MSYS" => {
+                if let Some(why) = self.frame_change(r, major, &args) {
+                    return Err(self.err(r, why));
+                }
+                self.count_commented(major);
+                return Ok(true);
+            }
             _ if FLOW_MAJORS.contains(&major) || is_macro_definition(text) => {
                 return Err(self.err(r, format!("{} changes which statements run, or in what order (a jump, a loop, a macro); kinpost reads CL data from top to bottom and does not follow it: refused rather than kept as a comment; have the CAM system write the path it stands for", if FLOW_MAJORS.contains(&major) { major.to_string() } else { format!("{major}=MACRO") })));
             }
@@ -463,6 +476,45 @@ impl<R: BufRead> Lowered<R> {
             }
         }
         Ok(false)
+    }
+
+    /// Why a frame statement (`MCS/`, `MSYS/`) cannot be kept as a comment:
+    /// the points after it would be in another frame than the set-up frame
+    /// kinpost converts (docs/programs.md, "APT CL"). `None` for one that
+    /// changes nothing, or of a form not known (kept as a comment).
+    ///
+    /// - `MCS/` with 12 numbers (CAMplete's and Autodesk's APT: the work
+    ///   plane's x, y and z axes row by row, then its origin; the points
+    ///   are in that frame): anything but the identity and the origin 0.
+    /// - `MSYS/` (Siemens NX: the MCS the points are written in, its origin
+    ///   and axes in the part's absolute frame): the first one is the frame
+    ///   of the program; a later one that differs is another frame.
+    fn frame_change(&mut self, r: &ClRecord, major: &str, args: &[Arg]) -> Option<String> {
+        let v: Vec<f64> = args.iter().map(Arg::number).collect::<Option<_>>()?;
+        if major == "MCS" {
+            let identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
+            let same = v
+                .iter()
+                .zip(identity)
+                .all(|(a, b)| (a - b).abs() <= FRAME_TOLERANCE);
+            return (v.len() == 12 && !same).then(|| {
+                "MCS/ with a rotation or an origin: the points after it are in that work plane's frame (the x, y and z axes row by row, then the origin), not in the set-up frame kinpost converts; refused rather than kept as a comment, which would move the tool in the wrong frame; have the CAM system write the points in the set-up (WCS) frame, or give the frame as CSYS/ (docs/programs.md)".to_string()
+            });
+        }
+        match &self.first_msys {
+            None => {
+                self.first_msys = Some((v, r.line));
+                None
+            }
+            Some((first, line)) => {
+                let same = first.len() == v.len()
+                    && first
+                        .iter()
+                        .zip(&v)
+                        .all(|(a, b)| (a - b).abs() <= FRAME_TOLERANCE);
+                (!same).then(|| format!("MSYS/ changes the machine coordinate system from that of line {line}: the points after it are in another frame than those before, and kinpost converts one; refused rather than kept as a comment, which would move the tool in the wrong frame; post the operations of each MCS as a program of their own (with its --work-offset)"))
+            }
+        }
     }
 
     /// Lowers `r`: kept as it is, or turned into the records it stands for

@@ -1,6 +1,7 @@
 //! APT CL in the shapes other CAM systems write (test programs written for
 //! kinpost in tests/it/cl_dialects/, modelled on the statements of Siemens NX
-//! CLSF, CATIA V5 APT, neutral Mastercam/PowerMill CL and Creo/NCL CL):
+//! CLSF, CATIA V5 APT, neutral Mastercam/PowerMill CL, CAMplete/Autodesk APT
+//! and Creo/NCL CL):
 //! `parse --echo` gives each file back byte for byte; `post` on a
 //! table-table and a head-head machine exits 0, and the programmed path,
 //! evaluated on its own (G2/G3 sampled, canned cycles drilled, forward
@@ -46,6 +47,14 @@ const FILES: &[(&str, Counts, Counts, &str)] = &[
         (1, 3),
         (1, 3),
         "8 CL statements that do not move the tool kept as comments (CUTTER 1, INSERT 1, MULTAX 1, PARTNO 1, PPRINT 4)",
+    ),
+    (
+        "camplete.apt",
+        // CAMplete's and Autodesk's APT: MCS/ matrices (the identity here),
+        // FEDRAT/f, MMPM, an 11-value CIRCLE, CYCLE/DRILL with CLEAR.
+        (1, 2),
+        (1, 2),
+        "32 CL statements that do not move the tool kept as comments (CSI_PATH_TOLERANCE 1, CSI_SET_FLUTE_LENGTH 1, CSI_TOOL_PATH 3, CUTTER 2, MACHIN 1, MCS 3, MODE 1, MULTAX 3, PARTNO 1, PPRINT 16)",
     ),
     (
         "creo.ncl",
@@ -389,6 +398,68 @@ fn one_statement_kept_as_a_comment_is_said_in_the_singular() {
     assert_eq!(code, 0, "{stderr}");
     assert!(
         stderr.contains("1 CL statement that does not move the tool kept as comments (MULTAX 1)"),
+        "{stderr}"
+    );
+}
+
+/// A frame statement that would put the points after it in another frame
+/// than the set-up frame is refused at its place: `MCS/` with a rotation
+/// or an origin (CAMplete's and Autodesk's APT: the work plane of a 3+2
+/// operation), `MSYS/` other than the first (Siemens NX: another MCS);
+/// the identity `MCS/` and a repeated `MSYS/` are comments.
+#[test]
+fn a_frame_the_points_are_in_is_refused_where_it_changes() {
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(path("camplete.apt")),
+    )
+    .unwrap();
+    let tilted = text.replacen(
+        "MCS/1.000000000, 0.000000000, 0.000000000, $\n0.000000000, 1.000000000, 0.000000000, $\n0.000000000, 0.000000000, 1.000000000, $\n0.000000, 0.000000, 0.000000",
+        "MCS/1.000000000, 0.000000000, 0.000000000, $\n0.000000000, 0.707106781, 0.707106781, $\n0.000000000, -0.707106781, 0.707106781, $\n0.000000, 0.000000, 0.000000",
+        2,
+    );
+    let shifted = text.replacen(
+        "0.000000, 0.000000, 0.000000\n",
+        "0.000000, 0.000000, 12.500000\n",
+        1,
+    );
+    for (what, program, line) in [("tilted", &tilted, 20), ("shifted", &shifted, 20)] {
+        assert_ne!(program, &text, "{what}");
+        let (code, stdout, stderr) = post_stdin(TRT, &[], program);
+        assert_eq!(code, 1, "{what}: {stderr}");
+        assert!(stdout.is_empty() || !stdout.contains("G1 "), "{what}");
+        assert!(
+            stderr.contains(&format!(
+                "<stdin>:{line}:1: MCS/ with a rotation or an origin"
+            )),
+            "{what}: {stderr}"
+        );
+    }
+    let nx = |second: &str| {
+        format!(
+            "UNITS/MM\nMSYS/0.0000,0.0000,20.0000,1.0000000,0.0000000,0.0000000,0.0000000,1.0000000,0.0000000\nFEDRAT/MMPM,500\nGOTO/1,2,3\n{second}\nGOTO/4,5,6\nFINI\n"
+        )
+    };
+    let (code, _, stderr) = post_stdin(
+        TRT,
+        &[],
+        &nx(
+            "MSYS/0.0000,0.0000,20.0000,1.0000000,0.0000000,0.0000000,0.0000000,1.0000000,0.0000000",
+        ),
+    );
+    assert_eq!(code, 0, "{stderr}");
+    let (code, _, stderr) = post_stdin(
+        TRT,
+        &[],
+        &nx(
+            "MSYS/0.0000,0.0000,20.0000,1.0000000,0.0000000,0.0000000,0.0000000,0.0000000,1.0000000",
+        ),
+    );
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains(
+            "<stdin>:5:1: MSYS/ changes the machine coordinate system from that of line 2"
+        ),
         "{stderr}"
     );
 }
