@@ -140,7 +140,7 @@ pub fn lower<R: BufRead>(
         commented: BTreeMap::new(),
         silenced: Default::default(),
         rapid_pending: false,
-        first_msys: None,
+        first_frames: Vec::new(),
     }
 }
 
@@ -455,7 +455,7 @@ impl<R: BufRead> Lowered<R> {
             "NURBS" | "KNOT" | "CNTRL" => {
                 return Err(self.err(r, format!("{major}: a NURBS spline (the path between two GOTO points) is not converted; refused rather than kept as a comment, which would move the tool straight past it; have the CAM system write the path as GOTO points")));
             }
-            "MCS" | "MSYS" => {
+            "MCS" | "MSYS" | "ZERO" => {
                 if let Some(why) = self.frame_change(r, major, &args) {
                     return Err(self.err(r, why));
                 }
@@ -478,7 +478,8 @@ impl<R: BufRead> Lowered<R> {
         Ok(false)
     }
 
-    /// Why a frame statement (`MCS/`, `MSYS/`) cannot be kept as a comment:
+    /// Why a frame statement (`MCS/`, `MSYS/`, `ZERO/`) cannot be kept as a
+    /// comment:
     /// the points after it would be in another frame than the set-up frame
     /// kinpost converts (docs/programs.md, "APT CL"). `None` for one that
     /// changes nothing, or of a form not known (kept as a comment).
@@ -487,8 +488,9 @@ impl<R: BufRead> Lowered<R> {
     ///   plane's x, y and z axes row by row, then its origin; the points
     ///   are in that frame): anything but the identity and the origin 0.
     /// - `MSYS/` (Siemens NX: the MCS the points are written in, its origin
-    ///   and axes in the part's absolute frame): the first one is the frame
-    ///   of the program; a later one that differs is another frame.
+    ///   and axes in the part's absolute frame) and `ZERO/n` (CAMplete: the
+    ///   work offset the points are measured from): the first one is the
+    ///   frame of the program; a later one that differs is another frame.
     fn frame_change(&mut self, r: &ClRecord, major: &str, args: &[Arg]) -> Option<String> {
         let v: Vec<f64> = args.iter().map(Arg::number).collect::<Option<_>>()?;
         if major == "MCS" {
@@ -501,20 +503,21 @@ impl<R: BufRead> Lowered<R> {
                 "MCS/ with a rotation or an origin: the points after it are in that work plane's frame (the x, y and z axes row by row, then the origin), not in the set-up frame kinpost converts; refused rather than kept as a comment, which would move the tool in the wrong frame; have the CAM system write the points in the set-up (WCS) frame, or give the frame as CSYS/ (docs/programs.md)".to_string()
             });
         }
-        match &self.first_msys {
-            None => {
-                self.first_msys = Some((v, r.line));
-                None
-            }
-            Some((first, line)) => {
-                let same = first.len() == v.len()
-                    && first
-                        .iter()
-                        .zip(&v)
-                        .all(|(a, b)| (a - b).abs() <= FRAME_TOLERANCE);
-                (!same).then(|| format!("MSYS/ changes the machine coordinate system from that of line {line}: the points after it are in another frame than those before, and kinpost converts one; refused rather than kept as a comment, which would move the tool in the wrong frame; post the operations of each MCS as a program of their own (with its --work-offset)"))
-            }
-        }
+        let Some((_, first, line)) = self.first_frames.iter().find(|(m, ..)| m == major) else {
+            self.first_frames.push((major.to_string(), v, r.line));
+            return None;
+        };
+        let same = first.len() == v.len()
+            && first
+                .iter()
+                .zip(&v)
+                .all(|(a, b)| (a - b).abs() <= FRAME_TOLERANCE);
+        let what = if major == "ZERO" {
+            "the work offset"
+        } else {
+            "the machine coordinate system"
+        };
+        (!same).then(|| format!("{major}/ changes {what} from that of line {line}: the points after it are in another frame than those before, and kinpost converts one; refused rather than kept as a comment, which would move the tool in the wrong frame; post the operations of each frame as a program of their own (with its --work-offset)"))
     }
 
     /// Lowers `r`: kept as it is, or turned into the records it stands for

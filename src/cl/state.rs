@@ -88,9 +88,9 @@ pub struct Lowered<R: BufRead> {
     pub(super) silenced: std::collections::BTreeSet<String>,
     /// A `RAPID` waits for the motion it applies to.
     pub(super) rapid_pending: bool,
-    /// The numbers of the first `MSYS/` and its line: the frame of the
-    /// program's points.
-    pub(super) first_msys: Option<(Vec<f64>, usize)>,
+    /// The first `MSYS/` and `ZERO/`: major word, numbers and line (the
+    /// frame of the program's points).
+    pub(super) first_frames: Vec<(String, Vec<f64>, usize)>,
 }
 
 /// The statements of a feed change: `G95` or `G94` when the feed mode

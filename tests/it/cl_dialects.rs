@@ -405,8 +405,9 @@ fn one_statement_kept_as_a_comment_is_said_in_the_singular() {
 /// A frame statement that would put the points after it in another frame
 /// than the set-up frame is refused at its place: `MCS/` with a rotation
 /// or an origin (CAMplete's and Autodesk's APT: the work plane of a 3+2
-/// operation), `MSYS/` other than the first (Siemens NX: another MCS);
-/// the identity `MCS/` and a repeated `MSYS/` are comments.
+/// operation), `MSYS/` other than the first (Siemens NX: another MCS),
+/// `ZERO/` other than the first (CAMplete: another work offset); the
+/// identity `MCS/` and a repeated `MSYS/` or `ZERO/` are comments.
 #[test]
 fn a_frame_the_points_are_in_is_refused_where_it_changes() {
     let text = std::fs::read_to_string(
@@ -460,6 +461,19 @@ fn a_frame_the_points_are_in_is_refused_where_it_changes() {
         stderr.contains(
             "<stdin>:5:1: MSYS/ changes the machine coordinate system from that of line 2"
         ),
+        "{stderr}"
+    );
+    // CAMplete's work offset: the first one is the program's, the same
+    // again passes, another is refused.
+    let zero = |second: &str| {
+        format!("UNITS/MM\nZERO/2\nFEDRAT/500, MMPM\nGOTO/1,2,3\n{second}\nGOTO/4,5,6\nFINI\n")
+    };
+    let (code, _, stderr) = post_stdin(TRT, &[], &zero("ZERO/2"));
+    assert_eq!(code, 0, "{stderr}");
+    let (code, _, stderr) = post_stdin(TRT, &[], &zero("ZERO/3"));
+    assert_eq!(code, 1, "{stderr}");
+    assert!(
+        stderr.contains("<stdin>:5:1: ZERO/ changes the work offset from that of line 2"),
         "{stderr}"
     );
 }
