@@ -141,6 +141,7 @@ pub fn lower<R: BufRead>(
         silenced: Default::default(),
         rapid_pending: false,
         first_frames: Vec::new(),
+        cutcom_announced: None,
     }
 }
 
@@ -160,6 +161,9 @@ impl<R: BufRead> Lowered<R> {
                     self.file, r.line, r.col
                 )),
             );
+        }
+        if let Some(line) = self.cutcom_announced {
+            return Err(self.err(r, format!("a motion after CUTCOM/ON (line {line}) and before CUTCOM/LEFT or CUTCOM/RIGHT: the side the tool is offset to is not known; give the side (CUTCOM/LEFT|RIGHT) before the motion")));
         }
         self.rapid_pending = false;
         let from_axis = self.axis;
@@ -323,14 +327,23 @@ impl<R: BufRead> Lowered<R> {
                         }
                     }
                     self.cutcom = true;
+                    self.cutcom_announced = None;
                     let block = match register {
                         Some(t) => format!("{g} D{t}"),
                         None => g.to_string(),
                     };
                     self.emit(r, ClStatement::CutterCompensation { block, on: true });
                 }
+                // CAMplete's `CUTCOM/ON`, then `CUTCOM/LEFT|RIGHT[,n]`: the
+                // side comes with the second; a motion before it is refused.
+                "ON" if args.len() == 1 => {
+                    self.cutcom_announced = Some(r.line);
+                    self.count_commented(major);
+                    return Ok(true);
+                }
                 "OFF" => {
                     self.cutcom = false;
+                    self.cutcom_announced = None;
                     let block = "G40".to_string();
                     self.emit(r, ClStatement::CutterCompensation { block, on: false });
                 }

@@ -91,6 +91,9 @@ pub struct Lowered<R: BufRead> {
     /// The first `MSYS/` and `ZERO/`: major word, numbers and line (the
     /// frame of the program's points).
     pub(super) first_frames: Vec<(String, Vec<f64>, usize)>,
+    /// The line of a `CUTCOM/ON` whose side (`CUTCOM/LEFT|RIGHT`) has not
+    /// come yet.
+    pub(super) cutcom_announced: Option<usize>,
 }
 
 /// The statements of a feed change: `G95` or `G94` when the feed mode

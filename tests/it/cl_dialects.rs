@@ -477,3 +477,24 @@ fn a_frame_the_points_are_in_is_refused_where_it_changes() {
         "{stderr}"
     );
 }
+
+/// CAMplete's `CUTCOM/ON` before `CUTCOM/LEFT, n`: a comment, the side and
+/// the register from the second; a motion between the two is refused at
+/// its place (the side is not known).
+#[test]
+fn cutcom_on_then_its_side() {
+    let program = |between: &str| {
+        format!(
+            "UNITS/MM\nLOADTL/1, 0, 40, 1\nFEDRAT/500, MMPM\nGOTO/0, 0, 0\nCUTCOM/ON\n{between}GOTO/5, 5, 0\nGOTO/10, 5, 0\nCUTCOM/OFF\nGOTO/10, 10, 0\nFINI\n"
+        )
+    };
+    let (code, nc, err) = post_stdin(TRT, &[], &program("CUTCOM/LEFT, 3\n"));
+    assert_eq!(code, 0, "{err}");
+    assert!(nc.contains("(CUTCOM/ON)\nG41 D3\n"), "{nc}");
+    let (code, _, err) = post_stdin(TRT, &[], &program(""));
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("<stdin>:6:1: a motion after CUTCOM/ON (line 5) and before CUTCOM/LEFT"),
+        "{err}"
+    );
+}
