@@ -71,8 +71,10 @@ pub fn post_cl<R: BufRead, W: Write + ?Sized>(
 /// `work` on the stage's jobs in parallel and `after_chunk` after each
 /// chunk is written ([`super::pipeline::drive`]). The statements are read
 /// and lowered on this thread, converted on the pool. Arcs and holes are
-/// planned (`G2`/`G3`, canned cycles) only with a stage that solves every
-/// pose in order ([`Stage::planner`]); otherwise they are their moves.
+/// planned (`G2`/`G3`, canned cycles) only where the stage lends its
+/// solver ([`Stage::planner`]: `post`'s stages, the one that defers after
+/// a wait before each arc or hole); under `compensate` they are their
+/// moves.
 #[allow(clippy::too_many_arguments)]
 pub fn convert_cl<S: Stage, R: BufRead, W: Write + ?Sized>(
     machine: &Machine,
