@@ -92,6 +92,18 @@ impl<R: BufRead> Lowered<R> {
         if sweep * r0.max(r1) < 1e-7 / self.mm_per_unit || sweep > std::f64::consts::TAU - 1e-12 {
             sweep = std::f64::consts::TAU;
         }
+        if let Some(a) = c.sweep_deg
+            && (sweep.to_degrees() - a).abs() > super::lower::ARC_ANGLE_TOLERANCE_DEG
+        {
+            return Err(self.err(
+                r,
+                format!(
+                    "MOVARC gives an angle of {}° but its start and end points sweep {}° about its axis: refused rather than guessed",
+                    num(a),
+                    num(sweep.to_degrees())
+                ),
+            ));
+        }
         let rmax = r0.max(r1);
         let step = if tol >= rmax {
             std::f64::consts::PI / 2.0
@@ -261,6 +273,7 @@ impl<R: BufRead> Lowered<R> {
             center: centre,
             normal: n,
             radius: Some(radius),
+            sweep_deg: None,
         });
         self.goto(r, end, None)
     }

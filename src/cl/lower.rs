@@ -27,6 +27,10 @@ use std::io::BufRead;
 
 pub use super::state::Lowered;
 
+/// How far a `MOVARC`'s `ANGLE` may differ from the angle its start and
+/// end points sweep, degrees (CAM systems print it with 4 to 6 decimals).
+pub(super) const ARC_ANGLE_TOLERANCE_DEG: f64 = 1e-3;
+
 /// How far two frames (`MCS/`, `MSYS/`: unit axes, origins in the CL's
 /// units) may differ in any number and still be the same frame: CAM
 /// systems print them with 4 to 9 decimals.
@@ -220,6 +224,41 @@ impl<R: BufRead> Lowered<R> {
                     center: [v[0], v[1], v[2]],
                     normal,
                     radius: v.get(6).copied().filter(|&x| x > 0.0),
+                    sweep_deg: None,
+                });
+            }
+            // Autodesk's ISO 4343 APT: `MOVARC/xc,yc,zc,i,j,k,r,ANGLE,a`
+            // then the `GOTO` that ends it: a `CIRCLE` whose swept angle
+            // about (i,j,k) must be `a`.
+            "MOVARC" => {
+                if self.rapid_pending {
+                    return Err(self.err(r, "MOVARC after RAPID: an arc at the rapid rate has no G-code form (G0 moves straight, and each axis at its own rate); give the arc a feed, or remove the RAPID"));
+                }
+                let form = "MOVARC expects xc,yc,zc,i,j,k,r,ANGLE,a (degrees)";
+                if args.len() != 9 || !args[7].is("ANGLE") {
+                    return Err(self.err(r, form));
+                }
+                let mut numbers = args[..7].to_vec();
+                numbers.push(args[8]);
+                let v = self.numbers(r, &numbers, "MOVARC")?;
+                let normal = [v[3], v[4], v[5]];
+                if norm(normal) < 1e-12 {
+                    return Err(self.err(r, "MOVARC axis has zero length"));
+                }
+                if !(v[7] > 0.0 && v[7] <= 360.0 + ARC_ANGLE_TOLERANCE_DEG) {
+                    return Err(self.err(
+                        r,
+                        format!(
+                            "MOVARC sweeps {}°: expected more than 0° and at most one turn",
+                            num(v[7])
+                        ),
+                    ));
+                }
+                self.circle = Some(Circle {
+                    center: [v[0], v[1], v[2]],
+                    normal,
+                    radius: Some(v[6]).filter(|&x| x > 0.0),
+                    sweep_deg: Some(v[7]),
                 });
             }
             "CYCLE" => self.cycle(r, &args)?,

@@ -17,6 +17,8 @@ pub(super) struct Circle {
     pub(super) center: [f64; 3],
     pub(super) normal: [f64; 3],
     pub(super) radius: Option<f64>,
+    /// The angle the arc sweeps, as given (`MOVARC/…,ANGLE,a`), degrees.
+    pub(super) sweep_deg: Option<f64>,
 }
 
 /// The kinds of hole the cycles make.

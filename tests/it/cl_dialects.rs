@@ -498,3 +498,52 @@ fn cutcom_on_then_its_side() {
         "{err}"
     );
 }
+
+/// Autodesk's ISO 4343 APT writes every arc as `MOVARC/xc,yc,zc,i,j,k,r,
+/// ANGLE,a` and the `GOTO` that ends it: the same `G2`/`G3` as the
+/// `CIRCLE` of the same arc; an angle that the points do not sweep, or
+/// more than a turn, is refused at its place.
+#[test]
+fn movarc_is_an_arc_of_the_angle_it_gives() {
+    let program = |arc: &str| {
+        format!(
+            "UNITS/MM\nLOADTL/3\nFEDRAT/400, MMPM\nGOTO/-50, 0, -2\n{arc}\nGOTO/0, 50, -2\nGOTO/30, 50, -2\nFINI\n"
+        )
+    };
+    let (code, by_circle, err) = post_stdin(TRT, &[], &program("CIRCLE/0, 0, -2, 0, 0, -1, 50"));
+    assert_eq!(code, 0, "{err}");
+    let (code, by_movarc, err) = post_stdin(
+        TRT,
+        &[],
+        &program(
+            "MOVARC/0.000000, 0.000000, -2.000000, 0.000000, 0.000000, -1.000000, 50.000000, ANGLE, 90.000000",
+        ),
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(by_movarc.contains("G2 X0.0000 Y50.0000"), "{by_movarc}");
+    let body = |nc: &str| {
+        nc.lines()
+            .filter(|l| !l.starts_with('('))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    assert_eq!(body(&by_movarc), body(&by_circle));
+    for (arc, why) in [
+        (
+            "MOVARC/0, 0, -2, 0, 0, -1, 50, ANGLE, 270",
+            "MOVARC gives an angle of 270° but its start and end points sweep 90°",
+        ),
+        (
+            "MOVARC/0, 0, -2, 0, 0, -1, 50, ANGLE, 450",
+            "MOVARC sweeps 450°",
+        ),
+        (
+            "MOVARC/0, 0, -2, 0, 0, -1, 50",
+            "MOVARC expects xc,yc,zc,i,j,k,r,ANGLE,a",
+        ),
+    ] {
+        let (code, _, err) = post_stdin(TRT, &[], &program(arc));
+        assert_eq!(code, 1, "{arc}: {err}");
+        assert!(err.contains(why), "{arc}: {err}");
+    }
+}
