@@ -27,6 +27,11 @@ use std::io::BufRead;
 
 pub use super::state::Lowered;
 
+use super::state::{Circle, MAX_FEED_MM_MIN, MAX_FEED_MM_REV, absurd_feed, det};
+use super::vec3::{add, norm, num, scale};
+use super::{Arg, ClReader, ClRecord, ClStatement, ClUnits, split_args};
+use crate::error::Error;
+
 /// How far a `MOVARC`'s `ANGLE` may differ from the angle its start and
 /// end points sweep, degrees (CAM systems print it with 4 to 6 decimals).
 pub(super) const ARC_ANGLE_TOLERANCE_DEG: f64 = 1e-3;
@@ -35,10 +40,6 @@ pub(super) const ARC_ANGLE_TOLERANCE_DEG: f64 = 1e-3;
 /// units) may differ in any number and still be the same frame: CAM
 /// systems print them with 4 to 9 decimals.
 const FRAME_TOLERANCE: f64 = 1e-6;
-use super::state::{Circle, MAX_FEED_MM_MIN, MAX_FEED_MM_REV, absurd_feed, det};
-use super::vec3::{add, norm, num, scale};
-use super::{Arg, ClReader, ClRecord, ClStatement, ClUnits, split_args};
-use crate::error::Error;
 
 /// Default chord tolerance of linearised arcs, mm.
 pub const DEFAULT_ARC_TOLERANCE_MM: f64 = 1e-3;
@@ -209,31 +210,18 @@ impl<R: BufRead> Lowered<R> {
                 }
             },
             "CIRCLE" => {
-                if self.rapid_pending {
-                    return Err(self.err(r, "CIRCLE after RAPID: an arc at the rapid rate has no G-code form (G0 moves straight, and each axis at its own rate); give the arc a feed, or remove the RAPID"));
-                }
+                self.refuse_rapid_arc(r, "CIRCLE")?;
                 let v = self.numbers(r, &args, "CIRCLE")?;
                 if v.len() < 6 {
                     return Err(self.err(r, "CIRCLE expects xc,yc,zc,i,j,k[,r,...]"));
                 }
-                let normal = [v[3], v[4], v[5]];
-                if norm(normal) < 1e-12 {
-                    return Err(self.err(r, "CIRCLE axis has zero length"));
-                }
-                self.circle = Some(Circle {
-                    center: [v[0], v[1], v[2]],
-                    normal,
-                    radius: v.get(6).copied().filter(|&x| x > 0.0),
-                    sweep_deg: None,
-                });
+                self.start_arc(r, "CIRCLE", &v, None)?;
             }
             // Autodesk's ISO 4343 APT: `MOVARC/xc,yc,zc,i,j,k,r,ANGLE,a`
             // then the `GOTO` that ends it: a `CIRCLE` whose swept angle
             // about (i,j,k) must be `a`.
             "MOVARC" => {
-                if self.rapid_pending {
-                    return Err(self.err(r, "MOVARC after RAPID: an arc at the rapid rate has no G-code form (G0 moves straight, and each axis at its own rate); give the arc a feed, or remove the RAPID"));
-                }
+                self.refuse_rapid_arc(r, "MOVARC")?;
                 let form = "MOVARC expects xc,yc,zc,i,j,k,r,ANGLE,a (degrees)";
                 if args.len() != 9 || !args[7].is("ANGLE") {
                     return Err(self.err(r, form));
@@ -241,25 +229,7 @@ impl<R: BufRead> Lowered<R> {
                 let mut numbers = args[..7].to_vec();
                 numbers.push(args[8]);
                 let v = self.numbers(r, &numbers, "MOVARC")?;
-                let normal = [v[3], v[4], v[5]];
-                if norm(normal) < 1e-12 {
-                    return Err(self.err(r, "MOVARC axis has zero length"));
-                }
-                if !(v[7] > 0.0 && v[7] <= 360.0 + ARC_ANGLE_TOLERANCE_DEG) {
-                    return Err(self.err(
-                        r,
-                        format!(
-                            "MOVARC sweeps {}°: expected more than 0° and at most one turn",
-                            num(v[7])
-                        ),
-                    ));
-                }
-                self.circle = Some(Circle {
-                    center: [v[0], v[1], v[2]],
-                    normal,
-                    radius: Some(v[6]).filter(|&x| x > 0.0),
-                    sweep_deg: Some(v[7]),
-                });
+                self.start_arc(r, "MOVARC", &v[..7], Some(v[7]))?;
             }
             "CYCLE" => self.cycle(r, &args)?,
             "SYN" => {
@@ -528,6 +498,49 @@ impl<R: BufRead> Lowered<R> {
             }
         }
         Ok(false)
+    }
+
+    /// Refuses an arc (`CIRCLE`, `MOVARC`) that follows a `RAPID`: an arc
+    /// at the rapid rate has no G-code form. Checked before the arc's
+    /// numbers are read.
+    fn refuse_rapid_arc(&self, r: &ClRecord, major: &str) -> Result<(), Error> {
+        if self.rapid_pending {
+            return Err(self.err(r, format!("{major} after RAPID: an arc at the rapid rate has no G-code form (G0 moves straight, and each axis at its own rate); give the arc a feed, or remove the RAPID")));
+        }
+        Ok(())
+    }
+
+    /// Starts the arc that the next `GOTO` ends, from `xc,yc,zc,i,j,k[,r]`
+    /// (`v`) and, for `MOVARC`, the angle it must sweep (degrees).
+    fn start_arc(
+        &mut self,
+        r: &ClRecord,
+        major: &str,
+        v: &[f64],
+        sweep_deg: Option<f64>,
+    ) -> Result<(), Error> {
+        let normal = [v[3], v[4], v[5]];
+        if norm(normal) < 1e-12 {
+            return Err(self.err(r, format!("{major} axis has zero length")));
+        }
+        if let Some(a) = sweep_deg
+            && !(a > 0.0 && a <= 360.0 + ARC_ANGLE_TOLERANCE_DEG)
+        {
+            return Err(self.err(
+                r,
+                format!(
+                    "{major} sweeps {}°: expected more than 0° and at most one turn",
+                    num(a)
+                ),
+            ));
+        }
+        self.circle = Some(Circle {
+            center: [v[0], v[1], v[2]],
+            normal,
+            radius: v.get(6).copied().filter(|&x| x > 0.0),
+            sweep_deg,
+        });
+        Ok(())
     }
 
     /// Why a frame statement (`MCS/`, `MSYS/`, `ZERO/`) cannot be kept as a

@@ -187,6 +187,9 @@ pub struct IkSolver {
     segs: Vec<Matrix3<f64>>,
     rttr: Option<RttrFrame>,
     options: IkOptions,
+    /// The branch [`IkSolver::choose`] chose last: the one
+    /// [`IkSolver::prepare`] completes alone ([`prepared::BranchHint`]).
+    last_chosen: prepared::BranchHint,
 }
 
 /// Most solution branches of any family (subproblem 2 has two).
@@ -288,6 +291,7 @@ impl IkSolver {
             segs,
             rttr: None,
             options,
+            last_chosen: prepared::BranchHint::default(),
         };
         solver.family = solver.detect();
         solver
@@ -580,6 +584,8 @@ impl IkSolver {
         let complete = |raw: &Raw| self.complete_unwound(raw, &target, &reference);
         let nearest = |first, lower| self.nearest(first, lower, &reference);
         let mut done: [Option<Result<IkSolution, IkError>>; MAX_BRANCHES] = [None, None];
+        // Whether `complete_branches` may still try the nearer branch alone.
+        let mut nearest_only = nearest_only;
         let raws = match self.family {
             Family::ThreeAxis => RawBranches::from_iter([Raw::fixed()]),
             Family::FourAxis1R3T => self.orient_1r(&target, &reference),
@@ -589,20 +595,14 @@ impl IkSolver {
                 // branches are ordered by their first rotary alone, whose
                 // term bounds the distance from below.
                 Some(a) if nearest_only && a.count == 2 => {
-                    let j1 = self.revolutes[0];
-                    // (The other terms of the distance are zero: this is
-                    // `rotary_distance` of the branch with only its first
-                    // rotary moved.)
-                    let lower = a.t1.map(|t| {
-                        let t = choose_turn(&self.axes[j1], t, reference[j1]);
-                        self.distance_term(j1, t, reference[j1], 0.0)
-                    });
+                    let lower = [0, 1].map(|b| self.rttr_lower(&a, b, &reference));
                     let (first, other) = if lower[1] < lower[0] { (1, 0) } else { (0, 1) };
                     let raw_first = self.rttr_branch(&a, first, &reference);
                     match nearest(complete(&raw_first), lower[other]) {
                         Ok(s) => return Ok(Branches::from_iter([s])),
                         Err(sol) => done[first] = Some(sol),
                     }
+                    nearest_only = false;
                     let raw_other = self.rttr_branch(&a, other, &reference);
                     let mut raws = [Some(raw_first), Some(raw_other)];
                     raws.swap(0, first);
@@ -655,8 +655,9 @@ impl IkSolver {
     }
 
     /// The branches `raws` completed and unwound towards `reference` (those
-    /// in `done` completed already); with `nearest_only` only the nearer
-    /// one where it is certainly the choice ([`IkSolver::nearest`]).
+    /// in `done` completed and unwound already); with `nearest_only` only
+    /// the nearer one where it is certainly the choice
+    /// ([`IkSolver::nearest`]; tried while the other is not completed).
     fn complete_branches(
         &self,
         raws: &RawBranches,
@@ -667,14 +668,31 @@ impl IkSolver {
     ) -> Result<Branches, IkError> {
         let n = self.chain.dof();
         let complete = |raw: &Raw| self.complete_unwound(raw, target, reference);
-        if nearest_only && raws.len() == 2 && done.iter().all(Option::is_none) {
-            let lower: [f64; 2] = std::array::from_fn(|i| {
-                let mut q: JointValues = raws[i].q[..n].iter().copied().collect();
-                self.unwind(&mut q, reference);
-                self.rotary_distance(&q, reference)
-            });
-            let (first, other) = if lower[1] < lower[0] { (1, 0) } else { (0, 1) };
-            match self.nearest(complete(&raws[first]), lower[other], reference) {
+        let lower = |i: usize| {
+            let mut q: JointValues = raws[i].q[..n].iter().copied().collect();
+            self.unwind(&mut q, reference);
+            self.rotary_distance(&q, reference)
+        };
+        // The branch tried alone (the one completed already, else the one
+        // whose rotaries are nearer) and the lower bound of the other's
+        // distance.
+        let alone = match (&done[0], &done[1]) {
+            _ if !nearest_only || raws.len() != 2 => None,
+            (None, None) => {
+                let bounds = [lower(0), lower(1)];
+                Some(if bounds[1] < bounds[0] {
+                    (1, bounds[0])
+                } else {
+                    (0, bounds[1])
+                })
+            }
+            (Some(_), None) => Some((0, lower(1))),
+            (None, Some(_)) => Some((1, lower(0))),
+            (Some(_), Some(_)) => None,
+        };
+        if let Some((first, bound)) = alone {
+            let s = done[first].take().unwrap_or_else(|| complete(&raws[first]));
+            match self.nearest(s, bound, reference) {
                 Ok(s) => return Ok(Branches::from_iter([s])),
                 Err(sol) => done[first] = Some(sol),
             }

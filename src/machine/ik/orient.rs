@@ -144,6 +144,16 @@ impl IkSolver {
         )
     }
 
+    /// A lower bound of the distance from `reference` of branch `b` of
+    /// [`IkSolver::rttr_angles`], from its first rotary alone (the second
+    /// costs a subproblem): the distance of the branch with only its first
+    /// rotary moved, the other terms zero.
+    pub(super) fn rttr_lower(&self, a: &RttrAngles, b: usize, reference: &[f64]) -> f64 {
+        let j1 = self.revolutes[0];
+        let t = choose_turn(&self.axes[j1], a.t1[b], reference[j1]);
+        self.distance_term(j1, t, reference[j1], 0.0)
+    }
+
     /// Branch `b` of [`IkSolver::rttr_angles`]: the second rotary turns the
     /// tool axis into place.
     pub(super) fn rttr_branch(&self, a: &RttrAngles, b: usize, reference: &[f64]) -> Raw {
@@ -169,6 +179,7 @@ impl IkSolver {
 }
 
 /// The first rotary's angles of an RTTR machine ([`IkSolver::rttr_angles`]).
+#[derive(Debug, Clone, PartialEq)]
 pub(super) struct RttrAngles {
     /// The angle of each branch, rad.
     pub(super) t1: [f64; 2],
