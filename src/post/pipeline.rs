@@ -34,6 +34,12 @@ const PREFETCH_AHEAD: usize = 4;
 /// 25; 8 to 64 are equal within the noise).
 const JOBS_PER_TASK: usize = 32;
 
+/// Largest number of a chunk's units one task of the pool prepares
+/// ([`Format::prepare`]: G-code lines parsed). One task for the whole
+/// chunk left the other thread idle at the end of a round once the
+/// in-order passes had shrunk.
+const UNITS_PER_TASK: usize = 64;
+
 /// Asks the processor to bring the memory of `x` (a value or a slice)
 /// into the cache, one 64-byte line at a time.
 #[inline]
@@ -572,7 +578,12 @@ pub fn drive<F: Format, S: Stage, W: Write + ?Sized>(
             }
             if let Some(c) = to_prepare.as_mut() {
                 let units = &mut c.units[..c.count];
-                scope.spawn(move |_| units.iter_mut().for_each(F::prepare));
+                scope.spawn(move |_| {
+                    units
+                        .par_iter_mut()
+                        .with_max_len(UNITS_PER_TASK)
+                        .for_each(F::prepare)
+                });
             }
             // Write the chunk before and read the chunk after while the
             // pool works.
