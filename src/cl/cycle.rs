@@ -261,7 +261,8 @@ impl<R: BufRead> Lowered<R> {
             };
             k += 1;
         }
-        let mut loose = Vec::new();
+        // A number no word names: the classic positional form.
+        let mut loose = false;
         while k < args.len() {
             let w = args[k].upper();
             let val = |k: usize| -> Result<f64, Error> {
@@ -302,7 +303,7 @@ impl<R: BufRead> Lowered<R> {
                 }
                 _ => {
                     if args[k].number().is_some() {
-                        loose.push(args[k].number().unwrap_or(0.0));
+                        loose = true;
                         k += 1;
                         continue;
                     }
@@ -311,14 +312,18 @@ impl<R: BufRead> Lowered<R> {
             }
             k += 2;
         }
-        // The classic APT form: CYCLE/DRILL,depth,MMPM,f,clearance.
-        if c.depth.is_nan()
-            && let Some(&d) = loose.first()
-        {
-            c.depth = d;
-            if let Some(&cl) = loose.get(1) {
-                c.rapto = cl;
-            }
+        // The classic positional form `CYCLE/DRILL,d,MMPM,f,c`: CAM systems
+        // write it with different meanings. Autodesk's common ISO 4343 APT
+        // post writes the hole's bottom as the point, `c` the clearance
+        // height and `RAPTO` its distance to the retract plane; the
+        // CAMplete-style post the hole's top, `c` the clearance's height
+        // above the bottom; APT's own reading is the top and a clearance
+        // above it. The depth drilled would differ by the hole's depth.
+        if loose {
+            return Err(self.err(
+                r,
+                "CYCLE with numbers no word names (the positional form CYCLE/DRILL,d,MMPM,f,c) is not converted: CAM posts write it with the point at the hole's top or at its bottom and c as a distance or a height, so the depth drilled is not known; write the cycle with FEDTO, RAPTO (or CLEAR) and RTRCTO, or have the CAM system expand the holes into moves",
+            ));
         }
         if c.depth.is_nan() || c.depth < 0.0 {
             return Err(self.err(r, "CYCLE: expected a depth (FEDTO,d) that is not negative"));

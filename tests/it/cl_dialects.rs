@@ -247,6 +247,37 @@ fn camworks_cycle_clear_and_incr() {
     assert_eq!(code, 1, "{err}");
 }
 
+/// The positional `CYCLE/DRILL,d,MMPM,f,c` is written by CAM posts with
+/// the point at the hole's top or at its bottom (Autodesk's common ISO 4343
+/// APT post: the bottom, `c` the clearance height, `RAPTO` its distance to
+/// the retract plane): refused at the cycle, where before it was drilled
+/// `d` below the point with `R` at `c` above it, exit 0.
+#[test]
+fn a_positional_cycle_is_refused() {
+    for cycle in [
+        "CYCLE/DRILL, 8, MMPM, 150, 15, RAPTO, 10",
+        "CYCLE/DRILL,8,MMPM,150,5",
+        "CYCLE/DEEP, 12, INCR, 3, MMPM, 100, 15",
+        "CYCLE/TAP, 10, MMPM, 1.5, 5, RAPTO, 2",
+    ] {
+        let cl = format!(
+            "UNITS/MM\nRAPID\nGOTO/10,0,15\nFEDRAT/150, MMPM\n{cycle}\nGOTO/10,0,-8\nCYCLE/OFF\nGOTO/0,10,20\n"
+        );
+        let (code, nc, err) = post_stdin(TRT, &[], &cl);
+        assert_eq!(code, 1, "{cycle}: {err}");
+        assert!(
+            err.contains("<stdin>:5:1") && err.contains("positional form"),
+            "{cycle}: {err}"
+        );
+        assert!(!nc.contains("G81") && !nc.contains("G83"), "{cycle}: {nc}");
+    }
+    // The same hole with its words named is converted.
+    let named = "UNITS/MM\nRAPID\nGOTO/10,0,15\nCYCLE/DRILL, FEDTO, 8, MMPM, 150, RAPTO, 5, RTRCTO, 15\nGOTO/10,0,0\nCYCLE/OFF\nGOTO/0,10,20\n";
+    let (code, nc, err) = post_stdin(TRT, &[], named);
+    assert_eq!(code, 0, "{err}");
+    assert!(nc.contains("G81") && nc.contains("R5.0000"), "{nc}");
+}
+
 /// docs/programs.md names every major word that moves the tool in its
 /// table of CL major words, and the dialect files' comment words.
 #[test]
