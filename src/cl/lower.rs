@@ -558,13 +558,15 @@ impl<R: BufRead> Lowered<R> {
     ///   frame of the program; a later one that differs is another frame.
     fn frame_change(&mut self, r: &ClRecord, major: &str, args: &[Arg]) -> Option<String> {
         let v: Vec<f64> = args.iter().map(Arg::number).collect::<Option<_>>()?;
+        let same_frame = |a: &[f64], b: &[f64]| {
+            a.len() == b.len()
+                && a.iter()
+                    .zip(b)
+                    .all(|(x, y)| (x - y).abs() <= FRAME_TOLERANCE)
+        };
         if major == "MCS" {
             let identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0];
-            let same = v
-                .iter()
-                .zip(identity)
-                .all(|(a, b)| (a - b).abs() <= FRAME_TOLERANCE);
-            return (v.len() == 12 && !same).then(|| {
+            return (v.len() == 12 && !same_frame(&v, &identity)).then(|| {
                 "MCS/ with a rotation or an origin: the points after it are in that work plane's frame (the x, y and z axes row by row, then the origin), not in the set-up frame kinpost converts; refused rather than kept as a comment, which would move the tool in the wrong frame; have the CAM system write the points in the set-up (WCS) frame, or give the frame as CSYS/ (docs/programs.md)".to_string()
             });
         }
@@ -572,11 +574,7 @@ impl<R: BufRead> Lowered<R> {
             self.first_frames.push((major.to_string(), v, r.line));
             return None;
         };
-        let same = first.len() == v.len()
-            && first
-                .iter()
-                .zip(&v)
-                .all(|(a, b)| (a - b).abs() <= FRAME_TOLERANCE);
+        let same = same_frame(first, &v);
         let what = if major == "ZERO" {
             "the work offset"
         } else {

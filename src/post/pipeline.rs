@@ -35,9 +35,10 @@ const PREFETCH_AHEAD: usize = 4;
 const JOBS_PER_TASK: usize = 32;
 
 /// Largest number of a chunk's units one task of the pool prepares
-/// ([`Format::prepare`]: G-code lines parsed). One task for the whole
-/// chunk left the other thread idle at the end of a round once the
-/// in-order passes had shrunk.
+/// ([`Format::prepare`]: G-code lines parsed), so that both threads can
+/// share the parse at the end of a round (against one task for the whole
+/// chunk: outputs identical, times equal within the noise of the hosts
+/// measured, `docs/performance.md`).
 const UNITS_PER_TASK: usize = 64;
 
 /// Asks the processor to bring the memory of `x` (a value or a slice)
