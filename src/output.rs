@@ -8,7 +8,8 @@
 //!   keeps the mode (and, where permitted, the owner) of the file it
 //!   replaces; a new file gets the usual `0666` less the umask.
 //! - **A symbolic link.** The link is followed: its target is written, the
-//!   link stays.
+//!   link stays. A target that does not exist yet is created, as a shell's
+//!   `>` creates it; a loop of links is refused.
 //! - **A file with several hard links.** The output is spooled and copied
 //!   into the existing file on success, so every link sees the new content.
 //! - **A character device or a FIFO** (`/dev/null`, `/dev/stdout`, a named
@@ -126,7 +127,11 @@ pub fn check_outputs(outputs: &[(&str, Option<&Path>)], inputs: &[Option<&Path>]
         if let Some(m) = &meta {
             kind_of(path, m)?;
         }
-        match path.parent() {
+        let created = match &meta {
+            Some(_) => path.to_path_buf(),
+            None => new_file_at(path).map_err(|e| Error::io(&name, e))?,
+        };
+        match created.parent() {
             Some(d) if !d.as_os_str().is_empty() && !d.is_dir() => {
                 return Err(Error::io(
                     &name,
@@ -182,10 +187,10 @@ impl Identity {
         if let Some(id) = std::fs::metadata(path).ok().as_ref().and_then(FileId::of) {
             return Identity::File(id);
         }
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
+        let Ok(path) = new_file_at(path) else {
+            return Identity::Unknown;
         };
+        let dir = directory_of(&path);
         match (std::fs::canonicalize(dir), path.file_name()) {
             (Ok(d), Some(n)) => Identity::Path(d.join(n)),
             _ => Identity::Unknown,
@@ -297,7 +302,7 @@ pub fn write_atomically<T>(
     // A regular file or a new one: a temporary beside the real target.
     let target = match &meta {
         Some(_) => std::fs::canonicalize(path).map_err(|e| Error::io(&display, e))?,
-        None => path.to_path_buf(),
+        None => new_file_at(path).map_err(|e| Error::io(&display, e))?,
     };
     let dir = directory_of(&target);
     let (tmp, file) = Temporary::new(&dir, meta.as_ref()).map_err(|e| Error::io(&display, e))?;
@@ -399,6 +404,30 @@ fn directory_of(path: &Path) -> PathBuf {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
     }
+}
+
+/// Most symbolic links followed to find where a new output goes (the
+/// limit of Linux's own path resolution).
+const MAX_LINKS: usize = 40;
+
+/// Where an output at `path`, which does not exist as a file, is created:
+/// `path` itself, or, when `path` is a symbolic link whose target does not
+/// exist yet, the end of that chain of links (a relative link read from its
+/// own directory), as a shell's `>` creates it. A loop is an error.
+fn new_file_at(path: &Path) -> std::io::Result<PathBuf> {
+    let mut at = path.to_path_buf();
+    for _ in 0..MAX_LINKS {
+        match std::fs::symlink_metadata(&at) {
+            Ok(m) if m.file_type().is_symlink() => {
+                let to = std::fs::read_link(&at)?;
+                at = directory_of(&at).join(to);
+            }
+            _ => return Ok(at),
+        }
+    }
+    Err(std::io::Error::other(
+        "is a loop of symbolic links (or more than 40 in a chain); expected a file to write",
+    ))
 }
 
 /// Whether two metadata are of the same file (device and inode); `true`
@@ -681,6 +710,68 @@ mod tests {
             assert!(e.to_string().contains("refusing"), "{e}");
         }
         assert_eq!(std::fs::read(&input).unwrap(), b"program");
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        assert!(!names.iter().any(|n| n.ends_with(".part")), "{names:?}");
+    }
+
+    /// A symbolic link whose target does not exist yet is written through,
+    /// as a shell's `>` does: the target is created and the link stays.
+    /// (The link was replaced by a plain file and no target was created.)
+    #[cfg(unix)]
+    #[test]
+    fn a_dangling_link_is_written_through() {
+        let dir = tempfile::tempdir().unwrap();
+        let sub = dir.path().join("sub");
+        std::fs::create_dir(&sub).unwrap();
+        let target = sub.join("made.nc");
+        let link = dir.path().join("link.nc");
+        // A relative link, resolved from the link's own directory.
+        std::os::unix::fs::symlink("sub/made.nc", &link).unwrap();
+        // and a chain of two links.
+        let outer = dir.path().join("outer.nc");
+        std::os::unix::fs::symlink(&link, &outer).unwrap();
+        check_outputs(&[("-o", Some(&outer))], &[]).unwrap();
+        write_atomically(Some(&outer), |w| {
+            w.write_all(b"through").unwrap();
+            Ok(())
+        })
+        .unwrap();
+        for l in [&link, &outer] {
+            assert!(
+                std::fs::symlink_metadata(l)
+                    .unwrap()
+                    .file_type()
+                    .is_symlink()
+            );
+        }
+        assert_eq!(std::fs::read(&target).unwrap(), b"through");
+        // The link and its target named for two outputs are one file.
+        std::fs::remove_file(&target).unwrap();
+        let e =
+            check_outputs(&[("-o", Some(&link)), ("--report", Some(&target))], &[]).unwrap_err();
+        assert!(e.to_string().contains("name the same file"), "{e}");
+        // A link into a directory that does not exist, and a loop, are refused.
+        let nowhere = dir.path().join("nowhere.nc");
+        std::os::unix::fs::symlink("missing/x.nc", &nowhere).unwrap();
+        assert!(check_outputs(&[("-o", Some(&nowhere))], &[]).is_err());
+        let looped = dir.path().join("loop.nc");
+        std::os::unix::fs::symlink("loop.nc", &looped).unwrap();
+        assert!(check_outputs(&[("-o", Some(&looped))], &[]).is_err());
+        let e = write_atomically(Some(&looped), |w| {
+            w.write_all(b"x").unwrap();
+            Ok(())
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("symbolic links"), "{e}");
+        assert!(
+            std::fs::symlink_metadata(&looped)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
         let names: Vec<_> = std::fs::read_dir(dir.path())
             .unwrap()
             .map(|e| e.unwrap().file_name().into_string().unwrap())
