@@ -263,6 +263,9 @@ impl<R: BufRead> Lowered<R> {
         }
         // A number no word names: the classic positional form.
         let mut loose = false;
+        // Creo's couplet form: DEPTH, and CLEAR and RAPTO in one statement.
+        let (mut creo_depth, mut clear, mut rapid_to) = (false, None, None);
+        let mut rtrcto_given = false;
         while k < args.len() {
             let w = args[k].upper();
             let val = |k: usize| -> Result<f64, Error> {
@@ -273,14 +276,26 @@ impl<R: BufRead> Lowered<R> {
             match w.as_str() {
                 // A signed depth (NX: negative below the point) or a depth
                 // below the point (SolidWorks CAM: positive).
-                "FEDTO" | "DEPTH" => c.depth = val(k + 1)?.abs(),
-                "RAPTO" | "CLEAR" => c.rapto = val(k + 1)?,
+                "FEDTO" | "DEPTH" => {
+                    c.depth = val(k + 1)?.abs();
+                    creo_depth = w == "DEPTH";
+                }
+                "RAPTO" | "CLEAR" => {
+                    c.rapto = val(k + 1)?;
+                    if w == "CLEAR" {
+                        clear = Some(c.rapto);
+                    } else {
+                        rapid_to = Some(c.rapto);
+                    }
+                }
                 "RTRCTO" if args.get(k + 1).is_some_and(|a| a.is("AUTO")) => {
                     c.rtrcto_auto = true;
+                    rtrcto_given = true;
                 }
                 "RTRCTO" => {
                     c.rtrcto = val(k + 1)?;
                     c.rtrcto_auto = false;
+                    rtrcto_given = true;
                 }
                 // NX: RTRCTO,r,MANUAL (the level given).
                 "MANUAL" => {
@@ -324,6 +339,28 @@ impl<R: BufRead> Lowered<R> {
                 r,
                 "CYCLE with numbers no word names (the positional form CYCLE/DRILL,d,MMPM,f,c) is not converted: CAM posts write it with the point at the hole's top or at its bottom and c as a distance or a height, so the depth drilled is not known; write the cycle with FEDTO, RAPTO (or CLEAR) and RTRCTO, or have the CAM system expand the holes into moves",
             ));
+        }
+        // Creo writes `CYCLE/DRILL, DEPTH, a, IPM, b, CLEAR, c, RAPTO, d`:
+        // `c` the clearance above the point (where the hole starts and the
+        // tool returns to), `d` a further rapid from there towards the
+        // point (PTC, "CL Output for Holemaking Cycles"). The R level is
+        // then `c − d` above the point, the retract level `c`. (The other
+        // posts write FEDTO and take RAPTO as the R level: below.)
+        if creo_depth && let (Some(cl), Some(rt)) = (clear, rapid_to) {
+            if rt > cl {
+                return Err(self.err(
+                    r,
+                    format!(
+                        "CYCLE: RAPTO,{} rapids beyond the point from CLEAR,{} (Creo measures RAPTO from the clearance towards the point)",
+                        num(rt),
+                        num(cl)
+                    ),
+                ));
+            }
+            c.rapto = cl - rt;
+            if !rtrcto_given {
+                c.rtrcto = cl;
+            }
         }
         if c.depth.is_nan() || c.depth < 0.0 {
             return Err(self.err(r, "CYCLE: expected a depth (FEDTO,d) that is not negative"));

@@ -278,6 +278,69 @@ fn a_positional_cycle_is_refused() {
     assert!(nc.contains("G81") && nc.contains("R5.0000"), "{nc}");
 }
 
+/// Creo's couplet form `CYCLE/DRILL, DEPTH, a, IPM, b, CLEAR, c, RAPTO, d`
+/// (PTC, "CL Output for Holemaking Cycles"): `c` is the clearance above the
+/// point, where the tool also returns to, and `d` a further rapid from
+/// there towards the point, so the R level is `c − d` above it. kinpost
+/// read RAPTO and CLEAR alike as the R level and the later won: `R3`, 1 mm
+/// above Creo's, and a return to it (`G99`) instead of to the clearance.
+#[test]
+fn creo_rapto_counts_from_the_clearance() {
+    let hole = |cycle: &str| {
+        format!(
+            "UNITS/MM\nRAPID\nGOTO/10,0,15\nFEDRAT/150, MMPM\n{cycle}\nGOTO/10,0,0\nCYCLE/OFF\nGOTO/0,10,20\n"
+        )
+    };
+    let (code, nc, err) = post_stdin(
+        TRT,
+        &[],
+        &hole("CYCLE / DRILL, DEPTH, 8, MMPM, 150, CLEAR, 5, RAPTO, 3"),
+    );
+    assert_eq!(code, 0, "{err}");
+    let g81 = nc.lines().find(|l| l.contains("G81")).expect("a G81 block");
+    // R 5 − 3 = 2 above the top at Z0, the bottom 8 below, back to Z5.
+    assert!(
+        g81.contains("G98") && g81.contains("Z-8.0000") && g81.contains("R2.0000"),
+        "{nc}"
+    );
+    // The rapid (G0 modal since the first move) to the clearance above it.
+    let before: Vec<&str> = nc.lines().take_while(|l| !l.contains("G81")).collect();
+    assert!(
+        before
+            .last()
+            .is_some_and(|l| l.starts_with("X10.0000 Y0.0000 Z5.0000")),
+        "the tool goes to the clearance above the hole: {nc}"
+    );
+    // CLEAR alone is the R level and the return, as before.
+    let (code, nc, err) = post_stdin(
+        TRT,
+        &[],
+        &hole("CYCLE/DRILL, DEPTH, 8, MMPM, 150, CLEAR, 5"),
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(nc.contains("G99") && nc.contains("R5.0000"), "{nc}");
+    // A rapid beyond the point is refused at the cycle.
+    let (code, nc, err) = post_stdin(
+        TRT,
+        &[],
+        &hole("CYCLE/DRILL, DEPTH, 8, MMPM, 150, CLEAR, 2, RAPTO, 3"),
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("<stdin>:5:1") && err.contains("RAPTO"),
+        "{err}"
+    );
+    assert!(!nc.contains("G81"), "{nc}");
+    // The Autodesk posts' FEDTO form keeps RAPTO as the R level.
+    let (code, nc, err) = post_stdin(
+        TRT,
+        &[],
+        &hole("CYCLE/DRILL, FEDTO, 8, MMPM, 150, CLEAR, 10, RTRCTO, 10, RAPTO, 2"),
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(nc.contains("R2.0000"), "{nc}");
+}
+
 /// docs/programs.md names every major word that moves the tool in its
 /// table of CL major words, and the dialect files' comment words.
 #[test]
