@@ -65,6 +65,11 @@ pub enum Family {
     /// Not machine physics: a constant offset of the measured tip in the
     /// workpiece frame (the measuring system's registration).
     Registration,
+    /// Not machine physics: a constant offset of the measured tip in the
+    /// workpiece frame from an onset on (a tracker that re-acquires its
+    /// target a few µm off after a beam break, a probe re-zeroed part-way):
+    /// a second registration that starts part-way.
+    RegistrationStep,
     /// Not machine physics: a slow wander of the measured tip with time
     /// ([`WANDER_BASIS`] cubic B-splines over the recording, per
     /// workpiece coordinate).
@@ -98,7 +103,7 @@ impl Family {
             Family::PivotLength => EffectKind::PivotLength,
             Family::Vibration(_) => EffectKind::Vibration,
             Family::ErrorMotion(..) | Family::LinearMotion(..) => EffectKind::ErrorMotion,
-            Family::Registration => EffectKind::Registration,
+            Family::Registration | Family::RegistrationStep => EffectKind::Registration,
             Family::Wander => EffectKind::Wander,
         }
     }
@@ -117,7 +122,10 @@ impl Family {
             | Family::ErrorMotion(j, _)
             | Family::LinearMotion(j, _) => Some(j),
             Family::Squareness(_, b) => Some(b),
-            Family::PivotLength | Family::Registration | Family::Wander => None,
+            Family::PivotLength
+            | Family::Registration
+            | Family::RegistrationStep
+            | Family::Wander => None,
         }
     }
 
@@ -125,7 +133,10 @@ impl Family {
     pub fn axis_label(self, names: &[String]) -> Option<String> {
         match self {
             Family::Squareness(a, b) => Some(format!("{}{}", names[a], names[b])),
-            Family::PivotLength | Family::Registration | Family::Wander => None,
+            Family::PivotLength
+            | Family::Registration
+            | Family::RegistrationStep
+            | Family::Wander => None,
             f => f.joint().map(|j| names[j].clone()),
         }
     }
@@ -136,7 +147,7 @@ impl Family {
             Family::Cyclic(_) | Family::RotaryCenterOffset(_) | Family::Vibration(_) => 2,
             Family::ErrorMotion(_, m) => m.count_ones() as usize * 2 * MOTION_HARMONICS as usize,
             Family::LinearMotion(_, m) => m.count_ones() as usize * MOTION_BASIS,
-            Family::Registration => 3,
+            Family::Registration | Family::RegistrationStep => 3,
             Family::Wander => 3 * WANDER_BASIS,
             _ => 1,
         }
@@ -165,6 +176,7 @@ impl Family {
             Family::ErrorMotion(..)
                 | Family::LinearMotion(..)
                 | Family::Registration
+                | Family::RegistrationStep
                 | Family::Wander
         )
     }
@@ -208,6 +220,7 @@ impl Family {
         }
         v.push(Family::PivotLength);
         v.push(Family::Registration);
+        v.push(Family::RegistrationStep);
         v.push(Family::Wander);
         v
     }
@@ -339,7 +352,7 @@ pub fn base_columns(prep: &Prepared, fam: Family, nl: f64) -> Cols {
                 }
             }
             Family::PivotLength => put(0, prep.tool_axis[i]),
-            Family::Registration => {
+            Family::Registration | Family::RegistrationStep => {
                 put(0, [1.0, 0.0, 0.0]);
                 put(1, [0.0, 1.0, 0.0]);
                 put(2, [0.0, 0.0, 1.0]);

@@ -439,6 +439,7 @@ pub fn diagnose(
         .iter()
         .map(|&k| match fitted[k].term.family {
             fit::Family::Wander => untidy::wander_finding(&findings[k]),
+            fit::Family::RegistrationStep => untidy::registration_step_finding(&findings[k]),
             _ => untidy::registration_finding(&findings[k]),
         })
         .collect();
@@ -473,6 +474,16 @@ pub fn diagnose(
                         p("dx_mm"),
                         p("dy_mm"),
                         p("dz_mm")
+                    )
+                }
+                "registration_step" => {
+                    let p = |k: &str| m.parameters.get(k).copied().unwrap_or(0.0) * 1e3;
+                    format!(
+                        "a step of the measured tip's registration of ({:.3}, {:.3}, {:.3}) µm at {:.3} s",
+                        p("dx_mm"),
+                        p("dy_mm"),
+                        p("dz_mm"),
+                        m.where_.t_s[0]
                     )
                 }
                 "wander" => {
@@ -513,10 +524,12 @@ pub fn diagnose(
         .map_or(String::new(), |u| format!(": it shows {}", u.condition));
     // The residual the machine effects are judged on: after the
     // measurement faults fitted with them (a registration, a wander).
-    let (chi_physics, rms_physics) = if measurement
-        .iter()
-        .any(|m| matches!(m.effect.as_str(), "registration" | "wander"))
-    {
+    let (chi_physics, rms_physics) = if measurement.iter().any(|m| {
+        matches!(
+            m.effect.as_str(),
+            "registration" | "registration_step" | "wander"
+        )
+    }) {
         (chi_after, rms_after)
     } else {
         (chi_before, rms_before)

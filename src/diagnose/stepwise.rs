@@ -58,6 +58,9 @@ pub enum Order {
     /// Simple families and the registration until none enters, then
     /// every family.
     SimpleAndRegistrationFirst,
+    /// Simple families, the registration and a step of it until none
+    /// enters, then every family.
+    SimpleAndRegistrationStepFirst,
 }
 
 impl Order {
@@ -67,6 +70,9 @@ impl Order {
             Order::Greedy => true,
             Order::SimpleFirst => f.is_simple(),
             Order::SimpleAndRegistrationFirst => f.is_simple() || f == Family::Registration,
+            Order::SimpleAndRegistrationStepFirst => {
+                f.is_simple() || matches!(f, Family::Registration | Family::RegistrationStep)
+            }
         }
     }
 }
@@ -108,11 +114,15 @@ pub fn select(
             _ => false,
         })
     };
-    let best = [Order::SimpleFirst, Order::SimpleAndRegistrationFirst]
-        .into_iter()
-        .map(run)
-        .filter(|s| !motion(s) && !retold(s) && s.bic < greedy.bic - opts.bic_margin)
-        .min_by(|a, b| a.bic.total_cmp(&b.bic));
+    let best = [
+        Order::SimpleFirst,
+        Order::SimpleAndRegistrationFirst,
+        Order::SimpleAndRegistrationStepFirst,
+    ]
+    .into_iter()
+    .map(run)
+    .filter(|s| !motion(s) && !retold(s) && s.bic < greedy.bic - opts.bic_margin)
+    .min_by(|a, b| a.bic.total_cmp(&b.bic));
     match best {
         Some(s) => Stepwise {
             first_round: greedy.first_round,

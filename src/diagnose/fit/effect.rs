@@ -59,7 +59,7 @@ pub fn term_effect(prep: &Prepared, term: &Term, beta: &[f64]) -> Effect {
             }
         }
         Family::PivotLength => Effect::PivotLength { delta_mm: beta[0] },
-        Family::Registration => Effect::Registration {
+        Family::Registration | Family::RegistrationStep => Effect::Registration {
             offset_mm: [beta[0], beta[1], beta[2]],
         },
         Family::Wander => Effect::Wander {
@@ -169,7 +169,7 @@ pub fn parameter_sd(prep: &Prepared, term: &Term, beta: &[f64], cov: &DMatrix<f6
             v.extend((0..n).map(scaled));
             v
         }
-        Family::Registration => vec![sd(0), sd(1), sd(2)],
+        Family::Registration | Family::RegistrationStep => vec![sd(0), sd(1), sd(2)],
         // A range's uncertainty: about √2 times its coordinate's largest
         // coefficient's; the knots are chosen, not fitted.
         Family::Wander => {

@@ -244,6 +244,31 @@ pub fn search_family(
             if norm.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return None;
             }
+            if fam == Family::RegistrationStep {
+                // A step of the registration part-way, at any sample (a
+                // beam break does not wait for a block to end) with at
+                // least `min_after` samples before and after it, paying
+                // for the onsets searched.
+                let steps: Vec<usize> =
+                    (ctx.min_after..prep.n.saturating_sub(ctx.min_after)).collect();
+                let prof = scan(prep, sel, &base, &steps, None, ctx.min_after);
+                let (k, d) = prof
+                    .iter()
+                    .enumerate()
+                    .max_by(|a, b| a.1.total_cmp(b.1))
+                    .map(|(k, d)| (k, *d))?;
+                let penalty = k_lin * ctx.ln_n + ctx.onset_penalty(steps.len());
+                return Some(Candidate {
+                    term: Term {
+                        family: fam,
+                        nl: 0.0,
+                        onset: steps[k],
+                    },
+                    delta_rss: d,
+                    score: d / s2 - penalty,
+                    penalty,
+                });
+            }
             let prof = scan(prep, sel, &base, onsets, None, ctx.min_after);
             let (k, d, pen) = if fam.kind().is_measurement() {
                 // The measuring system's registration holds for the whole

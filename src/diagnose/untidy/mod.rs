@@ -34,7 +34,7 @@ pub use align::{Aligned, Clock, align, align_clock, monotone_hermite, without};
 pub use offset::{LOOSE, OffsetEstimate, STRICT, Tolerance, clock_offset};
 pub use outliers::{OUTLIER_SIGMAS, departure, gross_outliers};
 pub use rate::{Rate, with_rate};
-pub use registration::registration_finding;
+pub use registration::{registration_finding, registration_step_finding};
 pub use resolution::{Resolution, quantum};
 pub use wander::wander_finding;
 

@@ -24,6 +24,20 @@ pub fn registration_finding(finding: &Finding) -> MeasurementFinding {
     measurement_term(finding, "registration", condition)
 }
 
+/// The measurement finding of a fitted registration step (`finding` as
+/// the stepwise selection reported it, its `where_` from the onset on).
+pub fn registration_step_finding(finding: &Finding) -> MeasurementFinding {
+    let p = |k: &str| finding.parameters.get(k).copied().unwrap_or(0.0) * 1e3;
+    let condition = format!(
+        "from {:.3} s on: the measured tip moves by ({:.3}, {:.3}, {:.3}) µm in the workpiece frame at once, whatever the axes do — the measuring system registered anew part-way (a tracker that re-acquired its target after a beam break, a probe re-zeroed), not machine physics",
+        finding.where_.t_s[0],
+        p("dx_mm"),
+        p("dy_mm"),
+        p("dz_mm"),
+    );
+    measurement_term(finding, "registration_step", condition)
+}
+
 /// A measurement term the selection fitted (a registration, a wander) as
 /// a measurement finding: `condition` says what it is; the note that it is
 /// never written into a model and the best machine explanation it beat
