@@ -232,7 +232,9 @@ fn a_registration_step_after_a_beam_break_is_not_machine_physics() {
             let sc = m.scenario(60, seed);
             let rec = sc.simulate(&effects(&[]));
             let k = seed as usize % 3;
-            // At a sample inside a block, not at a block's start.
+            // At a sample picked by its share of the recording, wherever
+            // the blocks start (a step between block starts is what the
+            // onsets at block starts could not place).
             let from = (rec.samples.len() as f64 * [0.3, 0.5, 0.7][k]) as usize + 1;
             let d = [[0.003, -0.002, 0.0], [0.0, 0.003, 0.002], [0.004, 0.0, 0.0]][k];
             let (rec, t) = stepped_off(rec, from, d);
