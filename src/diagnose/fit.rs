@@ -76,6 +76,11 @@ pub enum Family {
     Wander,
 }
 
+/// Most [`Family::RegistrationStep`]s one model holds: each a beam break
+/// of a tracker (or a probe re-zeroed); more steps than this in one
+/// recording are a measurement to repeat, not to model.
+pub const MAX_REGISTRATION_STEPS: usize = 3;
+
 /// Basis functions in time of a [`Family::Wander`], per coordinate: cubic
 /// B-splines with uniform knots, 13 intervals over the recording (with 5,
 /// the faster part of a wander of periods down to a minute was left, and
@@ -159,6 +164,9 @@ impl Family {
     /// wander (whose curve holds every constant).
     pub fn same_slot(self, other: Family) -> bool {
         match (self, other) {
+            // Each registration step has its own moment: a tracker can
+            // lose its beam more than once ([`MAX_REGISTRATION_STEPS`]).
+            (Family::RegistrationStep, Family::RegistrationStep) => false,
             (Family::ErrorMotion(a, _), Family::ErrorMotion(b, _))
             | (Family::LinearMotion(a, _), Family::LinearMotion(b, _)) => a == b,
             (Family::Registration | Family::Wander, Family::Registration | Family::Wander) => true,

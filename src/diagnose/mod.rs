@@ -431,9 +431,22 @@ pub fn diagnose(
     };
     // A registration of the measurement is reported with the other
     // measurement faults, never as machine physics.
-    let (registration, order): (Vec<usize>, Vec<usize>) = order
+    let (mut registration, order): (Vec<usize>, Vec<usize>) = order
         .into_iter()
         .partition(|&k| fitted[k].term.family.kind().is_measurement());
+    // Several registration steps (beam breaks) are told in the order they
+    // happened, in the places the largest of them took.
+    let is_step = |k: usize| fitted[k].term.family == fit::Family::RegistrationStep;
+    let mut steps: Vec<usize> = registration
+        .iter()
+        .copied()
+        .filter(|&k| is_step(k))
+        .collect();
+    steps.sort_by_key(|&k| fitted[k].term.onset);
+    let mut in_time = steps.into_iter();
+    for k in registration.iter_mut().filter(|k| is_step(**k)) {
+        *k = in_time.next().expect("as many steps");
+    }
     let top_term = order.first().map(|&k| fitted[k].term);
     let registration: Vec<report::MeasurementFinding> = registration
         .iter()

@@ -176,6 +176,10 @@ fn forward(
             .iter()
             .copied()
             .filter(|f| !terms.iter().any(|t| t.family.same_slot(*f)))
+            .filter(|f| {
+                *f != Family::RegistrationStep
+                    || terms.iter().filter(|t| t.family == *f).count() < fit::MAX_REGISTRATION_STEPS
+            })
             .filter(|f| !first_phase || order.first(*f))
             .filter(|f| {
                 !matches!(f, Family::Vibration(_))
