@@ -712,6 +712,22 @@ const CL_MARKERS: &[&str] = &[
     "UNIT/",
 ];
 
+/// A GRBL system command line: `$` then `$`, `#`, letters, digits or a
+/// `=value` (`$$`, `$I`, `$G`, `$#`, `$X`, `$10=255`, `$J=G91 X1 F100`),
+/// and at most a `;` comment after; `$$` followed by other text is an APT
+/// comment.
+fn is_grbl_command(line: &[u8]) -> bool {
+    let Some(rest) = line.strip_prefix(b"$") else {
+        return false;
+    };
+    let code_end = rest
+        .iter()
+        .position(|&b| !(b.is_ascii_alphanumeric() || b == b'$' || b == b'#'))
+        .unwrap_or(rest.len());
+    let after = trim(&rest[code_end..]);
+    after.is_empty() || after.starts_with(b";") || after.starts_with(b"=")
+}
+
 /// `true` if the start of a file looks like APT CL data rather than G-code:
 /// a CL statement (`GOTO/`, `TOOL PATH/`, `$$`, `PARTNO`, `FEDRAT/`, ...)
 /// starts a line before any line that holds a G-code word.
@@ -720,6 +736,13 @@ pub fn looks_like_cl(first_bytes: &[u8]) -> bool {
     for (k, raw) in first_bytes.split(|&b| b == b'\n').enumerate() {
         let line = trim(strip_eol(raw));
         if line.is_empty() {
+            continue;
+        }
+        // GRBL's system commands (`$$` alone or with a `;` comment, `$I`,
+        // `$G`, `$#`, `$10=255`) decide nothing; `$$` with text is an APT
+        // comment. Before, a GRBL program starting with `$$` was read as
+        // CL and every move kept as a comment.
+        if is_grbl_command(line) {
             continue;
         }
         if line.starts_with(b"$$") {

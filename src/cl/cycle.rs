@@ -372,7 +372,10 @@ impl<R: BufRead> Lowered<R> {
             return Err(self.err(r, "CYCLE: peck depths must not be negative"));
         }
         if c.kind == CycleKind::Deep && c.first_peck == 0.0 {
-            c.first_peck = c.depth.max(1e-3);
+            // No step: one peck from the R level to the bottom (NX writes
+            // `CYCLE/DRILL,DEEP,RAPTO,3,FEDTO,0` for a countersink; with
+            // the depth alone as the peck that was Q0.001, 3,000 pecks).
+            c.first_peck = (c.depth + c.rapto.max(0.0)).max(1e-3);
         }
         self.block(r, comment);
         self.cycle = Some(c);

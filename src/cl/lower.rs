@@ -29,7 +29,7 @@ pub use super::state::Lowered;
 
 use super::state::{Circle, MAX_FEED_MM_MIN, MAX_FEED_MM_REV, absurd_feed, det};
 use super::vec3::{add, norm, num, scale};
-use super::{Arg, ClReader, ClRecord, ClStatement, ClUnits, split_args};
+use super::{Arg, ClReader, ClRecord, ClStatement, ClUnits, FeedUnit, split_args};
 use crate::error::Error;
 
 /// How far a `MOVARC`'s `ANGLE` may differ from the angle its start and
@@ -75,7 +75,15 @@ pub const MOTION_MAJORS: &[&str] = &[
     "PREFUN", "ZSURF", "PIVOTZ", "COUPLE", "OPSKIP", "TLCOMP", "WPLANE", "CALL", "CALLSUB",
     "CALSUB", "DEFSUB", "ENDSUB", "MOVETO", "PLUNGE", "PROBX", "PROBY", "PICKUP", "CLEARP",
     "VTLAXS", "LOCKX", "ULOCKX", "GT", "GO", "GF", "GL", "GR", "GB", "GU", "GD", "IV", "IP", "TN",
+    "STANDOFF", "SPINDLE",
 ];
+
+/// Majors only Siemens NX writes (each operation of its CLSF starts with
+/// `TOOL PATH/` and `TLDATA/`, its frame is `MSYS/`): after one, a
+/// `CIRCLE`'s axis is that of a clockwise arc, as NX's CLSF manual gives it.
+/// Before, NX's arcs were read by the right-hand rule: each the rest of
+/// its circle (a 90° lead-in cut as 270° through the part).
+pub const NX_MAJORS: &[&str] = &["TOOL PATH", "TLDATA", "MSYS"];
 
 /// Majors of APT and NCL part programs that change which statements run or
 /// in what order: jumps (`JUMPTO`, arithmetic `IF`), loops (`LOOPST`,
@@ -86,7 +94,7 @@ pub const MOTION_MAJORS: &[&str] = &[
 /// CATIA's `LOOP/START,n` … `LOOP/END` (a post-processor word some sites
 /// add) is a loop too.
 pub const FLOW_MAJORS: &[&str] = &[
-    "JUMPTO", "IF", "LOOPST", "LOOPND", "DO", "TERMAC", "MACRO", "LOOP",
+    "JUMPTO", "IF", "LOOPST", "LOOPND", "DO", "TERMAC", "MACRO", "LOOP", "SUBPROG",
 ];
 
 /// The minor words naming a tool's length-offset register in `LOADTL` and
@@ -147,6 +155,7 @@ pub fn lower<R: BufRead>(
         rapid_pending: false,
         first_frames: Vec::new(),
         cutcom_announced: None,
+        clockwise_circles: false,
     }
 }
 
@@ -191,6 +200,9 @@ impl<R: BufRead> Lowered<R> {
     fn other(&mut self, r: &ClRecord, major: &str, text: &str) -> Result<bool, Error> {
         let args = split_args(text.as_bytes(), 0);
         let a = |k: usize| args.get(k).map(|a| a.upper()).unwrap_or_default();
+        if NX_MAJORS.contains(&major) {
+            self.clockwise_circles = true;
+        }
         match major {
             "UNIT" => match a(0).as_str() {
                 "MM" => {
@@ -211,6 +223,9 @@ impl<R: BufRead> Lowered<R> {
             },
             "CIRCLE" => {
                 self.refuse_rapid_arc(r, "CIRCLE")?;
+                if args.iter().any(|a| a.is("TIMES")) {
+                    return Err(self.err(r, "CIRCLE/…,TIMES,n: NX's helix of n turns is not converted; refused rather than cut as a single turn; have the CAM system write the helix as one CIRCLE per turn or as GOTO points"));
+                }
                 let v = self.numbers(r, &args, "CIRCLE")?;
                 if v.len() < 6 {
                     return Err(self.err(r, "CIRCLE expects xc,yc,zc,i,j,k[,r,...]"));
@@ -519,7 +534,16 @@ impl<R: BufRead> Lowered<R> {
         v: &[f64],
         sweep_deg: Option<f64>,
     ) -> Result<(), Error> {
-        let normal = [v[3], v[4], v[5]];
+        // Siemens NX gives the axis of a clockwise arc ("i,j,k is the
+        // circle or helix axis vector in the MCS (assuming a clockwise
+        // direction)", NX's CLSF manual); APT and the other CAM systems
+        // that of a counter-clockwise one (right-hand rule).
+        let sign = if self.clockwise_circles && major == "CIRCLE" {
+            -1.0
+        } else {
+            1.0
+        };
+        let normal = [sign * v[3], sign * v[4], sign * v[5]];
         if norm(normal) < 1e-12 {
             return Err(self.err(r, format!("{major} axis has zero length")));
         }
@@ -625,6 +649,9 @@ impl<R: BufRead> Lowered<R> {
             ClStatement::Fedrat { value, unit } => {
                 if absurd_feed(*value, *unit, self.mm_per_unit) {
                     return Err(self.err(&r, format!("feed rate {value:e} is absurd (more than {MAX_FEED_MM_MIN} mm/min or {MAX_FEED_MM_REV} mm/rev)")));
+                }
+                if matches!(unit, FeedUnit::Ipm | FeedUnit::Ipr) && !self.units_seen {
+                    return Err(self.err(&r, "a feed in inches (IPM, IPR) with no UNITS statement before it: kinpost would take the lengths as millimetres and the feed as inches; say which the program is with --units inch (or --units mm)"));
                 }
                 self.feed = Some((*value, *unit));
                 self.feed_record(&r, *value, *unit);

@@ -96,6 +96,9 @@ pub struct Lowered<R: BufRead> {
     /// The line of a `CUTCOM/ON` whose side (`CUTCOM/LEFT|RIGHT`) has not
     /// come yet.
     pub(super) cutcom_announced: Option<usize>,
+    /// A Siemens NX statement was read ([`super::lower::NX_MAJORS`]): a
+    /// `CIRCLE`'s axis is that of a clockwise arc.
+    pub(super) clockwise_circles: bool,
 }
 
 /// The statements of a feed change: `G95` or `G94` when the feed mode

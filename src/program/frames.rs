@@ -15,10 +15,10 @@ pub const SETTING: [&str; 20] = [
 ];
 
 /// Why a frame in pose mode is refused.
-pub const IN_POSE_MODE: &str = "a frame (G68, G68.2–G68.4, G51 scaling, G51.1 mirroring, G16 polar coordinates, Haas G254 dynamic work offset; Sinumerik TRANS, ATRANS, ROT, AROT, SCALE, MIRROR, TOFRAME, TOROT, PAROT, CYCLE800; Fagor #CS, #ACS, #MCS, #FACE, #CYL, #TOOL AX) in pose mode is not converted: the poses must be in the machine's workpiece frame; apply the frame in the CAM system";
+pub const IN_POSE_MODE: &str = "a frame (G68, G68.2–G68.4, G51 scaling, G51.1 mirroring, G16 polar coordinates, Haas G254 dynamic work offset, Fanuc G54.2 rotary table dynamic fixture offset; Sinumerik TRANS, ATRANS, ROT, AROT, SCALE, MIRROR, TOFRAME, TOROT, PAROT, CYCLE800; Fagor #CS, #ACS, #MCS, #FACE, #CYL, #TOOL AX) in pose mode is not converted: the poses must be in the machine's workpiece frame; apply the frame in the CAM system";
 
 /// Why pose mode may not start under a frame set earlier.
-pub const AT_POSE_START: &str = "pose mode starts while a frame set earlier in the program (G68…, G51, G51.1, G16, G254, TRANS, ROT, AROT, SCALE, MIRROR, TOFRAME, TOROT, PAROT, CYCLE800, Fagor #CS, #ACS, #MCS, #FACE, #CYL, #TOOL AX) is active: the controller would move kinpost's machine axis words by it; cancel the frame before, or apply it in the CAM system";
+pub const AT_POSE_START: &str = "pose mode starts while a frame set earlier in the program (G68…, G51, G51.1, G16, G254, G54.2 P1–P8, TRANS, ROT, AROT, SCALE, MIRROR, TOFRAME, TOROT, PAROT, CYCLE800, Fagor #CS, #ACS, #MCS, #FACE, #CYL, #TOOL AX) is active: the controller would move kinpost's machine axis words by it; cancel the frame before, or apply it in the CAM system";
 
 /// What a keyword of a block does to the programmable frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

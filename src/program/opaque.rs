@@ -30,6 +30,12 @@ pub fn describe_opaque(bytes: &[u8]) -> String {
             quote(token(text))
         );
     }
+    if positioning_axis(text) {
+        return format!(
+            "`{}` in pose mode: a Sinumerik positioning-axis move (POS, POSA) of an axis kinpost writes itself; under TRAORI the controller turns it with the tool, in kinpost's machine words it would be a bare turn of the table; give the orientation as A3 B3 C3 in the poses",
+            quote(text.trim())
+        );
+    }
     if super::fagor::instruction(text).is_some() {
         return format!(
             "a Fagor instruction (`{}`) in pose mode: it switches the control's tool centre point control or a coordinate system or transformation, which would move the axis words kinpost writes; kinpost does not convert Fagor programs",
@@ -318,8 +324,10 @@ pub fn opaque_in_pose_block(
         }
         let text = String::from_utf8_lossy(line.item_bytes(it));
         !matches!(known_call(&text), Some("TRAORI" | "MSG"))
+            && (is_pose || !harmless_call(&text))
             && (is_pose
                 || call_name(&text).is_some()
+                || positioning_axis(&text)
                 || o_word_statement(&text).is_some()
                 || line.item_bytes(it).iter().any(|b| {
                     matches!(
@@ -328,6 +336,46 @@ pub fn opaque_in_pose_block(
                     )
                 }))
     })
+}
+
+/// Sinumerik calls that move nothing: a message, the high-speed settings
+/// cycle, the blank for the simulation, the master spindle, feed groups,
+/// waits and the piece counter.
+pub const HARMLESS_CALLS: &[&str] = &[
+    "MSG",
+    "CYCLE832",
+    "WORKPIECE",
+    "SETMS",
+    "FGROUP",
+    "WAITM",
+    "WAITMC",
+    "WAITS",
+    "SETPIECE",
+];
+
+/// Whether the opaque `text` is one of the calls that move nothing
+/// ([`HARMLESS_CALLS`]: `CYCLE832(…)`, `MSG(…)`, `WAITM(…)`, …) standing
+/// alone (a comment after it allowed): in pose mode it passes, as outside
+/// it (NX and Autodesk 840D posts call `CYCLE832` per operation, with
+/// TRAORI still on).
+pub fn harmless_call(text: &str) -> bool {
+    let Some(name) = call_name(text) else {
+        return false;
+    };
+    let Some(end) = call_len(text) else {
+        return false;
+    };
+    let rest = text[end..].trim_start();
+    HARMLESS_CALLS.contains(&name.to_ascii_uppercase().as_str())
+        && (rest.is_empty() || rest.starts_with([';', '(', '\r', '\n']))
+}
+
+/// Whether `text` moves a Sinumerik positioning axis (`POS[C]=90`,
+/// `POSA[B]=10`): under `TRAORI` a turn of a rotary that kinpost's machine
+/// words, written for `TRAFOOF`, would make as a bare turn of the table.
+pub fn positioning_axis(text: &str) -> bool {
+    let t = text.trim_start().to_ascii_uppercase();
+    t.starts_with("POS[") || t.starts_with("POSA[")
 }
 
 /// A Sinumerik call that the parser leaves opaque but kinpost understands,

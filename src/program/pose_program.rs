@@ -29,7 +29,9 @@ pub fn looks_like_poses(head: &[u8]) -> bool {
                 let c = (g * 10.0).round() as i64;
                 if g == 0.0 || g == 1.0 {
                     straight = true;
-                } else if g == 2.0 || g == 3.0 {
+                } else if g == 2.0 || g == 3.0 || is_canned_cycle(c) {
+                    // A canned cycle's K is its repeat count (Fanuc), I J
+                    // shifts (G76, G87): modal, as G2 is.
                     straight = false;
                 } else if super::ijk::other_motion(c, pairs.iter().copied())
                     || [682, 870, 880, 120, 130, 220].contains(&c)
@@ -60,6 +62,12 @@ pub fn looks_like_poses(head: &[u8]) -> bool {
         }
     }
     false
+}
+
+/// Whether the G code `c` (ten times its value) is a canned cycle: `G73`,
+/// `G74`, `G76`, `G81`–`G89`.
+pub fn is_canned_cycle(c: i64) -> bool {
+    matches!(c, 730 | 740 | 760 | 810..=890)
 }
 
 #[cfg(test)]

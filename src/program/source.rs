@@ -340,8 +340,15 @@ pub struct MachineAxisTracker {
     gcode_frame: Option<usize>,
     ext: Vec<f64>,
     /// Axes whose position in program coordinates is not known (after a
-    /// move to the reference point or in machine coordinates).
+    /// move to the reference point or in machine coordinates, or a canned
+    /// cycle).
     unknown: Vec<bool>,
+    /// A canned cycle is the motion mode (`G73`, `G74`, `G76`, `G81`–`G89`,
+    /// until `G80` or another motion).
+    cycle: bool,
+    /// The axis a canned cycle drills along: normal to the plane (`G17`
+    /// Z, `G18` Y, `G19` X).
+    cycle_axis: &'static str,
 }
 
 impl MachineAxisTracker {
@@ -353,6 +360,8 @@ impl MachineAxisTracker {
             gcode_frame: None,
             ext: vec![0.0; machine.axes.len()],
             unknown: vec![false; machine.axes.len()],
+            cycle: false,
+            cycle_axis: "Z",
         }
     }
 
@@ -501,7 +510,7 @@ impl MachineAxisTracker {
             .map(|at| {
                 (
                     at,
-                    "a frame (G68 rotation, G51 scaling, G51.1 mirroring, G16 polar coordinates, G254)"
+                    "a frame (G68 rotation, G51 scaling, G51.1 mirroring, G16 polar coordinates, G254, G54.2)"
                         .to_string(),
                 )
             })
@@ -556,6 +565,17 @@ impl MachineAxisTracker {
                 axis_items.push(i);
             }
         }
+        for w in modal_words.iter().filter(|w| w.address == "G") {
+            let c = (w.value * 10.0).round() as i64;
+            match c {
+                0 | 10 | 20 | 30 | 800 => self.cycle = false,
+                170 => self.cycle_axis = "Z",
+                180 => self.cycle_axis = "Y",
+                190 => self.cycle_axis = "X",
+                c if super::pose_program::is_canned_cycle(c) => self.cycle = true,
+                _ => {}
+            }
+        }
         let meaning = self.modal.apply(&modal_words, &[]).map_err(|e| {
             let col = e.item.map(|i| line.items[i].start + 1).unwrap_or(0);
             Error::input(Location::new(file, line.number, col), e.message)
@@ -587,7 +607,11 @@ impl MachineAxisTracker {
                 line.text_lossy(),
             ));
         }
-        super::unfollowed::check_line(line, file, meaning.unfollowed.clone())?;
+        // The modal state sees the G words alone here: a polar move in
+        // the block of `G16` (`G16 G1 X20 Y0`) is refused as one under it.
+        let polar_move = (g_word(&modal_words, 16.0) && !axis_items.is_empty())
+            .then(|| (axis_items[0], super::unfollowed::POLAR_MOVE.to_string()));
+        super::unfollowed::check_line(line, file, meaning.unfollowed.clone().or(polar_move))?;
         // A block that is not a move in program coordinates: data (G10,
         // G52, a frame, a pole, a dwell such as Fanuc's `G4 X1.5`) leaves
         // the position as it is; G92 says where the axes it names are now;
@@ -602,7 +626,10 @@ impl MachineAxisTracker {
         let supa = line.keywords().any(|k| k == "SUPA");
         // Fanuc lathe `G50 X Z` sets the coordinate system, as `G92`.
         let lathe_g50 = g_word(&modal_words, 50.0) && !axis_items.is_empty();
-        if meaning.non_modal || frame || supa || lathe_g50 {
+        // LinuxCNC's G43.1 / G43.2 with axis words: tool length offsets,
+        // not a move ("G43.1 does not cause any motion").
+        let tool_offset = g_word(&modal_words, 43.1) || g_word(&modal_words, 43.2);
+        if meaning.non_modal || frame || supa || lathe_g50 || tool_offset {
             let g = |c: f64| {
                 g_word(&modal_words, c) || (c == 53.0 && (supa || g_word(&modal_words, 153.0)))
             };
@@ -687,6 +714,14 @@ impl MachineAxisTracker {
             check_wrapped_words(machine, line, &axis_items, file)?;
         }
         self.set_axes(machine, line, &axis_items, &meaning, meaning.absolute);
+        // A canned cycle ends at its R level or where it started (G99,
+        // G98, and each controller its own rule): along its axis the
+        // position after it is not known until programmed again.
+        if self.cycle {
+            for (k, axis) in machine.axes.iter().enumerate() {
+                self.unknown[k] |= axis.name == self.cycle_axis;
+            }
+        }
         self.check_rotary_limits(machine, line, &axis_items, file)?;
         // A rotary that turns, or one not known that is programmed to a
         // position (it may turn), makes the tip's path depend on the start.

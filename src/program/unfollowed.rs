@@ -57,6 +57,14 @@ pub const LATHE_G50: &str = "sets the coordinate system (lathe G50 X Z, as G92)"
 /// Why polar coordinates are refused in pose mode.
 pub const POLAR: &str = "polar coordinates (Sinumerik G110–G112 pole, AP= angle, RP= radius) in pose mode are not converted: tool poses must be given as X Y Z; write Cartesian coordinates in the CAM post";
 
+/// Why a move in the block of `G16` is not followed.
+pub const POLAR_MOVE: &str =
+    "a polar move (G16 with axis words in its block: X the radius, Y the angle)";
+
+/// Why Fanuc's `G43.5 … Q` is refused.
+pub const TCP_INCLINATION: &str =
+    "a tool inclination angle (Fanuc G43.5 … Q: the tool tilted Q degrees from I J K)";
+
 /// Why Sinumerik `ORIMKS` is refused in pose mode.
 pub const ORIMKS: &str = "Sinumerik ORIMKS in pose mode: the tool vectors (A3 B3 C3) are then in machine coordinates, not in the workpiece frame kinpost converts from; program ORIWKS (the default) with TRAORI";
 
@@ -146,7 +154,10 @@ pub fn g_code(code: i64) -> Option<String> {
         270 | 290 => {
             "a reference position check or return (G27, G29): it moves through points its words do not give"
         }
-        390 | 450 | 460 | 470 | 480 => {
+        470 => {
+            "text engraving (Haas G47: a cycle that writes its text with moves of its own) or a tool offset change (Fanuc G47) that moves the tool off its words"
+        }
+        390 | 450 | 460 | 480 => {
             "a corner offset or tool offset change (G39, G45–G48) that moves the tool off its words"
         }
         512 => "polygon turning (G51.2): an axis synchronised with the spindle",
@@ -210,21 +221,6 @@ pub fn transformation(name: &str) -> Option<String> {
         .contains(&upper.as_str())
         .then(|| format!("{upper} is a Sinumerik transformation (face, cylinder surface or inclined axis): the axis words after it are in another coordinate system"))
 }
-
-/// Sinumerik calls that move nothing: a message, the high-speed settings
-/// cycle, the blank for the simulation, the master spindle, feed groups,
-/// waits and the piece counter.
-const HARMLESS_CALLS: &[&str] = &[
-    "MSG",
-    "CYCLE832",
-    "WORKPIECE",
-    "SETMS",
-    "FGROUP",
-    "WAITM",
-    "WAITMC",
-    "WAITS",
-    "SETPIECE",
-];
 
 /// Sinumerik keywords that call a subprogram.
 pub const CALL_KEYWORDS: &[&str] = &["CALL", "PCALL", "MCALL", "EXTCALL"];
@@ -303,7 +299,7 @@ pub fn in_line(
                         return None;
                     } else if name.ends_with(" call") {
                         name
-                    } else if HARMLESS_CALLS.contains(&upper.as_str())
+                    } else if super::opaque::HARMLESS_CALLS.contains(&upper.as_str())
                         || ["TRAORI", "CYCLE800"].contains(&upper.as_str())
                         || transformation(&name).is_some()
                     {

@@ -210,7 +210,8 @@ pub fn statements(text: &str) -> Vec<(String, String)> {
 /// The CL path: `CSYS` columns are the set-up axes in the CL frame, so a
 /// point `p` is `Rᵀ (p − t)` in the set-up frame, and the tool axis is the
 /// set-up's Z until a `GOTO` or `TLAXIS` gives another. Arcs run counter-clockwise
-/// about the `CIRCLE` axis, a difference along the axis a helix; a hole
+/// about the `CIRCLE` axis (clockwise after a Siemens NX statement, `TOOL
+/// PATH`, `TLDATA` or `MSYS`, as NX's CLSF manual says), a difference along the axis a helix; a hole
 /// under `CYCLE` runs from `RTRCTO` above the point down to `FEDTO` below
 /// it and back. `UNITS/INCHES` scales by 25.4.
 pub fn cl_path(text: &str) -> ClPath {
@@ -225,6 +226,7 @@ pub fn cl_path(text: &str) -> ClPath {
     // from).
     let mut cycle: Option<(f64, f64, Option<f64>)> = None;
     let mut indirv: Option<V> = None;
+    let mut nx = false;
     let mut cycle_text = String::new();
     let to_setup = |p: V, r: &[[f64; 3]; 3], t: V| {
         let d = sub(p, t);
@@ -258,9 +260,15 @@ pub fn cl_path(text: &str) -> ClPath {
                 let v = nums(&args);
                 axis = [v[0], v[1], v[2]];
             }
+            // Siemens NX's CLSF gives the axis of a clockwise arc.
+            "TOOL PATH" | "TLDATA" | "MSYS" => nx = true,
             "CIRCLE" => {
                 let v = nums(&args);
-                circle = Some((mul([v[0], v[1], v[2]], unit), [v[3], v[4], v[5]]));
+                let s = if nx { -1.0 } else { 1.0 };
+                circle = Some((
+                    mul([v[0], v[1], v[2]], unit),
+                    [s * v[3], s * v[4], s * v[5]],
+                ));
             }
             "CYCLE" => {
                 let w: Vec<String> = upper.split(',').map(|x| x.trim().to_string()).collect();
