@@ -6,25 +6,7 @@
 //! wrong place: `G28` then `G1 X50` alone plunged at the reference point.
 //! And a modulo axis just below 360° was written `C360.0000`.
 
-use crate::util::BIN;
-
-/// `kinpost ARGS FILE` on `text` written to a temporary file: (exit code,
-/// stdout, stderr).
-fn run(args: &[&str], name: &str, text: &str) -> (i32, String, String) {
-    let dir = tempfile::tempdir().unwrap();
-    let p = dir.path().join(name);
-    std::fs::write(&p, text).unwrap();
-    let out = std::process::Command::new(BIN)
-        .args(args)
-        .arg(&p)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+use crate::util::run_on as run;
 
 #[test]
 fn every_axis_is_written_after_a_line_that_may_have_moved_the_machine() {

@@ -4,6 +4,7 @@
 //! build.
 
 use crate::cl_support::post_stdin;
+use crate::util::run_on;
 
 const XYZ: &str = "fixtures/machines/xyz-3axis.json";
 
@@ -115,25 +116,6 @@ fn inch_feeds_without_units_are_refused() {
     let (code, nc, err) = post_stdin(XYZ, &["--units", "inch"], cl);
     assert_eq!(code, 0, "{err}");
     assert!(nc.contains("X25.4000") && nc.contains("F254.0"), "{nc}");
-}
-
-/// Runs `kinpost args… FILE` on `text` written to a file `name` in a
-/// temporary folder: (exit code, stdout, stderr).
-fn run_on(args: &[&str], name: &str, text: &str) -> (i32, String, String) {
-    let dir = tempfile::tempdir().unwrap();
-    let p = dir.path().join(name);
-    std::fs::write(&p, text).unwrap();
-    let out = std::process::Command::new(crate::util::BIN)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .args(args)
-        .arg(&p)
-        .output()
-        .unwrap();
-    (
-        out.status.code().unwrap(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
 }
 
 const TRT: &str = "fixtures/machines/xyzac-trt.json";

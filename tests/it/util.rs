@@ -100,6 +100,25 @@ pub fn post_file(machine: &str, name: &str, bytes: &[u8]) -> (i32, Vec<u8>, Stri
     )
 }
 
+/// Runs `kinpost args… FILE` (in the repository) on `text` written to a
+/// file `name` in a temporary folder: (exit code, stdout, stderr).
+pub fn run_on(args: &[&str], name: &str, text: &str) -> (i32, String, String) {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join(name);
+    std::fs::write(&p, text).unwrap();
+    let out = std::process::Command::new(BIN)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(args)
+        .arg(&p)
+        .output()
+        .unwrap();
+    (
+        out.status.code().unwrap(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
 /// A straight pose block `G1 X Y Z I J K` for `pose` (tip to 9 decimals,
 /// tool axis to 12), without a line end.
 pub fn pose_block(pose: &kinpost::machine::Pose) -> String {
