@@ -388,7 +388,11 @@ impl BlockReader<'_> {
     pub fn needs_committed(&self, line: &Line) -> bool {
         self.previous == Continuation::LastPose
             && (!self.modal.pose_mode
-                || line.words().any(|w| w.address == "G" && w.value == 49.0)
+                || line.words().any(|w| {
+                    w.address == "G"
+                        && (w.value == 49.0
+                            || (self.modal.fanuc_tcp && [43.0, 43.1, 44.0].contains(&w.value)))
+                })
                 || line.keywords().any(|k| k == "TRAFOOF"))
             && self.has_axis_word(line)
     }

@@ -215,6 +215,19 @@ fn tool_length_codes_end_tcp() {
             "{code}:\n{out}"
         );
     }
+    // The code in the block of a move in machine coordinates (before: an
+    // internal error, the move waited for before the pose was solved).
+    for code in ["G43 H2", "G44 H2", "G43.1 H2", "G49"] {
+        let text = format!("G43.4 H1\nG1 X1 Y0 Z5 I0 J0 K1\n{code} G1 X0 Y0 Z50\n");
+        let (rc, out, err) = crate::util::post_file(TRT, "same.nc", text.as_bytes());
+        assert_eq!(rc, 0, "{code}: {err}");
+        assert!(
+            String::from_utf8(out)
+                .unwrap()
+                .ends_with(&format!("\n{code} G1 X0 Y0 Z50\n")),
+            "{code}"
+        );
+    }
     // A program that starts pose mode without a TCP code keeps it on
     // through a tool change's G43.
     let text = "G1 X10 Y0 Z5 I0 J0.5 K0.8660254 F500\nG43 H1\nG1 X12 Y0 Z5 I0 J0.5 K0.8660254\n";
