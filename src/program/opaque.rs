@@ -340,9 +340,10 @@ pub fn opaque_in_pose_block(
 
 /// Sinumerik calls that move nothing: a message, the high-speed settings
 /// cycle, the blank for the simulation, the master spindle, feed groups,
-/// waits and the piece counter.
+/// waits, the piece counter and an alarm set by the program.
 pub const HARMLESS_CALLS: &[&str] = &[
     "MSG",
+    "SETAL",
     "CYCLE832",
     "WORKPIECE",
     "SETMS",

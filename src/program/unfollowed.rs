@@ -116,11 +116,12 @@ pub fn orientation_message(address: &str) -> String {
 /// Sinumerik's exact-stop windows (`G601`–`G603`), corner deceleration
 /// (`G621`) and continuous-path modes with corner rounding (`G641`–`G645`,
 /// the forms of `G64` its high-speed programs set), Okuma's `G168` (its
-/// tool centre point control off).
+/// tool centre point control off), Sinumerik's corner behaviour under
+/// cutter compensation (`G450`, `G451`).
 const LEAVES_AXES_ALONE: &[i64] = &[
     53, 432, 695, 80, 90, 110, 131, 170, 180, 190, 230, 281, 301, 430, 431, 440, 600, 610, 611,
     620, 630, 640, 670, 901, 911, 960, 970, 980, 990, 1000, 1030, 1870, 6010, 6020, 6030, 6210,
-    6410, 6420, 6430, 6440, 6450, 1680,
+    6410, 6420, 6430, 6440, 6450, 1680, 4500, 4510,
 ];
 
 /// What the G code `code` (ten times its value) does that kinpost does

@@ -321,6 +321,11 @@ fn a_call_that_moves_nothing_passes_under_traori() {
             .unwrap()
             .contains("\nN40 CYCLE832(0.01,_ORI_FINISH,1) ; tolerance\n")
     );
+    for harmless in ["SETAL(61000)", "WAITM(1,1,2)", "G450", "G451"] {
+        let text = format!("{head}N40 {harmless}\n{tail}");
+        let (rc, _, err) = crate::util::post_file(machine, "h.mpf", text.as_bytes());
+        assert_eq!(rc, 0, "{harmless}: {err}");
+    }
     let moves = format!("{head}N40 CYCLE81(10,0,2,-5)\n{tail}");
     let (rc, _, err) = crate::util::post_file(machine, "c81.mpf", moves.as_bytes());
     assert_eq!(rc, 1, "{err}");
