@@ -219,6 +219,31 @@ fn stepped_off(mut rec: Recording, from: usize, d: [f64; 3]) -> (Recording, f64)
     (rec, t)
 }
 
+/// `step` is a measurement fault whose offset is within 4 standard
+/// deviations of `d` (mm) and whose moment is within 3 samples (`dt`, s)
+/// of `t` (s).
+fn assert_step(
+    m: Machine,
+    step: &kinpost::diagnose::report::MeasurementFinding,
+    d: [f64; 3],
+    t: f64,
+    dt: f64,
+) {
+    assert!(!step.machine_physics);
+    for (c, key) in ["dx_mm", "dy_mm", "dz_mm"].iter().enumerate() {
+        let (got, sd) = (step.parameters[*key], step.uncertainty[*key]);
+        assert!(
+            (got - d[c]).abs() <= 4.0 * sd + 1e-5,
+            "{m:?} {d:?} {key}: {got} ± {sd}"
+        );
+    }
+    assert!(
+        (step.where_.t_s[0] - t).abs() <= 3.0 * dt,
+        "{m:?} {d:?}: the step at {} s, made at {t} s",
+        step.where_.t_s[0]
+    );
+}
+
 /// A registration that steps part-way (a laser tracker that re-acquires
 /// its target a few µm off after a beam break) is a measurement fault:
 /// `registration_step`, its offset and time measured, no machine finding.
@@ -254,19 +279,7 @@ fn a_registration_step_after_a_beam_break_is_not_machine_physics() {
                 .iter()
                 .find(|f| f.effect == "registration_step")
                 .unwrap_or_else(|| panic!("{m:?} {d:?}: {}", r.verdict));
-            assert!(!step.machine_physics);
-            for (c, key) in ["dx_mm", "dy_mm", "dz_mm"].iter().enumerate() {
-                let (got, sd) = (step.parameters[*key], step.uncertainty[*key]);
-                assert!(
-                    (got - d[c]).abs() <= 4.0 * sd + 1e-5,
-                    "{m:?} {d:?} {key}: {got} ± {sd}"
-                );
-            }
-            assert!(
-                (step.where_.t_s[0] - t).abs() <= 3.0 * dt,
-                "{m:?} {d:?}: the step at {} s, made at {t} s",
-                step.where_.t_s[0]
-            );
+            assert_step(m, step, *d, *t, *dt);
             assert!(r.verdict.starts_with("consistent with measurement noise once the measurement faults are removed (a step of the measured tip's registration"), "{}", r.verdict);
         }
     }
@@ -340,19 +353,7 @@ fn two_beam_breaks_are_two_registration_steps() {
                 .collect();
             assert_eq!(steps.len(), 2, "{m:?} {made:?}: {}", r.verdict);
             for (step, (d, t)) in steps.iter().zip(made) {
-                assert!(!step.machine_physics);
-                for (c, key) in ["dx_mm", "dy_mm", "dz_mm"].iter().enumerate() {
-                    let (got, sd) = (step.parameters[*key], step.uncertainty[*key]);
-                    assert!(
-                        (got - d[c]).abs() <= 4.0 * sd + 1e-5,
-                        "{m:?} {d:?} {key}: {got} ± {sd}"
-                    );
-                }
-                assert!(
-                    (step.where_.t_s[0] - t).abs() <= 3.0 * dt,
-                    "{m:?} {d:?}: the step at {} s, made at {t} s",
-                    step.where_.t_s[0]
-                );
+                assert_step(m, step, *d, *t, *dt);
             }
             assert!(
                 r.verdict.starts_with("consistent with measurement noise once the measurement faults are removed (a step of the measured tip's registration"),

@@ -920,20 +920,10 @@ fn block_delete_of_a_modal_change_is_refused_where_poses_depend_on_it() {
 /// block depends on it; the same program without the option passes.
 #[test]
 fn block_delete_of_a_feed_change_is_refused_under_inverse_time() {
-    let dir = tempfile::tempdir().unwrap();
     let run = |name: &str, text: &str, extra: &[&str]| {
-        let p = dir.path().join(name);
-        std::fs::write(&p, text).unwrap();
-        let out = Command::new(BIN)
-            .args(["post", "-q", "--machine", "xyzbc-trt"])
-            .args(extra)
-            .arg(&p)
-            .output()
-            .unwrap();
-        (
-            out.status.code().unwrap(),
-            String::from_utf8_lossy(&out.stderr).into_owned(),
-        )
+        let args = [&["post", "-q", "--machine", "xyzbc-trt"][..], extra].concat();
+        let (code, _, err) = crate::util::run_on(&args, name, text);
+        (code, err)
     };
     let head = "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\n";
     let turn = "X20 I0.5 J0 K0.8660254\nG49\nM30\n";
