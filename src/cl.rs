@@ -288,6 +288,15 @@ impl<R: BufRead> ClReader<R> {
                 if self.line == 1 && self.buf.starts_with(BOM) {
                     self.buf.drain(..BOM.len());
                 }
+                // A carriage return that does not end the line: CR-only
+                // line endings, which would hide the statements after it
+                // in a comment or a statement kept as one.
+                let body = self.buf.strip_suffix(b"\n").unwrap_or(&self.buf);
+                let body = body.strip_suffix(b"\r").unwrap_or(body);
+                if let Some(at) = body.iter().position(|&b| b == b'\r') {
+                    let message = cr_inside(body).unwrap_or_default();
+                    return Err(self.error(self.line, at + 1, message, strip_eol(body)));
+                }
                 Ok(true)
             }
             Err(e) => Err(Error::io(self.file.clone(), e)),
@@ -380,6 +389,14 @@ impl<R: BufRead> ClReader<R> {
         // A statement on one line (most are): read from the line itself;
         // a byte at offset k of it is at column `col + k`.
         let (piece, continued) = statement_piece(start);
+        // The text of PPRINT, PARTNO, INSERT and the like is literal: a `$`
+        // at its end is text, not a continuation (which would take the next
+        // statement, a GOTO, into the comment).
+        let (piece, continued) = if continued && literal_text(start) {
+            (&start[..piece.len() + 1], false)
+        } else {
+            (piece, continued)
+        };
         if !continued {
             return Some(match parse_statement(piece) {
                 Ok(statement) => Ok(ClRecord {
@@ -428,6 +445,18 @@ impl<R: BufRead> ClReader<R> {
             }
             text.extend_from_slice(&self.buf);
             seg_col = first_non_blank(&self.buf).unwrap_or(1);
+            // A continuation line that starts a statement of its own
+            // (`PAINT/COLOR,31 $` before a `GOTO/`): no CAM system writes
+            // that as one statement; taken as one, the move would be lost
+            // in a statement kept as a comment.
+            if let Some(word) = starts_statement(&self.buf[seg_col - 1..]) {
+                return Some(Err(self.error(
+                    self.line,
+                    seg_col,
+                    format!("the statement before ends with the continuation `$`, but this line starts a statement of its own ({word}/): a `$` where none belongs, or a line missing; refused rather than reading the {word} as part of the statement before"),
+                    strip_eol(&self.buf),
+                )));
+            }
         }
 
         let statement = match parse_statement(&self.logical.text) {
@@ -504,6 +533,43 @@ fn first_non_blank(line: &[u8]) -> Option<usize> {
         .iter()
         .position(|&b| !is_blank(b))
         .map(|p| p + 1)
+}
+
+/// Whether the statement at the start of `line` holds literal text, in
+/// which a `$` is text (`PPRINT/`, `PARTNO`, `INSERT/`, `REMARK/`,
+/// `TPRINT/`, `OPNAME/`).
+fn literal_text(line: &[u8]) -> bool {
+    let word: Vec<u8> = line
+        .iter()
+        .take_while(|b| b.is_ascii_alphabetic())
+        .map(u8::to_ascii_uppercase)
+        .collect();
+    matches!(
+        word.as_slice(),
+        b"PPRINT" | b"PARTNO" | b"INSERT" | b"REMARK" | b"TPRINT" | b"OPNAME"
+    )
+}
+
+/// The statement word a continuation line starts with, when it starts a
+/// statement of motion of its own (`GOTO/…`, `FEDRAT/…`, `CIRCLE/…`).
+fn starts_statement(line: &[u8]) -> Option<&'static str> {
+    const STARTS: [&str; 10] = [
+        "GOTO", "GODLTA", "FROM", "CIRCLE", "MOVARC", "CYCLE", "FEDRAT", "LOADTL", "TLAXIS",
+        "RAPID",
+    ];
+    let word: Vec<u8> = line
+        .iter()
+        .take_while(|b| b.is_ascii_alphabetic())
+        .map(u8::to_ascii_uppercase)
+        .collect();
+    let rest = &line[word.len()..];
+    let rest = &rest[rest.iter().take_while(|&&b| is_blank(b)).count()..];
+    let ends = rest.first() == Some(&b'/') || (word == b"RAPID" && strip_eol(rest).is_empty());
+    STARTS
+        .iter()
+        .find(|s| s.as_bytes() == word.as_slice())
+        .copied()
+        .filter(|_| ends)
 }
 
 /// The statement part of one physical line (from the statement's start):

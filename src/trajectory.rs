@@ -79,6 +79,11 @@ pub struct TrajectoryOptions {
     /// through ([`TrajectoryBlock::via`]); an arc that cannot be followed
     /// is then refused at its line.
     pub arc_points: bool,
+    /// Read G-code as a program of tool poses whatever its first bytes
+    /// look like (`analyze --errors`, which reads poses alone: a program
+    /// whose TCP code comes after its first 4 KB). Its blocks before pose
+    /// mode are then followed as `post` follows them.
+    pub as_poses: bool,
 }
 
 /// Calls `f` with every motion block of the program read from `input`
@@ -95,6 +100,7 @@ pub fn joint_trajectory<R: BufRead>(
     let TrajectoryOptions {
         axis_tolerance_rad,
         arc_points,
+        as_poses,
         ..
     } = opts;
     if crate::cl::looks_like_cl(head) {
@@ -123,7 +129,7 @@ pub fn joint_trajectory<R: BufRead>(
             previous = Some(q);
             f(block)
         })
-    } else if looks_like_poses(head) {
+    } else if as_poses || looks_like_poses(head) {
         gcode_trajectory(machine, input, file, opts, f)
     } else {
         machine_axis_blocks(machine, input, file, arc_points, |ev| {
@@ -161,6 +167,7 @@ fn gcode_trajectory<R: BufRead>(
         start,
         axis_tolerance_rad,
         arc_points,
+        ..
     } = opts;
     use crate::post::{GcodeConverter, PostOptions, Start};
     use crate::program::{FeedMode, modal::Motion};
@@ -301,6 +308,7 @@ mod tests {
                 start: PoseStart::Off,
                 axis_tolerance_rad: 1e-4,
                 arc_points: true,
+                as_poses: false,
             },
             |b| {
                 out.push(b);

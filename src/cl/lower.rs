@@ -492,6 +492,40 @@ impl<R: BufRead> Lowered<R> {
             "NURBS" | "KNOT" | "CNTRL" => {
                 return Err(self.err(r, format!("{major}: a NURBS spline (the path between two GOTO points) is not converted; refused rather than kept as a comment, which would move the tool straight past it; have the CAM system write the path as GOTO points")));
             }
+            // The tool length register by a statement of its own: ISO
+            // 4343's `OFSTNO/h`, DMG MORI's `TOOLNO/n,…,OSETNO,h,d`. kinpost
+            // writes `G43 H` with the tool's number (or `LOADTL`'s ADJUST):
+            // another register would be another tool length.
+            "OFSTNO" | "TOOLNO" => {
+                let register = if major == "OFSTNO" {
+                    args.first().and_then(Arg::number)
+                } else {
+                    let at = args.iter().position(|x| x.is("OSETNO"));
+                    at.and_then(|k| args.get(k + 1)).and_then(Arg::number)
+                };
+                let tool = if major == "OFSTNO" {
+                    self.tool.map(f64::from)
+                } else {
+                    args.first().and_then(Arg::number)
+                };
+                if let Some(h) = register
+                    && Some(h) != tool
+                {
+                    return Err(self.err(r, format!("{major}/ selects the tool length register {} where kinpost writes G43 H with the tool's number{}: the tool's length would be taken from another register; refused rather than kept as a comment; give the register in LOADTL/n,ADJUST,h (or LOAD/TOOL,n,ADJUST,h)", num(h), tool.map(|t| format!(" ({})", num(t))).unwrap_or_default())));
+                }
+                self.count_commented(major);
+                return Ok(true);
+            }
+            // DMG MORI's APT (Autodesk's "Mori APT (MfgSuite)" post):
+            // `MCSYS/ NUM, n, POINT, origin, VECTOR, x axis, VECTOR, y axis`,
+            // the work plane the points after it are in.
+            "MCSYS" => {
+                if !Self::mori_identity_frame(&args) {
+                    return Err(self.err(r, "MCSYS/ with a rotation or an origin (or of a form kinpost does not read): the points after it are in that work plane's frame (POINT its origin, the VECTORs its x and y axes), not in the set-up frame kinpost converts; refused rather than kept as a comment, which would move the tool in the wrong frame; have the CAM system write the points in the set-up (WCS) frame (docs/programs.md)"));
+                }
+                self.count_commented(major);
+                return Ok(true);
+            }
             "MCS" | "MSYS" | "ZERO" => {
                 if let Some(why) = self.frame_change(r, major, &args) {
                     return Err(self.err(r, why));
@@ -507,12 +541,55 @@ impl<R: BufRead> Lowered<R> {
             {
                 return Err(self.err(r, format!("{major} moves the tool or changes how it moves and kinpost does not convert it; refused rather than kept as a comment")));
             }
+            // A statement word written with blanks in it (`GO TO/`, `RAPID
+            // GOTO/`, `CUTCOM LEFT/1`): APT ignores blanks, kinpost reads the
+            // words of motion written together.
+            _ if major.contains(' ') && Self::spaced_motion_word(major) => {
+                return Err(self.err(r, format!("`{major}/`: a statement word of motion written with blanks in it, or two statements on a line (APT ignores blanks); kinpost reads each statement word written together, one statement a line (`GOTO/`, `RAPID` on a line of its own), and does not convert this one: refused rather than kept as a comment")));
+            }
             _ => {
                 self.count_commented(major);
                 return Ok(true);
             }
         }
         Ok(false)
+    }
+
+    /// Whether a Mori `MCSYS/` (`NUM, n, POINT, x, y, z, VECTOR, xx, xy, xz,
+    /// VECTOR, yx, yy, yz`) is the set-up frame: origin 0, axes x and y.
+    fn mori_identity_frame(args: &[Arg]) -> bool {
+        let after = |word: &str, nth: usize| -> Option<Vec<f64>> {
+            let at = args
+                .iter()
+                .enumerate()
+                .filter(|(_, a)| a.is(word))
+                .nth(nth)?
+                .0;
+            args.get(at + 1..at + 4)?.iter().map(Arg::number).collect()
+        };
+        let near = |v: Option<Vec<f64>>, w: [f64; 3]| {
+            v.is_some_and(|v| {
+                v.iter()
+                    .zip(w)
+                    .all(|(a, b)| (a - b).abs() <= FRAME_TOLERANCE)
+            })
+        };
+        near(after("POINT", 0), [0.0, 0.0, 0.0])
+            && near(after("VECTOR", 0), [1.0, 0.0, 0.0])
+            && near(after("VECTOR", 1), [0.0, 1.0, 0.0])
+    }
+
+    /// Whether a major word written with blanks (`GO TO`, `RAPID GOTO`,
+    /// `CUTCOM LEFT`) spells, or starts with, a statement that moves the tool
+    /// or changes how it moves once its blanks are removed.
+    fn spaced_motion_word(major: &str) -> bool {
+        const MOVING: [&str; 12] = [
+            "GOTO", "GODLTA", "FROM", "RAPID", "CIRCLE", "MOVARC", "CYCLE", "CUTCOM", "FEDRAT",
+            "LOADTL", "TLAXIS", "MULTAX",
+        ];
+        let compact: String = major.split_whitespace().collect();
+        let first = major.split_whitespace().next().unwrap_or_default();
+        compact.contains("GOTO") || MOVING.iter().any(|m| compact == *m || first == *m)
     }
 
     /// Refuses an arc (`CIRCLE`, `MOVARC`) that follows a `RAPID`: an arc
@@ -639,6 +716,12 @@ impl<R: BufRead> Lowered<R> {
         // Whether `r` is kept as it is.
         let keep = match &r.statement {
             ClStatement::Goto { tip, axis } => {
+                // The last line of a file cut short: a point cut mid-number
+                // (`GOTO/40,20,3` of `GOTO/40,20,35`) would put the tool
+                // elsewhere.
+                if !r.text.ends_with(b"\n") {
+                    return Err(self.err(&r, "the file ends inside this GOTO, without a line end: a truncated file? A point cut short would put the tool elsewhere; if the file is complete, end it with a line break (and FINI)"));
+                }
                 self.goto(&r, *tip, *axis)?;
                 false
             }
@@ -811,170 +894,4 @@ impl<R: BufRead> Iterator for Lowered<R> {
 }
 
 #[cfg(test)]
-pub(super) mod tests {
-    use super::*;
-    use crate::cl::ClReader;
-    use crate::cl::FeedUnit;
-    use crate::cl::vec3::sub;
-
-    pub(crate) fn run(text: &str) -> Result<Vec<ClStatement>, Error> {
-        lower(ClReader::new(text.as_bytes(), "t.apt"), "t.apt", 1e-3, None)
-            .map(|r| r.map(|r| r.statement))
-            .collect()
-    }
-
-    /// The statements with arcs and holes replaced by their moves.
-    pub(crate) fn flat(s: &[ClStatement]) -> Vec<ClStatement> {
-        s.iter()
-            .flat_map(|s| match s {
-                ClStatement::Arc(a) => a.moves.clone(),
-                ClStatement::Hole(h) => h.moves.clone().unwrap_or_default(),
-                other => vec![other.clone()],
-            })
-            .collect()
-    }
-
-    pub(crate) fn gotos(s: &[ClStatement]) -> Vec<[f64; 3]> {
-        flat(s)
-            .iter()
-            .filter_map(|s| match s {
-                ClStatement::Goto { tip, .. } => Some(*tip),
-                _ => None,
-            })
-            .collect()
-    }
-
-    pub(crate) fn blocks(s: &[ClStatement]) -> Vec<String> {
-        flat(s)
-            .iter()
-            .filter_map(|s| match s {
-                ClStatement::Block(b) | ClStatement::CutterCompensation { block: b, .. } => {
-                    Some(b.clone())
-                }
-                _ => None,
-            })
-            .collect()
-    }
-
-    pub(crate) fn near(a: [f64; 3], b: [f64; 3]) -> bool {
-        norm(sub(a, b)) < 1e-9
-    }
-
-    #[test]
-    fn spindle_forms() {
-        let s = run("SPINDL/12000,RPM,CLW\nSPINDL/RPM,800,CCLW\nSPINDL/SMM,200,CLW\nSPINDL/SFM,100,CCLW\nSPINDL/OFF\n").unwrap();
-        assert!(matches!(
-            s[0],
-            ClStatement::Spindle {
-                rpm: Some(12000.0),
-                dir: Some(crate::cl::SpindleDir::Clockwise),
-                off: false
-            }
-        ));
-        assert!(matches!(
-            s[1],
-            ClStatement::Spindle {
-                rpm: Some(800.0),
-                dir: Some(crate::cl::SpindleDir::CounterClockwise),
-                off: false
-            }
-        ));
-        assert_eq!(blocks(&s), ["G96 S200 M3", "G96 S30.48 M4"]);
-        assert!(matches!(s[4], ClStatement::Spindle { off: true, .. }));
-    }
-
-    #[test]
-    fn tools_and_cutcom() {
-        let s =
-            run("LOAD/TOOL,3,ADJUST,13\nSELECT/TOOL,4\nCUTCOM/LEFT\nCUTCOM/RIGHT\nCUTCOM/OFF\n")
-                .unwrap();
-        assert_eq!(
-            blocks(&s),
-            ["T3 M6", "G43 H13", "T4", "G41 D3", "G42 D3", "G40"]
-        );
-    }
-
-    /// CSYS: the set-up frame's axes are the matrix columns, its origin the
-    /// last column; points become `Rᵀ (p − t)`.
-    #[test]
-    fn csys_translation_and_rotation() {
-        let s = run("UNITS/MM\nCSYS/1,0,0,10,0,1,0,20,0,0,1,30\nGOTO/11,22,33\n").unwrap();
-        assert!(near(gotos(&s)[0], [1.0, 2.0, 3.0]));
-        // Set-up X along CL -Z, Z along CL +X (a quarter turn about Y).
-        let s = run("UNITS/MM\nCSYS/0,0,1,0,0,1,0,0,-1,0,0,0\nGOTO/250,5,-12,1,0,0\n").unwrap();
-        match &s[2] {
-            ClStatement::Goto { tip, axis } => {
-                assert!(near(*tip, [12.0, 5.0, 250.0]), "{tip:?}");
-                assert!(near(axis.unwrap(), [0.0, 0.0, 1.0]));
-            }
-            other => panic!("{other:?}"),
-        }
-        let e = run("CSYS/2,0,0,0,0,1,0,0,0,0,1,0\n").unwrap_err();
-        assert!(e.to_string().contains("t.apt:1:1"));
-    }
-
-    /// A `CSYS` turns the tool axis to the new frame's Z: the three-value
-    /// `GOTO`s of an operation after one with six values along another
-    /// frame's Z are along their own frame's (SolidWorks CAM; before, the
-    /// earlier operation's axis, 0.29° off, was kept).
-    #[test]
-    fn csys_turns_the_tool_axis_to_its_z() {
-        let tilted = "CSYS/0,.999987,.005061,0,-1,0,0,0,0,-0.005061,.999987,0";
-        let s = run(&format!(
-            "UNITS/MM\n{tilted}\nGOTO/1,2,3,.005061,0,.999987\nCSYS/1,0,0,0,0,1,0,0,0,0,1,0\nGOTO/4,5,6\n"
-        ))
-        .unwrap();
-        let axes: Vec<[f64; 3]> = s
-            .iter()
-            .filter_map(|s| match s {
-                ClStatement::Goto { axis, .. } => *axis,
-                _ => None,
-            })
-            .collect();
-        assert_eq!(axes.len(), 2);
-        // (The six-value axis is printed to six decimals.)
-        assert!(norm(sub(axes[0], [0.0, 0.0, 1.0])) < 1e-6, "{:?}", axes[0]);
-        assert_eq!(axes[1], [0.0, 0.0, 1.0]);
-        // Into a tilted frame with three values: along that frame's Z.
-        let s = run(&format!("UNITS/MM\n{tilted}\nGOTO/1,2,3\n")).unwrap();
-        match s.last() {
-            Some(ClStatement::Goto { axis, .. }) => {
-                assert!(norm(sub(axis.unwrap(), [0.0, 0.0, 1.0])) < 1e-6, "{axis:?}")
-            }
-            other => panic!("{other:?}"),
-        }
-    }
-
-    #[test]
-    fn per_revolution_feeds() {
-        let s = run("UNITS/MM\nFEDRAT/0.1,MMPR\nFEDRAT/IPR,0.01\nFEDRAT/500,MMPM\n").unwrap();
-        assert_eq!(blocks(&s), ["G95", "G94"]);
-        let f: Vec<f64> = s
-            .iter()
-            .filter_map(|s| match s {
-                ClStatement::Fedrat {
-                    value,
-                    unit: FeedUnit::Mmpm,
-                } => Some(*value),
-                _ => None,
-            })
-            .collect();
-        assert_eq!(f.len(), 3);
-        assert!((f[1] - 0.254).abs() < 1e-12);
-    }
-
-    #[test]
-    fn never_silent() {
-        let e = run("UNITS/MM\nGOTO/0,0,0\nGOFWD/S1,TANTO,S2\n").unwrap_err();
-        assert!(e.to_string().contains("t.apt:3:1"), "{e}");
-        let e = run("UNITS/MM\nFEDRAT/MMPM,1e300\n").unwrap_err();
-        assert!(e.to_string().contains("t.apt:2:1"), "{e}");
-        // No UNITS: a warning, millimetres; comments are counted.
-        let s = run("PARTNO/X\nGOTO/0,0,0\n").unwrap();
-        let warnings: Vec<_> = s
-            .iter()
-            .filter(|s| matches!(s, ClStatement::Warning(_)))
-            .collect();
-        assert_eq!(warnings.len(), 2, "{s:?}");
-    }
-}
+pub(super) mod tests;

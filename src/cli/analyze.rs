@@ -288,17 +288,17 @@ fn run(
         prev_q = Some(q);
         Ok::<(), Error>(())
     };
-    if !job.poses && analyzer.is_some() {
-        return Err(Error::Usage(
-            "analyze --errors needs a program of tool poses; this one is in machine axes (use --nonlinear alone)".into(),
-        ));
-    }
     let opts = TrajectoryOptions {
         start: job.start,
         axis_tolerance_rad: axis_tolerance,
         // Circular moves are not measured: their points are not needed.
         arc_points: false,
+        // The errors are analysed at poses: a G-code program whose first
+        // 4 KB hold none (its TCP code comes later) is read as `post`
+        // reads it, its blocks before pose mode followed.
+        as_poses: analyzer.is_some(),
     };
+    let mut poses_seen = false;
     let mut report = json.map(PrettyWriter::new);
     if let Some(r) = report.as_mut() {
         r.begin_object().map_err(io)?;
@@ -307,7 +307,8 @@ fn run(
             r.begin_array().map_err(io)?;
         }
     }
-    joint_trajectory(machine, &mut inp.reader, head, name, opts, |b| {
+    let read = joint_trajectory(machine, &mut inp.reader, head, name, opts, |b| {
+        poses_seen |= b.pose.is_some();
         if let (Some(an), Some(pose)) = (analyzer.as_mut(), &b.pose) {
             let block = an
                 .add(b.line, pose)
@@ -325,7 +326,15 @@ fn run(
         // A circular move is not a straight move of the joints: not
         // measured; the next block starts at its end.
         step(b.line, b.q, b.restart || b.arc)
-    })?;
+    });
+    // A program in machine axes (no pose before it ended, or before what
+    // stopped it): the errors have nothing to be analysed at.
+    if analyzer.is_some() && !job.poses && !poses_seen {
+        return Err(Error::Usage(
+            "analyze --errors needs a program of tool poses; this one is in machine axes (use --nonlinear alone)".into(),
+        ));
+    }
+    read?;
     measure(&mut batch)?;
     let analysis = analyzer.map(|an| an.finish());
 

@@ -140,6 +140,7 @@ pub fn program_waypoints(
         start,
         axis_tolerance_rad,
         arc_points: true,
+        as_poses: false,
     };
     joint_trajectory(machine, &mut inp.reader, &head, &name, opts, |b| {
         // After a move whose path is not known the recording goes on

@@ -244,19 +244,17 @@ fn plain_word(i: In) -> PResult<RawWord> {
     ))
 }
 
-/// `keyword = letter, letter, { letter }` written in one case, followed by
-/// the end of the line, a blank or `;`; not an address letter followed by
-/// a spelling of NaN or infinity. `letters` is the length of the run of
-/// letters `i` starts with.
+/// `keyword = letter, letter, { letter }` in any case (Sinumerik reads
+/// `Traori` as `TRAORI`), followed by the end of the line, a blank or `;`;
+/// not an address letter followed by a spelling of NaN or infinity.
+/// `letters` is the length of the run of letters `i` starts with.
 fn keyword(i: In, letters: usize) -> PResult<In> {
     let (name, rest) = i.split_at(letters);
-    let one_case =
-        name.iter().all(u8::is_ascii_uppercase) || name.iter().all(u8::is_ascii_lowercase);
     let tail = name.get(1..).unwrap_or_default();
     let non_finite = NON_FINITE
         .iter()
         .any(|s| tail.eq_ignore_ascii_case(s.as_bytes()));
-    if name.len() >= 2 && one_case && !non_finite && ends_separated(rest) {
+    if name.len() >= 2 && !non_finite && ends_separated(rest) {
         Ok((rest, name))
     } else {
         fail()

@@ -81,6 +81,10 @@ pub struct BlockReader<'a> {
     lines: usize,
     /// Largest deviation of a tool vector's length from 1.
     max_vector_deviation: f64,
+    /// The line of the main program's end (`M2`, `M30`), once read: what
+    /// follows it in the file is a subprogram's body, which runs under the
+    /// modes of its call.
+    ended_at: Option<usize>,
     warnings: Warnings,
 }
 
@@ -145,6 +149,7 @@ impl<'a> GcodeConverter<'a> {
                 start: Start::AtPose,
                 lines: 0,
                 max_vector_deviation: 0.0,
+                ended_at: None,
                 warnings: Vec::new(),
             },
             writer: BlockWriter {
@@ -242,6 +247,7 @@ impl BlockReader<'_> {
         let traori = keywords.iter().any(|(_, k)| k.starts_with("TRAORI"));
         self.length_comp.block(&words, line, traori);
         self.words = recycle(words);
+        let ended_at = self.ended_at;
         let mut meaning = applied.map_err(|e| match e {
             crate::program::block_delete_switch::Refused::Slash { at, message } => {
                 Error::input_with(
@@ -256,7 +262,15 @@ impl BlockReader<'_> {
                     Some(i) => opaque_error(i),
                     None => Error::input_with(
                         loc(e.item),
-                        e.message,
+                        match ended_at {
+                            // A subprogram's block runs under the modes of
+                            // its call, not those the main program ended with.
+                            Some(end) => format!(
+                                "{} (this block comes after the end of the main program, M2/M30 at line {end}: a subprogram's, which runs under the units, G90/G91 and offsets in force where it is called, and kinpost does not follow calls)",
+                                e.message
+                            ),
+                            None => e.message,
+                        },
                         String::from_utf8_lossy(&line.bytes),
                     ),
                 }
@@ -297,6 +311,13 @@ impl BlockReader<'_> {
             // It may move the machine (a pass-through move, G28, a tool
             // change) or change the controlled point (G43).
             self.other_since_pose |= has_words;
+            if self.ended_at.is_none()
+                && line
+                    .words()
+                    .any(|w| w.address == "M" && (w.value == 2.0 || w.value == 30.0))
+            {
+                self.ended_at = Some(line.number);
+            }
             let crlf = line.bytes.ends_with(b"\r\n");
             if opts.inverse_time
                 && let Some(w) = writer
@@ -318,6 +339,19 @@ impl BlockReader<'_> {
             }
             return Ok(None);
         };
+        // A pose after the main program's end belongs to a subprogram
+        // (Fanuc `O1000` … `M99` called by `M98 P1000`, Haas `M97 P100`):
+        // it runs under the modes of its call (units, G90/G91, offsets),
+        // not those the main program ended with.
+        if let Some(end) = self.ended_at {
+            return Err(Error::input_with(
+                loc(meaning.pose_items.first().copied()),
+                format!(
+                    "a pose after the end of the main program (M2/M30 at line {end}): a subprogram's, which runs under the units, G90/G91 and offsets in force where it is called, and kinpost does not follow calls; convert the subprogram as a program of its own, or have the CAM system write its poses in the main program"
+                ),
+                String::from_utf8_lossy(&line.bytes),
+            ));
+        }
         // Only the last line of a file can lack its line end. A pose block
         // there may have been cut mid-number (`X12.3` of `X12.345`).
         if !line.bytes.ends_with(b"\n") {
@@ -688,6 +722,12 @@ impl BlockReader<'_> {
                 .pose(&q, &crate::machine::NoErrors);
             self.modal.seed_from_machine(pose.tip, pose.axis);
             self.previous = Continuation::At(q);
+            // A move under a frame (G68, TRANS, …) goes where its words do
+            // not say: the position is not known after it.
+            if self.modal.frame_seen || self.modal.shift_seen {
+                self.modal.tip = [None; 3];
+                self.start = Start::Unknown;
+            }
         }
         Ok(())
     }
@@ -704,14 +744,27 @@ fn machine_at<'m>(machine: &'m Machine, opts: &'m PostOptions, line: usize) -> &
 
 /// Whether `line` sends the machine somewhere its program coordinates do
 /// not say: home (`G28`, `G30`), machine coordinates (`G53`, Sinumerik
-/// `G153`, `SUPA`), the offsets reset (`G92.1`–`G92.3`).
+/// `G153`, `SUPA`), the offsets reset (`G92.1`–`G92.3`), Fanuc's tool
+/// axis direction control (`G53.1`: the rotaries turn), Sinumerik's
+/// reference and fixed point approaches (`G74`, `G75` with `X1=`…).
 fn goes_where_not_known(line: &Line) -> bool {
+    // Sinumerik's reference and fixed point approaches name their axes
+    // with the channel index (`G74 Z1=0`, `G75 FP=2 X1=0`).
+    let indexed = || {
+        line.words().any(|w| {
+            w.address == "FP"
+                || (w.address.len() > 1
+                    && matches!(&w.address[..1], "X" | "Y" | "Z" | "A" | "B" | "C")
+                    && w.address[1..].bytes().all(|b| b.is_ascii_digit()))
+        })
+    };
     line.keywords().any(|k| k == "SUPA")
         || line.words().any(|w| {
             w.address == "G"
-                && [28.0, 30.0, 53.0, 153.0, 92.1, 92.2, 92.3]
+                && ([28.0, 30.0, 53.0, 153.0, 92.1, 92.2, 92.3, 53.1]
                     .iter()
                     .any(|v| (w.value - v).abs() < 1e-9)
+                    || ((w.value == 74.0 || w.value == 75.0) && indexed()))
         })
 }
 

@@ -37,11 +37,35 @@ pub fn check_line(line: &Line, file: &str, pose_mode: bool) -> Result<()> {
     if line.bytes.contains(&0)
         && let Some(at) = line.bytes.iter().position(|b| *b == 0)
     {
+        let message = if looks_like_utf16(&line.bytes) {
+            "the file is UTF-16 text (what a Windows editor saves as \"Unicode\"), which no controller reads: save it as ASCII or UTF-8"
+        } else {
+            "a NUL byte: the file is damaged or not a text NC program"
+        };
         return Err(Error::input_with(
             Location::new(file, line.number, at + 1),
-            "a NUL byte: the file is damaged or not a text NC program",
+            message,
             String::from_utf8_lossy(&line.bytes),
         ));
     }
     super::heidenhain::check_block(&line.bytes, file, line.number)
+}
+
+/// Whether `bytes` (a line holding NUL bytes) look like UTF-16 text: a
+/// byte order mark (`FF FE`, `FE FF`), or ASCII with a NUL beside each
+/// character (every other byte NUL; the line was cut at an LF, whose own
+/// NUL may come after it).
+pub fn looks_like_utf16(bytes: &[u8]) -> bool {
+    if bytes.starts_with(&[0xFF, 0xFE]) || bytes.starts_with(&[0xFE, 0xFF]) {
+        return true;
+    }
+    let body = bytes.strip_suffix(b"\n").unwrap_or(bytes);
+    let every_other_nul = |parity: usize| {
+        body.len() >= 4
+            && body
+                .iter()
+                .enumerate()
+                .all(|(i, b)| i % 2 != parity || *b == 0)
+    };
+    every_other_nul(0) || every_other_nul(1)
 }

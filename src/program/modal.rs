@@ -193,6 +193,11 @@ pub struct ModalState {
     /// the controller, where it would move the machine axis words kinpost
     /// writes, so pose mode may not start after it.
     pub frame_seen: bool,
+    /// A shift of the program's coordinates (`G52` with an offset other
+    /// than 0, `G92`) is on, until `G52` with offsets 0 or `G92.1`/`G92.2`:
+    /// it would move kinpost's linear axis words, so pose mode may not
+    /// start under it (as under Sinumerik's `TRANS`, a frame).
+    pub shift_seen: bool,
     /// An interpolation mode that changes what later axis words mean
     /// (`unfollowed::interpolation_mode`: Fanuc G12.1, G7.1, Okuma G169) is
     /// on: pose mode may not start under it.
@@ -216,6 +221,14 @@ pub struct ModalState {
     pub skippable: super::block_delete::SkippableCarry,
 }
 
+/// Whether `address` is a Sinumerik axis with its channel index (`X1`,
+/// `Z1`: the form of `G74`/`G75`).
+fn indexed_axis(address: &str) -> bool {
+    address.len() > 1
+        && is_axis_address(&address[..1])
+        && address[1..].bytes().all(|b| b.is_ascii_digit())
+}
+
 /// Whether `address` is an axis word of G-code (`X Y Z A B C U V W`).
 fn is_axis_address(address: &str) -> bool {
     matches!(address, "X" | "Y" | "Z" | "A" | "B" | "C" | "U" | "V" | "W")
@@ -233,6 +246,7 @@ impl ModalState {
             pose_mode: start == PoseStart::On,
             fanuc_tcp: false,
             frame_seen: false,
+            shift_seen: false,
             interpolation_mode: false,
             cutter_comp: false,
             machine_orientation: false,
@@ -280,7 +294,9 @@ impl ModalState {
         let mut orimks = None;
         // Block delete (`/`, a pseudo-keyword): the controller may skip the block.
         let block_delete = keywords.iter().find(|(_, k)| *k == "/").map(|(i, _)| *i);
-        let lathe_cycle = words.iter().any(|w| w.address == "Q");
+        let has = |a: &str| words.iter().any(|w| w.address == a);
+        // A lathe's cutting cycle (`unfollowed::lathe_cycle`).
+        let lathe_cycle = |code: i64| unfollowed::lathe_cycle(code, has);
         let mut unfollowed: Option<(usize, String)> = None; // (`program::unfollowed`)
         for w in words {
             match w.address {
@@ -291,6 +307,26 @@ impl ModalState {
                         10 => self.motion = Motion::Linear,
                         20 | 30 => self.motion = Motion::Arc,
                         800 => self.motion = Motion::Rapid,
+                        // A lathe's cutting cycles (Fanuc G70–G74 with their
+                        // P Q U W, LinuxCNC G70–G72 with Q) cut with moves of
+                        // their own; without those words G70/G71 are
+                        // Sinumerik's inch / mm and G73/G74 a mill's cycles.
+                        c if lathe_cycle(c) => {
+                            non_modal = true;
+                            unfollowed =
+                                unfollowed.or(Some((w.item, unfollowed::LATHE_CYCLE.into())));
+                        }
+                        // Sinumerik's reference and fixed point approaches
+                        // (`G74 Z1=0`, `G75 FP=2 Z1=0`: machine axes with
+                        // their channel index): not a cycle, the axes go
+                        // where the program's coordinates do not say.
+                        740 | 750
+                            if words
+                                .iter()
+                                .any(|o| indexed_axis(o.address) || o.address == "FP") =>
+                        {
+                            non_modal = true
+                        }
                         810..=890 => self.motion = Motion::Other,
                         // Threads, tapping and splines: motion modes whose
                         // I J K are not a tool axis (`program::ijk`).
@@ -339,10 +375,6 @@ impl ModalState {
                         400 => self.cutter_comp = false,
                         900 => self.absolute = true,
                         910 => self.absolute = false,
-                        // LinuxCNC's lathe cycles G70–G72 (with a Q word: the
-                        // contour's subroutine) run their own moves; without
-                        // Q, G70/G71 are Sinumerik's inch / mm.
-                        700 | 710 | 711 | 712 | 720 | 721 | 722 if lathe_cycle => non_modal = true,
                         200 | 700 | 7000 => self.units = Units::Inch,
                         210 | 710 | 7100 => self.units = Units::Mm,
                         930 => self.feed_mode = FeedMode::InverseTime,
@@ -376,6 +408,16 @@ impl ModalState {
                         // they would move kinpost's machine axis words.
                         100 | 520 | 920..=923 => {
                             non_modal = true;
+                            match code {
+                                520 => {
+                                    self.shift_seen = words
+                                        .iter()
+                                        .any(|o| is_axis_address(o.address) && o.value != 0.0)
+                                }
+                                920 => self.shift_seen = true,
+                                921 | 922 => self.shift_seen = false,
+                                _ => {}
+                            }
                             setup = setup.or(Some((w.item, "changes the coordinate system the poses are given in (G10, G52, G92)")));
                         }
                         // G54.1 P (Fanuc), G154 P (Haas): more work offsets.
@@ -396,6 +438,10 @@ impl ModalState {
                         }
                         40 | 530 | 1530 => non_modal = true,
                         c => {
+                            // Fanuc's G53.1 turns the rotaries to a tilted
+                            // plane's tool axis: a move to where the program's
+                            // coordinates do not say.
+                            non_modal |= c == 531;
                             let radius = words.iter().any(|w| w.address == "C" && w.value != 0.0);
                             if let Some(on) = unfollowed::interpolation_mode(c, radius) {
                                 self.interpolation_mode = on;
@@ -437,6 +483,19 @@ impl ModalState {
                     orimks = Some(*item);
                 }
                 "ORIWKS" => self.machine_orientation = false,
+                // Sinumerik diameter programming (X a diameter): pose mode
+                // may not start under it, and in pose mode it is refused as
+                // a transformation kinpost does not apply.
+                "DIAMON" | "DIAM90" | "DIAMONA" | "DIAMOF" | "DIAMOFA" => {
+                    if k.starts_with("DIAMOF") {
+                        self.interpolation_mode = false;
+                    } else if !self.pose_mode {
+                        self.interpolation_mode = true;
+                    }
+                    if unfollowed.is_none() {
+                        unfollowed = unfollowed::transformation(k).map(|m| (*item, m));
+                    }
+                }
                 // `TRAORI(1,0,1,0)`: TCP on, with a basic tool orientation
                 // or rotary offsets kinpost does not apply.
                 "TRAORI(…)" => {
@@ -524,11 +583,13 @@ impl ModalState {
         if straight && has_axis && !non_modal && !owned {
             self.pose_mode = true;
         }
-        if self.pose_mode && (self.frame_seen || self.interpolation_mode) {
+        if self.pose_mode && (self.frame_seen || self.shift_seen || self.interpolation_mode) {
             return Err(BlockError {
                 item: start_item(),
                 message: if self.frame_seen {
                     frames::AT_POSE_START
+                } else if self.shift_seen {
+                    unfollowed::SHIFT_AT_POSE_START
                 } else {
                     unfollowed::MODE_AT_POSE_START
                 }

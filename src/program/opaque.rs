@@ -5,7 +5,7 @@
 use crate::gcode::{ItemKind, Line};
 
 /// Why `TRAORI(…)` with more than the transformation's number is refused.
-pub const TRAORI_ARGUMENTS: &str = "TRAORI with a basic tool orientation or rotary offsets (`TRAORI(1,0,1,0)`: the tool along Y) is not converted: kinpost converts with the machine file's tool direction and no offsets; give the tool direction in the machine file and program TRAORI or TRAORI(1)";
+pub const TRAORI_ARGUMENTS: &str = "TRAORI with arguments after the transformation's number (a basic tool orientation, as `TRAORI(1,0,1,0)` for the tool along Y, or rotary offsets) is not converted: kinpost converts with the machine file's tool direction and no offsets; give the tool direction in the machine file and program TRAORI or TRAORI(1)";
 
 /// The longest piece of offending text quoted in a message.
 const QUOTE_MAX: usize = 48;

@@ -391,10 +391,21 @@ impl MachineAxisTracker {
                         && !machine.axes.iter().any(|a| a.name == w.address) =>
                 {
                     let names: Vec<&str> = machine.axes.iter().map(|a| a.name.as_str()).collect();
+                    // On a Fanuc lathe (G code system A) U and W are X
+                    // and Z given as increments.
+                    let lathe = match w.address.as_str() {
+                        "U" => {
+                            " (or a lathe program, where U is an increment of X, which kinpost does not read)"
+                        }
+                        "W" => {
+                            " (or a lathe program, where W is an increment of Z, which kinpost does not read)"
+                        }
+                        _ => "",
+                    };
                     return refuse(
                         item,
                         format!(
-                            "axis word {} in a move, and machine {} has no {} axis (its axes: {}): the program is for another machine, and this move cannot be followed",
+                            "axis word {} in a move, and machine {} has no {} axis (its axes: {}): the program is for another machine{lathe}, and this move cannot be followed",
                             w.address,
                             machine.name,
                             w.address,
@@ -536,13 +547,19 @@ impl MachineAxisTracker {
             let ItemKind::Word(w) = &item.kind else {
                 continue;
             };
-            if w.address == "G" || w.address == "F" {
+            let machine_axis = machine.axes.iter().any(|a| a.name == w.address);
+            // The words that tell a lathe's cutting cycle
+            // (`unfollowed::lathe_cycle`) and cancel G54.2 (P0) go to the
+            // modal state too.
+            let cycle_word =
+                !machine_axis && matches!(w.address.as_str(), "P" | "Q" | "U" | "W" | "D");
+            if w.address == "G" || w.address == "F" || cycle_word {
                 modal_words.push(WordRef {
                     address: w.address.as_str(),
                     value: w.value,
                     item: i,
                 });
-            } else if machine.axes.iter().any(|a| a.name == w.address) {
+            } else if machine_axis {
                 // The same axis twice (`X1 … X2`): which one a controller
                 // takes is not for kinpost to guess; LinuxCNC and Fanuc
                 // refuse the block.

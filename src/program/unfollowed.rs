@@ -54,6 +54,30 @@ pub fn path_word(address: &str) -> &'static str {
 /// What a Fanuc lathe's `G50 X Z` does (a set-up, refused in pose mode).
 pub const LATHE_G50: &str = "sets the coordinate system (lathe G50 X Z, as G92)";
 
+/// What a lathe's cutting cycle does ([`lathe_cycle`]).
+pub const LATHE_CYCLE: &str = "a lathe's cutting cycle (Fanuc G70–G74 with the contour's sequence numbers P Q or its allowances and depths U W R; LinuxCNC G70–G72 with the contour's subroutine Q): it cuts a contour with moves of its own that its words do not give";
+
+/// Whether the G code `code` (ten times its value), in a block holding
+/// the addresses `has` tells, is a lathe's cutting cycle: Fanuc's
+/// multiple repetitive cycles `G70`–`G73` (finishing, stock removal in
+/// turning and facing, pattern repeating: the contour between the
+/// sequence numbers `P` and `Q`, the allowances `U` `W`, or the depth and
+/// retract `U R` / `W R` of their first block), `G74` with a `Q` (end
+/// face peck drilling; a mill's `G74` tapping cycle has none), and
+/// LinuxCNC's `G70`–`G72.2` with `Q` (the contour's subroutine).
+/// Sinumerik's `G70`/`G71` (inch / mm) carry none of these words, nor does
+/// a mill's peck drilling `G73` (`X Y Z R Q`) carry `P` with `Q`, `U`
+/// or `W`.
+pub fn lathe_cycle(code: i64, has: impl Fn(&str) -> bool) -> bool {
+    match code {
+        700 | 710 | 720 => ["P", "Q", "U", "W", "D"].iter().any(|a| has(a)),
+        711 | 712 | 721 | 722 => has("Q"),
+        730 => has("U") || has("W") || (has("P") && has("Q")),
+        740 => has("Q"),
+        _ => false,
+    }
+}
+
 /// Why polar coordinates are refused in pose mode.
 pub const POLAR: &str = "polar coordinates (Sinumerik G110–G112 pole, AP= angle, RP= radius) in pose mode are not converted: tool poses must be given as X Y Z; write Cartesian coordinates in the CAM post";
 
@@ -186,19 +210,25 @@ pub fn g_code(code: i64) -> Option<String> {
 /// axis words mean: Fanuc polar coordinate interpolation `G12.1` (off:
 /// `G13.1`), cylindrical interpolation `G7.1` and Haas `G107` with a
 /// radius (`radius`: the block has a `C` other than 0; off: with `C0`),
-/// Okuma's tool centre point control `G169` (off: `G168`), which would
+/// LinuxCNC's diameter mode `G7` (off: `G8`), Okuma's tool centre point control `G169` (off: `G168`), which would
 /// transform kinpost's machine axis words a second time.
 pub fn interpolation_mode(code: i64, radius: bool) -> Option<bool> {
     match code {
         121 | 1690 => Some(true),
         131 | 1680 => Some(false),
+        // LinuxCNC's lathe diameter mode (G7; G8 radius).
+        70 => Some(true),
+        80 => Some(false),
         71 | 1070 => Some(radius),
         _ => None,
     }
 }
 
+/// Why pose mode may not start under a shift of the coordinates.
+pub const SHIFT_AT_POSE_START: &str = "pose mode starts while a shift of the program's coordinates set earlier (G52 with an offset, G92) is on: the controller would move kinpost's machine axis words by it, which on a machine with rotaries is not the move of the tool tip it stands for; cancel it before TCP is switched on (G52 X0 Y0 Z0, G92.1), or give the poses in the workpiece frame (--work-offset)";
+
 /// Why pose mode may not start under an [`interpolation_mode`].
-pub const MODE_AT_POSE_START: &str = "pose mode starts while an interpolation mode set earlier in the program (Fanuc G12.1 polar coordinate interpolation, G7.1 or Haas G107 cylindrical interpolation, the controller's own tool centre point control: Okuma G169, Heidenhain ISO M128, Fagor #RTCP ON or #TLC ON) is on: the controller would read kinpost's machine axis words in it; switch it off before (G13.1, G7.1 C0, G107 C0, G168, M129, #RTCP OFF)";
+pub const MODE_AT_POSE_START: &str = "pose mode starts while an interpolation mode set earlier in the program (Fanuc G12.1 polar coordinate interpolation, G7.1 or Haas G107 cylindrical interpolation, diameter programming: Sinumerik DIAMON, LinuxCNC G7; the controller's own tool centre point control: Okuma G169, Heidenhain ISO M128, Fagor #RTCP ON or #TLC ON) is on: the controller would read kinpost's machine axis words in it; switch it off before (G13.1, G7.1 C0, G107 C0, DIAMOF, G8, G168, M129, #RTCP OFF)";
 
 /// `G` code ten times `code` as written: `12.1`, `154`.
 fn g_name(code: i64) -> String {

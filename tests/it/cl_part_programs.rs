@@ -166,7 +166,7 @@ fn dos_end_of_file_mark_and_cr_only_line_endings() {
     let (code, _, err) = post("UNITS/MM\rFEDRAT/MMPM,100\rGOTO/0,0,10\rFINI\r");
     assert_eq!(code, 1);
     assert!(
-        err.contains("<stdin>:1:7: a carriage return (CR) inside the line"),
+        err.contains("<stdin>:1:9: a carriage return (CR) inside the line"),
         "{err}"
     );
 }

@@ -133,7 +133,7 @@ fn sinumerik_frames_orientation_and_corner_words_are_refused_in_pose_mode() {
         "traori.mpf",
         text,
         &[],
-        "traori.mpf:2:1: TRAORI with a basic tool orientation",
+        "traori.mpf:2:1: TRAORI with arguments after the transformation",
     );
     // Fanuc's corner rounding is named as such.
     let text = "G43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\nG1 X12 ,R2.\nG49\nM30\n";

@@ -341,7 +341,7 @@ fn malformed_numbers_make_the_rest_opaque() {
     assert_eq!(k("G1 X"), ["G=1", "_", "?"]);
     assert_eq!(k("G28 X Z"), ["G=28", "_", "?"]);
     assert_eq!(k("G1 X. Y1"), ["G=1", "_", "?"]);
-    assert_eq!(k("G1 Xabc"), ["G=1", "_", "?"]);
+    assert_eq!(k("G1 Xabc1"), ["G=1", "_", "?"]);
     assert_eq!(k("X1 0"), ["X=1", "_", "?"]);
     assert_eq!(k("M563 P0 D0:2:3"), ["M=563", "_", "P=0", "_", "?"]);
 }

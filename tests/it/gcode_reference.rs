@@ -224,18 +224,17 @@ fn plain_word(i: In) -> PResult<RawWord> {
     ))
 }
 
-/// `keyword = letter, letter, { letter }` written in one case, followed by
-/// the end of the line, a blank or `;`; not an address letter followed by
-/// a spelling of NaN or infinity.
+/// `keyword = letter, letter, { letter }` in any case (since session 29:
+/// Sinumerik reads `Traori` as `TRAORI`), followed by the end of the line,
+/// a blank or `;`; not an address letter followed by a spelling of NaN or
+/// infinity.
 fn keyword(i: In) -> PResult<In> {
     let (rest, name) = take_while1(|b: u8| b.is_ascii_alphabetic()).parse_complete(i)?;
-    let one_case =
-        name.iter().all(u8::is_ascii_uppercase) || name.iter().all(u8::is_ascii_lowercase);
     let tail = &name[1..];
     let non_finite = NON_FINITE
         .iter()
         .any(|s| tail.eq_ignore_ascii_case(s.as_bytes()));
-    if name.len() >= 2 && one_case && !non_finite && ends_separated(rest) {
+    if name.len() >= 2 && !non_finite && ends_separated(rest) {
         Ok((rest, name))
     } else {
         Err(nom::Err::Error(()))

@@ -85,6 +85,7 @@ mod seed003;
 mod simulate_arcs;
 mod simulate_stream;
 mod sixth_hunt;
+mod thirteenth_hunt;
 mod twelfth_hunt;
 mod valid_jobs;
 mod wrapped_rotary;

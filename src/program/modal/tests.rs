@@ -193,3 +193,70 @@ fn errors_name_the_item() {
         .unwrap();
     assert_eq!(b.warnings.len(), 1);
 }
+
+/// A lathe's cutting cycles are not followed (found in session 29: Fanuc's
+/// `G71 P10 Q20` and `G70 P10 Q20` were read as Sinumerik's mm and skipped
+/// by the commands that follow motion); Sinumerik's G70/G71 and a mill's
+/// peck drilling G73 stay what they were.
+#[test]
+fn lathe_cutting_cycles_are_not_followed() {
+    let cases: &[(&[(&'static str, f64)], bool)] = &[
+        (&[("G", 71.0), ("P", 10.0), ("Q", 20.0), ("F", 0.25)], true),
+        (&[("G", 71.0), ("U", 2.0), ("R", 0.5)], true),
+        (&[("G", 70.0), ("P", 10.0), ("Q", 20.0)], true),
+        (&[("G", 72.0), ("W", 2.0), ("R", 0.5)], true),
+        (&[("G", 73.0), ("P", 10.0), ("Q", 20.0)], true),
+        (&[("G", 74.0), ("Z", -20.0), ("Q", 5.0), ("F", 0.1)], true),
+        (
+            &[
+                ("G", 71.0),
+                ("Q", 100.0),
+                ("X", 52.0),
+                ("Z", 2.0),
+                ("D", 1.0),
+            ],
+            true,
+        ),
+        (&[("G", 71.0)], false),
+        (&[("G", 70.0), ("G", 0.0), ("X", 1.0)], false),
+        (
+            &[
+                ("G", 73.0),
+                ("X", 1.0),
+                ("Y", 2.0),
+                ("Z", -5.0),
+                ("R", 1.0),
+                ("Q", 1.0),
+            ],
+            false,
+        ),
+        (
+            &[
+                ("G", 74.0),
+                ("X", 1.0),
+                ("Y", 2.0),
+                ("Z", -5.0),
+                ("R", 1.0),
+                ("P", 0.5),
+            ],
+            false,
+        ),
+    ];
+    for (words, lathe) in cases {
+        let mut m = ModalState::new(PoseStart::Off);
+        let refs: Vec<WordRef<'static>> = words
+            .iter()
+            .enumerate()
+            .map(|(i, &(a, v))| w(a, v, i))
+            .collect();
+        let b = m.apply(&refs, &[]).unwrap();
+        let found = b
+            .unfollowed
+            .as_ref()
+            .is_some_and(|(_, what)| what == unfollowed::LATHE_CYCLE);
+        assert_eq!(found, *lathe, "{words:?}");
+        if *lathe {
+            assert!(b.non_modal, "{words:?}");
+        }
+    }
+}
