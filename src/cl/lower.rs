@@ -203,6 +203,28 @@ impl<R: BufRead> Lowered<R> {
         if NX_MAJORS.contains(&major) {
             self.clockwise_circles = true;
         }
+        if major == "CUTCOM" && args.len() > 1 && (a(0) == "ON" || a(0) == "OFF") {
+            // HSMWorks' `CUTCOM/ON,LEFT,d`: `CUTCOM/LEFT,d`.
+            if a(0) == "ON" && (a(1) == "LEFT" || a(1) == "RIGHT") {
+                let rest = &text[args[1].offset..];
+                return self.other(r, major, rest);
+            }
+            // DMG MORI's `CUTCOM/ON,LENGTH,h` (tool length compensation,
+            // register h) and `CUTCOM/OFF,LENGTH`: kinpost writes `G43 H`
+            // with the tool's number at the tool change.
+            if a(1) == "LENGTH" {
+                let register = args.get(2).and_then(Arg::number);
+                let tool = self.tool.map(f64::from);
+                if a(0) == "ON"
+                    && let Some(h) = register
+                    && Some(h) != tool
+                {
+                    return Err(self.err(r, format!("CUTCOM/ON,LENGTH,{} switches tool length compensation on with register {} where kinpost writes G43 H with the tool's number{}: the tool's length would be taken from another register; refused rather than kept as a comment; give the register in LOADTL/n,ADJUST,h (or LOAD/TOOL,n,ADJUST,h)", num(h), num(h), tool.map(|t| format!(" ({})", num(t))).unwrap_or_default())));
+                }
+                self.count_commented(major);
+                return Ok(true);
+            }
+        }
         match major {
             "UNIT" => match a(0).as_str() {
                 "MM" => {

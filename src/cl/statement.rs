@@ -116,7 +116,7 @@ pub(super) fn parse_statement(text: &[u8]) -> Result<ClStatement, StatementError
             Ok(ClStatement::TlAxis(non_zero(v, &args[0], "the tool axis")?))
         }
         "FEDRAT" => fedrat(&args).ok_or_else(|| {
-            count_err("a feed rate, optionally with a unit: `FEDRAT/[MMPM|IPM|MMPR|IPR,]f`")
+            count_err("a feed rate, optionally with a unit: `FEDRAT/[MMPM|IPM|MMPR|IPR|PERMIN,]f`")
         })?,
         "LOADTL" => {
             let Some(first) = args.first() else {
@@ -244,6 +244,8 @@ fn fedrat(args: &[Arg]) -> Option<Result<ClStatement, StatementError>> {
     let (value_arg, unit) = match args {
         [f] if feed_unit(f).is_none() => (f, FeedUnit::Unspecified),
         [u, f] if feed_unit(u).is_some() => (f, feed_unit(u)?),
+        // DMG MORI's `FEDRAT/ PERMIN, f`: per minute, in the program's units.
+        [u, f] if u.is("PERMIN") => (f, FeedUnit::Unspecified),
         [f, u] if feed_unit(u).is_some() => (f, feed_unit(u)?),
         _ => return None,
     };

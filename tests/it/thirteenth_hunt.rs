@@ -323,3 +323,38 @@ fn cl_statements_kept_as_comments_before_are_refused() {
         );
     }
 }
+
+/// Statements Autodesk's "Mori APT (MfgSuite)" and HSMWorks APT posts
+/// write in every section, refused before with the wrong cause: MORI's
+/// `CUTCOM/ ON, LENGTH, h` (tool length compensation, not the cutter's
+/// radius), `FEDRAT/ PERMIN, f` ("wrong count"), HSMWorks'
+/// `CUTCOM/ON, LEFT, d` ("CUTCOM/ON is not supported (LEFT, …)").
+#[test]
+fn mori_and_hsmworks_apt_words_are_read() {
+    let mori = "UNITS/ MM\nLOAD/ TOOL, 1, 'D10', NEXTTL, 1\nCUTCOM/ ON, LENGTH, 1\nRAPID\nGOTO/ 10, 20, 30\nFEDRAT/ PERMIN, 500\nGOTO/ 10, 20, 5\nCUTCOM/ OFF, LENGTH\nEND/\n";
+    let (code, out, err) = post_file("xyz-3axis", "m.apt", mori.as_bytes());
+    let out = String::from_utf8_lossy(&out);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("G43 H1\n"), "{out}");
+    assert!(
+        out.contains("G1 X10.0000 Y20.0000 Z5.0000 F500.0\n"),
+        "{out}"
+    );
+    assert!(!out.contains("G40"), "{out}");
+    // Another register than the tool's: another tool length.
+    let other = mori.replace("LENGTH, 1", "LENGTH, 5");
+    let (code, _, err) = post_file("xyz-3axis", "m.apt", other.as_bytes());
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("m.apt:3:1:") && err.contains("register 5"),
+        "{err}"
+    );
+    let hsm = "UNITS/MM\nFEDRAT/MMPM,500\nGOTO/10,0,5\nCUTCOM/ON, LEFT, 1\nGOTO/20,0,5\nCUTCOM/OFF\nFINI\n";
+    let (code, out, err) = post_file("xyz-3axis", "h.apt", hsm.as_bytes());
+    let out = String::from_utf8_lossy(&out);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("G41 D1\nX20.0000 Y0.0000 Z5.0000\nG40\n"),
+        "{out}"
+    );
+}
