@@ -539,15 +539,15 @@ fn first_non_blank(line: &[u8]) -> Option<usize> {
 /// which a `$` is text (`PPRINT/`, `PARTNO`, `INSERT/`, `REMARK/`,
 /// `TPRINT/`, `OPNAME/`).
 fn literal_text(line: &[u8]) -> bool {
-    let word: Vec<u8> = line
+    let word = leading_letters(line);
+    ["PPRINT", "PARTNO", "INSERT", "REMARK", "TPRINT", "OPNAME"]
         .iter()
-        .take_while(|b| b.is_ascii_alphabetic())
-        .map(u8::to_ascii_uppercase)
-        .collect();
-    matches!(
-        word.as_slice(),
-        b"PPRINT" | b"PARTNO" | b"INSERT" | b"REMARK" | b"TPRINT" | b"OPNAME"
-    )
+        .any(|w| word.eq_ignore_ascii_case(w.as_bytes()))
+}
+
+/// The run of letters `line` starts with.
+fn leading_letters(line: &[u8]) -> &[u8] {
+    &line[..line.iter().take_while(|b| b.is_ascii_alphabetic()).count()]
 }
 
 /// The statement word a continuation line starts with, when it starts a
@@ -557,19 +557,15 @@ fn starts_statement(line: &[u8]) -> Option<&'static str> {
         "GOTO", "GODLTA", "FROM", "CIRCLE", "MOVARC", "CYCLE", "FEDRAT", "LOADTL", "TLAXIS",
         "RAPID",
     ];
-    let word: Vec<u8> = line
-        .iter()
-        .take_while(|b| b.is_ascii_alphabetic())
-        .map(u8::to_ascii_uppercase)
-        .collect();
+    let word = leading_letters(line);
     let rest = &line[word.len()..];
     let rest = &rest[rest.iter().take_while(|&&b| is_blank(b)).count()..];
-    let ends = rest.first() == Some(&b'/') || (word == b"RAPID" && strip_eol(rest).is_empty());
-    STARTS
+    let start = STARTS
         .iter()
-        .find(|s| s.as_bytes() == word.as_slice())
-        .copied()
-        .filter(|_| ends)
+        .find(|s| word.eq_ignore_ascii_case(s.as_bytes()))
+        .copied()?;
+    (rest.first() == Some(&b'/') || (start == "RAPID" && strip_eol(rest).is_empty()))
+        .then_some(start)
 }
 
 /// The statement part of one physical line (from the statement's start):

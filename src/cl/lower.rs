@@ -213,13 +213,9 @@ impl<R: BufRead> Lowered<R> {
             // register h) and `CUTCOM/OFF,LENGTH`: kinpost writes `G43 H`
             // with the tool's number at the tool change.
             if a(1) == "LENGTH" {
-                let register = args.get(2).and_then(Arg::number);
-                let tool = self.tool.map(f64::from);
-                if a(0) == "ON"
-                    && let Some(h) = register
-                    && Some(h) != tool
-                {
-                    return Err(self.err(r, format!("CUTCOM/ON,LENGTH,{} switches tool length compensation on with register {} where kinpost writes G43 H with the tool's number{}: the tool's length would be taken from another register; refused rather than kept as a comment; give the register in LOADTL/n,ADJUST,h (or LOAD/TOOL,n,ADJUST,h)", num(h), num(h), tool.map(|t| format!(" ({})", num(t))).unwrap_or_default())));
+                if a(0) == "ON" {
+                    let register = args.get(2).and_then(Arg::number);
+                    self.same_register(r, "CUTCOM/ON,LENGTH", register, self.tool.map(f64::from))?;
                 }
                 self.count_commented(major);
                 return Ok(true);
@@ -530,11 +526,7 @@ impl<R: BufRead> Lowered<R> {
                 } else {
                     args.first().and_then(Arg::number)
                 };
-                if let Some(h) = register
-                    && Some(h) != tool
-                {
-                    return Err(self.err(r, format!("{major}/ selects the tool length register {} where kinpost writes G43 H with the tool's number{}: the tool's length would be taken from another register; refused rather than kept as a comment; give the register in LOADTL/n,ADJUST,h (or LOAD/TOOL,n,ADJUST,h)", num(h), tool.map(|t| format!(" ({})", num(t))).unwrap_or_default())));
-                }
+                self.same_register(r, &format!("{major}/"), register, tool)?;
                 self.count_commented(major);
                 return Ok(true);
             }
@@ -575,6 +567,23 @@ impl<R: BufRead> Lowered<R> {
             }
         }
         Ok(false)
+    }
+
+    /// Refuses `what` (a statement that selects the tool length
+    /// `register`) where the register is not the tool's number, with which
+    /// kinpost writes `G43 H`: the tool's length would come from another
+    /// register.
+    fn same_register(
+        &self,
+        r: &ClRecord,
+        what: &str,
+        register: Option<f64>,
+        tool: Option<f64>,
+    ) -> Result<(), Error> {
+        match register {
+            Some(h) if Some(h) != tool => Err(self.err(r, format!("{what} selects the tool length register {} where kinpost writes G43 H with the tool's number{}: the tool's length would be taken from another register; refused rather than kept as a comment; give the register in LOADTL/n,ADJUST,h (or LOAD/TOOL,n,ADJUST,h)", num(h), tool.map(|t| format!(" ({})", num(t))).unwrap_or_default()))),
+            _ => Ok(()),
+        }
     }
 
     /// Whether a Mori `MCSYS/` (`NUM, n, POINT, x, y, z, VECTOR, xx, xy, xz,

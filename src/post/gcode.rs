@@ -311,11 +311,7 @@ impl BlockReader<'_> {
             // It may move the machine (a pass-through move, G28, a tool
             // change) or change the controlled point (G43).
             self.other_since_pose |= has_words;
-            if self.ended_at.is_none()
-                && line
-                    .words()
-                    .any(|w| w.address == "M" && (w.value == 2.0 || w.value == 30.0))
-            {
+            if self.ended_at.is_none() && crate::program::integrity::ends_main_program(line) {
                 self.ended_at = Some(line.number);
             }
             let crlf = line.bytes.ends_with(b"\r\n");
@@ -748,15 +744,9 @@ fn machine_at<'m>(machine: &'m Machine, opts: &'m PostOptions, line: usize) -> &
 /// axis direction control (`G53.1`: the rotaries turn), Sinumerik's
 /// reference and fixed point approaches (`G74`, `G75` with `X1=`…).
 fn goes_where_not_known(line: &Line) -> bool {
-    // Sinumerik's reference and fixed point approaches name their axes
-    // with the channel index (`G74 Z1=0`, `G75 FP=2 X1=0`).
     let indexed = || {
-        line.words().any(|w| {
-            w.address == "FP"
-                || (w.address.len() > 1
-                    && matches!(&w.address[..1], "X" | "Y" | "Z" | "A" | "B" | "C")
-                    && w.address[1..].bytes().all(|b| b.is_ascii_digit()))
-        })
+        line.words()
+            .any(|w| crate::program::modal::point_approach_word(&w.address))
     };
     line.keywords().any(|k| k == "SUPA")
         || line.words().any(|w| {

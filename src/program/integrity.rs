@@ -10,9 +10,15 @@ use crate::gcode::Line;
 /// line is whole even without a line end.
 pub fn ends_program(line: &Line) -> bool {
     line.bytes.trim_ascii() == b"%"
-        || line
-            .words()
-            .any(|w| w.address == "M" && [2.0, 30.0, 99.0].contains(&w.value))
+        || ends_main_program(line)
+        || line.words().any(|w| w.address == "M" && w.value == 99.0)
+}
+
+/// Whether `line` ends the main program (`M2`, `M30`): what follows it
+/// in the file runs only when called.
+pub fn ends_main_program(line: &Line) -> bool {
+    line.words()
+        .any(|w| w.address == "M" && (w.value == 2.0 || w.value == 30.0))
 }
 
 /// Refuses `line` of `file` when it holds a NUL byte (a text NC program

@@ -221,12 +221,14 @@ pub struct ModalState {
     pub skippable: super::block_delete::SkippableCarry,
 }
 
-/// Whether `address` is a Sinumerik axis with its channel index (`X1`,
-/// `Z1`: the form of `G74`/`G75`).
-fn indexed_axis(address: &str) -> bool {
-    address.len() > 1
-        && is_axis_address(&address[..1])
-        && address[1..].bytes().all(|b| b.is_ascii_digit())
+/// Whether `address` is a word of Sinumerik's reference and fixed point
+/// approaches (`G74 Z1=0`, `G75 FP=2 X1=0`): an axis with its channel
+/// index, or the fixed point's number.
+pub fn point_approach_word(address: &str) -> bool {
+    address == "FP"
+        || (address.len() > 1
+            && is_axis_address(&address[..1])
+            && address[1..].bytes().all(|b| b.is_ascii_digit()))
 }
 
 /// Whether `address` is an axis word of G-code (`X Y Z A B C U V W`).
@@ -320,11 +322,7 @@ impl ModalState {
                         // (`G74 Z1=0`, `G75 FP=2 Z1=0`: machine axes with
                         // their channel index): not a cycle, the axes go
                         // where the program's coordinates do not say.
-                        740 | 750
-                            if words
-                                .iter()
-                                .any(|o| indexed_axis(o.address) || o.address == "FP") =>
-                        {
+                        740 | 750 if words.iter().any(|o| point_approach_word(o.address)) => {
                             non_modal = true
                         }
                         810..=890 => self.motion = Motion::Other,
