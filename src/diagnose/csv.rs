@@ -2,8 +2,8 @@
 //! the separator, quoted fields, a decimal comma, and a unit in a column's
 //! name (`formats.md` §2, §2c; `docs/diagnose.md`, Reading a recording).
 //!
-//! - The separator is that of the header line: a comma if it has one, else
-//!   a semicolon, else a tab (the rule of the error tables).
+//! - The separator is the one of `,`, `;` and tab that the header line
+//!   holds most often (a comma where as many).
 //! - A field in double quotes (`"meas_x"`, `"0.125"`) is read without them.
 //! - With a semicolon or tab as the separator, a number may have a decimal
 //!   comma (`-20,00516`: a German-locale export); with commas it cannot.
@@ -11,7 +11,9 @@
 //!   `t (s)`, `X[um]` (and `time` names the time column `t`),
 //!   `B [rad]`, `temp_spindle [°C]`: the values are converted to the units of
 //!   `formats.md` (s, mm, deg, °C). A unit of the wrong kind, or one not
-//!   known, is refused at the column.
+//!   known, is refused at the column. A units row under the header
+//!   (`s,,mm,deg,…`) gives the units of the columns whose names carry none
+//!   ([`units_row`]).
 
 use crate::geometric::table::{angle_unit, length_unit};
 
@@ -25,17 +27,20 @@ pub(crate) struct Dialect {
 }
 
 impl Dialect {
-    /// The dialect of a recording whose header line is `header`.
+    /// The dialect of a recording whose header line is `header`: the
+    /// separator is the one of `,`, `;` and tab that the header holds most
+    /// often (a comma before a semicolon before a tab where as many), so
+    /// that a comma inside a column name of a `;`-separated file (`meas,x`)
+    /// does not make every line one field.
     pub(crate) fn of_header(header: &str) -> Dialect {
-        let sep = if header.contains(',') {
-            b','
-        } else if header.contains(';') {
-            b';'
-        } else if header.contains('\t') {
-            b'\t'
-        } else {
-            b','
-        };
+        let count = |c: u8| header.bytes().filter(|&b| b == c).count();
+        let sep = [b',', b';', b'\t']
+            .into_iter()
+            .fold((b',', 0), |best, c| {
+                let n = count(c);
+                if n > best.1 { (c, n) } else { best }
+            })
+            .0;
         Dialect {
             sep,
             decimal_comma: sep != b',',
@@ -196,6 +201,64 @@ pub(crate) fn factors(fields: &[(usize, &str)]) -> Result<Vec<f64>, (usize, Stri
             })
         })
         .collect()
+}
+
+/// The factors a units row under the header gives (`s,,mm,deg,…`, as
+/// many exports write one): `None` when `fields` is not such a row (its
+/// time field, `t_index`, is a number, or any field is); else each
+/// column's factor from `header` (names with their bracket units, and
+/// their factors `from_names`), or the index of the first field whose
+/// unit is not one of its column's quantity, or disagrees with the unit
+/// in its name, and the message for it.
+#[allow(clippy::type_complexity)]
+pub(crate) fn units_row(
+    dialect: Dialect,
+    header: &[(usize, &str)],
+    from_names: &[f64],
+    fields: &[(usize, &str)],
+    t_index: usize,
+) -> Option<Result<Vec<f64>, (usize, String)>> {
+    let numeric = |f: &str| dialect.number(f).is_some();
+    let t = fields.get(t_index)?.1;
+    if t.is_empty() || numeric(t) || fields.iter().any(|(_, f)| numeric(f)) {
+        return None;
+    }
+    Some(
+        header
+            .iter()
+            .enumerate()
+            .map(|(i, (_, h))| {
+                let unit = fields.get(i).map_or("", |f| f.1);
+                let unit = unit
+                    .trim_start_matches(['[', '('])
+                    .trim_end_matches([']', ')'])
+                    .trim();
+                let (name, in_name) = column_name(h);
+                let q = quantity(&name);
+                if unit.is_empty() || (q == Quantity::Plain && unit == "-") {
+                    return Ok(from_names[i]);
+                }
+                let Some(f) = q.factor(unit) else {
+                    return Err((
+                        i,
+                        format!(
+                            "the line under the header reads as a units row, and `{unit}` is not a unit of column `{h}` (expected {})",
+                            q.unit()
+                        ),
+                    ));
+                };
+                if in_name.is_some() && (f - from_names[i]).abs() > 1e-12 * f.abs() {
+                    return Err((
+                        i,
+                        format!(
+                            "the units row gives `{unit}` for column `{h}`, whose name gives another unit"
+                        ),
+                    ));
+                }
+                Ok(f)
+            })
+            .collect(),
+    )
 }
 
 #[cfg(test)]

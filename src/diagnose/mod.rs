@@ -126,6 +126,10 @@ pub fn diagnose(
         ));
     }
     let machine = ModelMachine::new(chain, errors)?;
+    // Stamps rounded or jittered off the fixed rate the samples were taken
+    // at: the samples are placed at the rate's times.
+    let regular = untidy::regular_clock(rec);
+    let rec = regular.as_ref().map_or(rec, |r| &r.rec);
     let n_all = rec.samples.len();
     let ln_rows = ((3 * n_all) as f64).ln();
     let tidy = untidy::tidy(
@@ -639,6 +643,7 @@ pub fn diagnose(
         series,
         measurement,
         gaps: untidy::gaps_finding(original),
+        time_stamps: regular.as_ref().map(untidy::RegularClock::note),
         samples_used: prep.n,
         // Rounding far below the noise (an export with many decimals) is
         // not worth a line.

@@ -83,11 +83,50 @@ pub struct RecordingReader<R: BufRead> {
     /// The raw bytes of the current line (checked to be UTF-8 into `buf`).
     bytes: Vec<u8>,
     done: bool,
+    /// `buf` holds the first sample's line, read with the header.
+    pending: bool,
 }
 
 pub(crate) fn is_skippable(line: &str) -> bool {
     let t = line.trim();
     t.is_empty() || t.starts_with('#') || t.starts_with("//")
+}
+
+/// Reads the next line of `input` into `buf` (checked to be UTF-8, its
+/// line ending removed; `bytes` its raw bytes) and counts it in
+/// `line_no`; `false` at the end of the input.
+fn next_line(
+    input: &mut impl BufRead,
+    file: &str,
+    line_no: &mut usize,
+    bytes: &mut Vec<u8>,
+    buf: &mut String,
+) -> Result<bool> {
+    bytes.clear();
+    let n = input
+        .read_until(b'\n', bytes)
+        .map_err(|e| Error::io(file.to_string(), e))?;
+    if n == 0 {
+        return Ok(false);
+    }
+    *line_no += 1;
+    buf.clear();
+    buf.push_str(crate::text::line_utf8(bytes, file, *line_no)?);
+    strip_eol(buf);
+    Ok(true)
+}
+
+/// Whether every field of `line` (in its own dialect) is a number.
+fn numbers_only(line: &str) -> bool {
+    let d = Dialect::of_header(line);
+    d.fields(line).iter().all(|(_, f)| d.number(f).is_some())
+}
+
+/// Whether `line` names a time column (`t`, `time`, with or without a
+/// unit): a header.
+fn names_time(line: &str) -> bool {
+    let d = Dialect::of_header(line);
+    d.fields(line).iter().any(|(_, f)| column_name(f).0 == "t")
 }
 
 pub(crate) fn strip_eol(line: &mut String) {
@@ -103,33 +142,58 @@ impl<R: BufRead> RecordingReader<R> {
         let mut line_no = 0;
         let mut buf = String::new();
         let mut bytes = Vec::new();
+        // The last comment line before the header: its number, its text,
+        // and where its content starts after `#` or `//`.
+        let mut last_comment: Option<(usize, String, usize)> = None;
         loop {
-            bytes.clear();
-            let n = input
-                .read_until(b'\n', &mut bytes)
-                .map_err(|e| Error::io(file.to_string(), e))?;
-            if n == 0 {
+            if !next_line(&mut input, file, &mut line_no, &mut bytes, &mut buf)? {
                 return Err(Error::input(
                     Location::new(file, line_no.max(1), 0),
                     "empty recording: expected a header line `t,block,<axes>,meas_x,meas_y,meas_z`",
                 ));
             }
-            line_no += 1;
-            buf.clear();
-            buf.push_str(crate::text::line_utf8(&bytes, file, line_no)?);
-            strip_eol(&mut buf);
             if line_no == 1 && buf.starts_with('\u{feff}') {
                 buf.drain(..3);
             }
             if !is_skippable(&buf) {
                 break;
             }
+            let lead = buf.len() - buf.trim_start().len();
+            let rest = &buf[lead..];
+            if let Some(body) = rest.strip_prefix('#').or_else(|| rest.strip_prefix("//")) {
+                let at = buf.len() - body.trim_start().len();
+                last_comment = Some((line_no, buf.clone(), at));
+            }
         }
-        let header = buf.clone();
+        // A header written as a comment (`# t,block,…`, as NumPy's savetxt
+        // writes one): the first line that is not a comment holds numbers
+        // only, and the comment before it names the columns.
+        let mut pending = false;
+        let (header_line, header, shift) = if numbers_only(&buf) {
+            match last_comment.filter(|(_, c, at)| names_time(&c[*at..])) {
+                Some((n, c, at)) => {
+                    pending = true;
+                    (n, c[at..].to_string(), at)
+                }
+                None => {
+                    return Err(Error::input_with(
+                        Location::new(file, line_no, 1),
+                        "this line holds numbers only: a recording starts with a header line naming its columns (`t,block,<axes>,meas_x,meas_y,meas_z`; a header written as a comment, `# t,block,…`, is read where it is the comment line just before the samples)",
+                        buf.clone(),
+                    ));
+                }
+            }
+        } else {
+            (line_no, buf.clone(), 0)
+        };
         let dialect = Dialect::of_header(&header);
-        let fs = dialect.fields(&header);
-        let loc = |col: usize| Location::new(file, line_no, col);
-        let factor = super::csv::factors(&fs)
+        let fs: Vec<(usize, &str)> = dialect
+            .fields(&header)
+            .into_iter()
+            .map(|(c, f)| (c + shift, f))
+            .collect();
+        let loc = |col: usize| Location::new(file, header_line, col);
+        let mut factor = super::csv::factors(&fs)
             .map_err(|(i, msg)| Error::input_with(loc(fs[i].0), msg, header.clone()))?;
         let mut names: Vec<String> = Vec::new();
         for (col, f) in &fs {
@@ -186,6 +250,28 @@ impl<R: BufRead> RecordingReader<R> {
                 ));
             }
         };
+        // A units row under the header (`s,,mm,deg,…`): read and skipped.
+        if !pending {
+            while next_line(&mut input, file, &mut line_no, &mut bytes, &mut buf)? {
+                if is_skippable(&buf) {
+                    continue;
+                }
+                let row = dialect.fields(&buf);
+                match super::csv::units_row(dialect, &fs, &factor, &row, t) {
+                    Some(Ok(f)) => factor = f,
+                    Some(Err((i, msg))) => {
+                        let col = row.get(i).map_or(1, |f| f.0);
+                        return Err(Error::input_with(
+                            Location::new(file, line_no, col),
+                            msg,
+                            buf.clone(),
+                        ));
+                    }
+                    None => pending = true,
+                }
+                break;
+            }
+        }
         let mut temps = Vec::new();
         let mut temp_names = Vec::new();
         for (i, (_, f)) in fs.iter().enumerate() {
@@ -212,9 +298,10 @@ impl<R: BufRead> RecordingReader<R> {
             axes: axes.to_vec(),
             temp_names,
             last_t: None,
-            buf: String::new(),
-            bytes: Vec::new(),
+            buf,
+            bytes,
             done: false,
+            pending,
         })
     }
 
@@ -338,6 +425,13 @@ impl<R: BufRead> Iterator for RecordingReader<R> {
     fn next(&mut self) -> Option<Self::Item> {
         if self.done {
             return None;
+        }
+        if std::mem::take(&mut self.pending) {
+            let r = self.parse_line();
+            if r.is_err() {
+                self.done = true;
+            }
+            return Some(r);
         }
         loop {
             self.bytes.clear();

@@ -334,6 +334,11 @@ pub struct Report {
     /// longest, samples missing), when it does: reported, not a finding.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gaps: Option<MeasurementFinding>,
+    /// Where the time stamps stray from the regular clock the samples
+    /// were taken at (`time_stamps`: its period, the largest and RMS
+    /// stray), and the clock's times were used: reported, not a finding.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time_stamps: Option<MeasurementFinding>,
     /// Samples the machine effects were fitted on (without outliers and
     /// the ends a clock offset leaves without a command).
     pub samples_used: usize,
@@ -491,6 +496,12 @@ impl Report {
         if let Some(g) = &self.gaps {
             s.push_str(&format!(
                 "  gaps in the recording, not machine physics: {}\n",
+                g.where_.condition
+            ));
+        }
+        if let Some(g) = &self.time_stamps {
+            s.push_str(&format!(
+                "  time stamps off a regular clock, not machine physics: {}\n",
                 g.where_.condition
             ));
         }

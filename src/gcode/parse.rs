@@ -67,11 +67,13 @@ fn fail<O>() -> PResult<'static, O> {
     Err(nom::Err::Error(()))
 }
 
+/// A blank: a space, a tab, or a page layout byte of old listings (a form
+/// feed, a vertical tab), which separates like a space.
 fn is_blank(b: u8) -> bool {
-    b == b' ' || b == b'\t'
+    matches!(b, b' ' | b'\t' | 0x0b | 0x0c)
 }
 
-/// `blank = ( " " | tab ), { " " | tab }`
+/// `blank = ( " " | tab | vt | ff ), { " " | tab | vt | ff }`
 fn blank(i: In) -> PResult<In> {
     take_while1(is_blank).parse_complete(i)
 }
@@ -409,7 +411,7 @@ impl<'a> Builder<'a, '_> {
         while let Some(&first) = rest.first() {
             let before = rest;
             let parsed = match first {
-                b' ' | b'\t' => blank(rest).map(|(r, _)| (r, ItemKind::Space)),
+                b' ' | b'\t' | 0x0b | 0x0c => blank(rest).map(|(r, _)| (r, ItemKind::Space)),
                 b'(' | b';' => comment(rest).map(|(r, _)| (r, ItemKind::Comment)),
                 b'*' => checksum(rest).map(|(r, v)| (r, ItemKind::Checksum(v))),
                 b'o' | b'O' if oword_flow(rest).is_ok() => fail(),

@@ -21,6 +21,19 @@ pub fn block_words<'l>(
                 value: w.value,
                 item: i,
             }),
+            // `TRAORI (1,0,1,0)`: a blank between the call and its
+            // arguments, which the parser reads as a comment.
+            ItemKind::Keyword(k) if k == "TRAORI" && spaced_arguments(line, i).is_some() => {
+                let args = spaced_arguments(line, i).unwrap_or_default();
+                keywords.push((
+                    i,
+                    if args.contains(',') {
+                        "TRAORI(…)"
+                    } else {
+                        "TRAORI"
+                    },
+                ));
+            }
             ItemKind::Keyword(k) => keywords.push((i, k.as_str())),
             ItemKind::BlockDelete => keywords.push((i, "/")),
             ItemKind::Opaque => {
@@ -34,4 +47,25 @@ pub fn block_words<'l>(
             _ => {}
         }
     }
+}
+
+/// The argument list of the keyword at item `i` of `line` where it follows
+/// the keyword after blanks, as Sinumerik allows (`TRAORI (1)`), and the
+/// parser has read it as a comment: its text (with the parentheses) when
+/// it holds numbers only (digits, signs, points, commas and blanks), else
+/// `None` (a comment, `TRAORI (tcp on)`).
+pub fn spaced_arguments(line: &Line, i: usize) -> Option<String> {
+    let next = line.items[i + 1..]
+        .iter()
+        .find(|it| !matches!(it.kind, ItemKind::Space))?;
+    if !matches!(next.kind, ItemKind::Comment) {
+        return None;
+    }
+    let text = String::from_utf8_lossy(line.item_bytes(next));
+    let inner = text.strip_prefix('(')?.strip_suffix(')')?;
+    let numeric = !inner.trim().is_empty()
+        && inner
+            .chars()
+            .all(|c| c.is_ascii_digit() || " \t,.+-".contains(c));
+    numeric.then(|| text.into_owned())
 }

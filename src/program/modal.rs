@@ -462,6 +462,13 @@ impl ModalState {
         }
         if fanuc_tcp_here {
             tcp_offset_items.extend(words.iter().filter(|w| w.address == "H").map(|w| w.item));
+            // A `P` beside the TCP code (`G43.4 P1 H1`: the TCP type on
+            // some controls) goes with it, unless another code of the block
+            // takes a `P` (a dwell, a subprogram call, an extended work
+            // offset `G54.1 P…`).
+            if words.iter().all(|w| p_free(w.address, w.value)) {
+                tcp_offset_items.extend(words.iter().filter(|w| w.address == "P").map(|w| w.item));
+            }
             // Fanuc `G43.5 … Q`: the tool inclined by Q degrees from I J K.
             if let Some(q) = words.iter().find(|w| w.address == "Q") {
                 unfollowed = unfollowed.or(Some((q.item, unfollowed::TCP_INCLINATION.into())));
@@ -907,3 +914,18 @@ impl ModalState {
 
 #[cfg(test)]
 mod tests;
+
+/// A word that leaves a block's `P` to its TCP code: anything but a G or M
+/// code, or one of the codes that take no `P` (motion, plane, units,
+/// distance and feed modes, cancels, and the TCP codes themselves).
+fn p_free(address: &str, value: f64) -> bool {
+    match address {
+        "G" => [
+            0.0, 1.0, 17.0, 18.0, 19.0, 20.0, 21.0, 40.0, 43.4, 43.5, 49.0, 80.0, 90.0, 91.0, 93.0,
+            94.0, 234.0,
+        ]
+        .contains(&value),
+        "M" => false,
+        _ => true,
+    }
+}

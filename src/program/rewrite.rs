@@ -23,6 +23,7 @@ pub fn rewrite(
     let mut run = Run::default();
     let mut pending_space: Option<(usize, usize)> = None;
     let mut swallow_space = false;
+    let mut skip_arguments = false;
     let mut inserted = false;
     let mut next_replaced = replace.iter().copied().peekable();
     for (i, item) in line.items.iter().enumerate() {
@@ -40,6 +41,11 @@ pub fn rewrite(
             continue;
         }
         swallow_space = false;
+        if std::mem::take(&mut skip_arguments) {
+            // The arguments of `TRAORI (1)` and the blank before them.
+            pending_space = None;
+            continue;
+        }
         while next_replaced.next_if(|&r| r < i).is_some() {}
         if next_replaced.next_if_eq(&i).is_some() {
             if !inserted {
@@ -83,6 +89,12 @@ pub fn rewrite(
             Some(TcpCode::SiemensOn(_)) => {
                 run.flush(line, out);
                 out.extend_from_slice(b"TRAFOOF");
+                // `TRAORI (1)`: the arguments after a blank go with it.
+                if matches!(item.kind, ItemKind::Keyword(_))
+                    && super::block_words::spaced_arguments(line, i).is_some()
+                {
+                    skip_arguments = true;
+                }
                 // `TRAORI(1) ; comment` (an opaque item): the call is
                 // replaced, what follows it kept.
                 if matches!(item.kind, ItemKind::Opaque) {

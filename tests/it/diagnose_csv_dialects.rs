@@ -133,3 +133,79 @@ fn wrong_units_and_misread_numbers_are_refused_at_their_column() {
         assert!(e.contains(want), "{e}");
     }
 }
+
+/// Three dialects the thirteenth hunt found refused with a message that
+/// did not name the cause (session 30): a comma inside a column name of a
+/// `;`-separated file (the whole header read as one column: "no `t`
+/// column"), a header written as a comment (`# t,block,…`, as NumPy's
+/// savetxt writes it: "no `t` column" at the first sample), and a units
+/// row under the header ("`s` is not a number"). The comment header and a
+/// units row now read to the same samples as the plain form; the comma
+/// in a name is named as the column it is.
+#[test]
+fn comment_headers_units_rows_and_commas_in_names() {
+    let plain = Recording::parse(PLAIN, "plain.csv", &axes()).unwrap();
+    let mut lines = PLAIN.lines();
+    let header = lines.next().unwrap();
+    let body: String = lines.map(|l| format!("{l}\n")).collect();
+    let commented = format!("# recorded 2026-11-28\n# {header}\n{body}");
+    same(
+        &Recording::parse(&commented, "c.csv", &axes()).unwrap(),
+        &plain,
+        "header as a comment",
+    );
+    // A units row: t in ms, the tip in µm, B in rad; the rest as named.
+    let mut units = format!("{header}\nms,,mm,mm,rad,deg,um,um,um,°C\n");
+    for s in &plain.samples {
+        units.push_str(&format!(
+            "{},{},{},{},{},{},{},{},{},{}\n",
+            s.t * 1e3,
+            s.block.unwrap(),
+            s.q[0],
+            s.q[1],
+            s.q[2].to_radians(),
+            s.q[3],
+            s.meas[0] * 1e3,
+            s.meas[1] * 1e3,
+            s.meas[2] * 1e3,
+            s.temps[0]
+        ));
+    }
+    same(
+        &Recording::parse(&units, "u.csv", &axes()).unwrap(),
+        &plain,
+        "units row",
+    );
+    // A units row with a unit of the wrong kind is refused at its column.
+    let bad = format!("{header}\ns,,mm,mm,deg,deg,deg,mm,mm,C\n{body}");
+    let e = Recording::parse(&bad, "b.csv", &axes())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("b.csv:2:18:") && e.contains("units row") && e.contains("meas_x"),
+        "{e}"
+    );
+    // Numbers only, no header at all: said so.
+    let e = Recording::parse(&body, "n.csv", &axes())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("n.csv:1:1:") && e.contains("numbers only"),
+        "{e}"
+    );
+    // `;`-separated with a comma in a column name: the column is named.
+    let semi = PLAIN
+        .replace(',', ";")
+        .replace('.', ",")
+        .replacen("meas_x", "meas,x", 1);
+    let e = Recording::parse(&semi, "s.csv", &axes())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no `meas_x` column"), "{e}");
+    let fixed = semi.replacen("meas,x", "meas_x", 1);
+    same(
+        &Recording::parse(&fixed, "s.csv", &axes()).unwrap(),
+        &plain,
+        "semicolons",
+    );
+}

@@ -72,11 +72,13 @@ const OWORD_KEYWORDS: &[&str] = &[
 /// (`XNAN`, `Xinf`).
 const NON_FINITE: &[&str] = &["nan", "inf", "infinity"];
 
+/// A blank: a space, a tab, or a page layout byte of old listings (a form
+/// feed, a vertical tab), which separates like a space.
 fn is_blank(b: u8) -> bool {
-    b == b' ' || b == b'\t'
+    matches!(b, b' ' | b'\t' | 0x0b | 0x0c)
 }
 
-/// `blank = ( " " | tab ), { " " | tab }`
+/// `blank = ( " " | tab | vt | ff ), { " " | tab | vt | ff }`
 fn blank(i: In) -> PResult<In> {
     take_while1(is_blank).parse_complete(i)
 }

@@ -10,17 +10,17 @@ use super::resolution::quantum;
 
 /// `rec` with its command columns moved to the machine's clock: each
 /// sample stamped t gets the command of t − `offset_s`, interpolated by a
-/// cubic Hermite spline through the recorded commands (tangents from
-/// central differences; exact for a constant feed and for a constant
-/// acceleration within a block). Samples whose t − offset falls outside
+/// cubic Hermite spline through the recorded commands (three-point
+/// tangents; exact for a constant feed and for a constant acceleration
+/// within a block, at even or uneven sampling). Samples whose t − offset falls outside
 /// the recording are dropped.
 ///
 /// Where a command changes its acceleration between two samples no
 /// interpolant knows where, and the aligned command may be off by up to
-/// about a quarter of the largest third difference nearby times the shift
-/// in samples: that bound is returned per sample and axis (`blur`, mm or
-/// deg), so that samples the alignment cannot place within the noise are
-/// left out of the fits.
+/// about a quarter of the largest third difference nearby (at the local
+/// spacing, `third_difference`) times the shift in samples: that bound
+/// is returned per sample and axis (`blur`, mm or deg), so that samples
+/// the alignment cannot place within the noise are left out of the fits.
 pub fn align(rec: &Recording, offset_s: f64) -> Aligned {
     align_clock(rec, Clock::offset(offset_s))
 }
@@ -91,7 +91,10 @@ pub fn align_clock(rec: &Recording, clock: Clock) -> Aligned {
         if k == 0 || k + 2 >= n {
             return 4e3;
         }
-        let d = (s[k + 2].q[j] - 3.0 * s[k + 1].q[j] + 3.0 * s[k].q[j] - s[k - 1].q[j]).abs();
+        let d = third_difference(
+            [s[k - 1].t, s[k].t, s[k + 1].t, s[k + 2].t],
+            [s[k - 1].q[j], s[k].q[j], s[k + 1].q[j], s[k + 2].q[j]],
+        );
         (d - rounding[j]).max(0.0)
     };
     let times: Vec<f64> = s.iter().map(|x| x.t).collect();
@@ -140,8 +143,23 @@ pub fn align_clock(rec: &Recording, clock: Clock) -> Aligned {
     }
 }
 
+/// The third difference of four samples `y` at the increasing times `t`,
+/// as it would be at their mean spacing h: `6·h³` times the third divided
+/// difference (`y₃ − 3y₂ + 3y₁ − y₀` where the samples are evenly spaced).
+/// Zero for a constant feed and a constant acceleration however unevenly
+/// the samples fall, where the plain difference of unevenly spaced samples
+/// of a steady feed is the feed times the jitter.
+pub(super) fn third_difference(t: [f64; 4], y: [f64; 4]) -> f64 {
+    let d1: [f64; 3] = std::array::from_fn(|i| (y[i + 1] - y[i]) / (t[i + 1] - t[i]));
+    let d2: [f64; 2] = std::array::from_fn(|i| (d1[i + 1] - d1[i]) / (t[i + 2] - t[i]));
+    let d3 = (d2[1] - d2[0]) / (t[3] - t[0]);
+    let h = (t[3] - t[0]) / 3.0;
+    (6.0 * h * h * h * d3).abs()
+}
+
 /// The value at `tt` (within interval `k` of the increasing times `t`) of
-/// the cubic Hermite spline through `y` with central-difference tangents,
+/// the cubic Hermite spline through `y` with three-point tangents (the
+/// slope of the parabola through a sample and its neighbours),
 /// limited so that it never overshoots (Fritsch–Carlson): a tangent is 0
 /// where the data turns or stands still, and at most three times the
 /// smaller neighbouring slope. Exact for a constant feed and a constant
@@ -161,7 +179,10 @@ pub fn monotone_hermite(t: &[f64], y: &[f64], k: usize, tt: f64) -> f64 {
         if a * b <= 0.0 {
             return 0.0;
         }
-        let m = (y[i + 1] - y[i - 1]) / (t[i + 1] - t[i - 1]);
+        // The slope at t[i] of the parabola through the three samples
+        // (the central difference where they are evenly spaced).
+        let (h0, h1) = (t[i] - t[i - 1], t[i + 1] - t[i]);
+        let m = (h1 * a + h0 * b) / (h0 + h1);
         let cap = 3.0 * a.abs().min(b.abs());
         m.clamp(-cap, cap)
     };
@@ -237,29 +258,31 @@ pub fn without(rec: &Recording, drop: &[usize]) -> (Recording, Vec<usize>) {
 mod tests {
     use super::*;
 
+    /// A recording of one axis X commanded `q(t)` at the times `t`.
+    fn one_axis(t: impl Iterator<Item = f64>, q: impl Fn(f64) -> f64) -> Recording {
+        let samples = t
+            .map(|t| Sample {
+                t,
+                block: Some(1),
+                q: vec![q(t)],
+                meas: [0.0; 3],
+                meas_axis: None,
+                temps: Vec::new(),
+            })
+            .collect();
+        Recording {
+            axes: vec!["X".into()],
+            temp_names: Vec::new(),
+            samples,
+        }
+    }
+
     #[test]
     fn alignment_reproduces_a_quadratic_command() {
         // q(t) = 3 + 2t + 0.5t²: the Hermite spline with central tangents
         // is exact for it away from the ends.
         let q = |t: f64| 3.0 + 2.0 * t + 0.5 * t * t;
-        let samples: Vec<Sample> = (0..40)
-            .map(|i| {
-                let t = i as f64 * 0.1;
-                Sample {
-                    t,
-                    block: Some(1),
-                    q: vec![q(t)],
-                    meas: [0.0; 3],
-                    meas_axis: None,
-                    temps: Vec::new(),
-                }
-            })
-            .collect();
-        let rec = Recording {
-            axes: vec!["X".into()],
-            temp_names: Vec::new(),
-            samples,
-        };
+        let rec = one_axis((0..40).map(|i| i as f64 * 0.1), q);
         let al = align(&rec, 0.015);
         let (a, kept) = (&al.rec, &al.kept);
         assert_eq!(
@@ -271,5 +294,34 @@ mod tests {
             let want = q(rec.samples[i].t - 0.015);
             assert!((s.q[0] - want).abs() < 1e-12, "{} vs {want}", s.q[0]);
         }
+    }
+
+    /// Samples at uneven intervals (the stamps correct, the interval
+    /// 0.1 s ± 5 ms): the alignment is exact for a constant acceleration,
+    /// and no sample of it is doubtful. Before, the tangents were central
+    /// differences (off by the acceleration times the jitter) and the
+    /// third differences were taken as if evenly spaced (the feed times
+    /// the jitter), which left most samples of such a recording out.
+    #[test]
+    fn uneven_sampling_aligns_a_quadratic_command_exactly() {
+        let q = |t: f64| 3.0 + 20.0 * t + 5.0 * t * t;
+        let jitter = [0.0, 0.004, -0.005, 0.002, -0.003, 0.005, -0.001];
+        let rec = one_axis(
+            (0..40).map(|i| i as f64 * 0.1 + jitter[i % jitter.len()]),
+            q,
+        );
+        let al = align(&rec, 0.015);
+        // Away from the ends, where the tangents are one-sided.
+        let mut checked = 0;
+        for (m, (s, &i)) in al.rec.samples.iter().zip(&al.kept).enumerate() {
+            if i < 3 || i + 3 >= rec.samples.len() {
+                continue;
+            }
+            let want = q(rec.samples[i].t - 0.015);
+            assert!((s.q[0] - want).abs() < 1e-11, "{} vs {want}", s.q[0]);
+            assert!(al.blur[m] < 1e-9, "sample {i}: blur {}", al.blur[m]);
+            checked += 1;
+        }
+        assert_eq!(checked, 34);
     }
 }

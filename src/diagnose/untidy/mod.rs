@@ -14,7 +14,8 @@
 //! * [`registration`](mod@registration): a constant offset of the
 //!   measured tip, weighed among the machine effects;
 //! * [`wander`](mod@wander): a slow wander of the measured tip with time,
-//!   weighed alike.
+//!   weighed alike;
+//! * [`stamps`]: time stamps rounded or jittered off a regular clock.
 
 // Numerical code: several parallel arrays are indexed by one counter.
 #![allow(clippy::needless_range_loop)]
@@ -26,6 +27,7 @@ pub mod outliers;
 pub mod rate;
 pub mod registration;
 pub mod resolution;
+pub mod stamps;
 pub mod wander;
 
 use std::collections::BTreeMap;
@@ -36,6 +38,7 @@ pub use outliers::{OUTLIER_SIGMAS, departure, gross_outliers};
 pub use rate::{Rate, with_rate};
 pub use registration::{registration_finding, registration_step_finding};
 pub use resolution::{Resolution, quantum};
+pub use stamps::{RegularClock, regular_clock};
 pub use wander::wander_finding;
 
 use super::prepare::{ModelMachine, Prepared, noise_floor, prepare};

@@ -167,6 +167,45 @@ pub fn shared_axes(
     (set.len() >= 2 && 2 * set.len() > informative.len()).then_some(set)
 }
 
+/// [`shared_axes`] where fewer than two axes determine their own lag:
+/// the other moving axes taken together. Axes that move together (X and
+/// Z following a tilting B along a lens profile) leave each one's lag
+/// undetermined, while their common lag is known as well as any single
+/// axis's would be; such a group is one witness of a common delay, beside
+/// each axis that determines its own. The group shares the delay as a
+/// whole or not at all.
+fn shared_with_rest(
+    al: &AxisLags,
+    sigma: f64,
+    informative: &[usize],
+    tolerance: Tolerance,
+) -> Option<Vec<usize>> {
+    let dof = al.lag.len();
+    let rest: Vec<usize> = (0..dof)
+        .filter(|&j| al.g[(j, j)] > 0.0 && !informative.contains(&j))
+        .collect();
+    if rest.len() < 2 {
+        return None;
+    }
+    let mut groups: Vec<Vec<usize>> = informative.iter().map(|&j| vec![j]).collect();
+    groups.push(rest.clone());
+    let (g, h) = grouped(&al.g, &al.h, &groups);
+    let inv = pinv_sym(&g);
+    let beta = &inv * &h;
+    let units: Vec<(f64, f64)> = (0..groups.len())
+        .map(|u| (beta[u], inv[(u, u)].max(0.0).sqrt() * sigma))
+        .collect();
+    let determined: Vec<usize> = (0..groups.len())
+        .filter(|&u| units[u].1 < INFORMATIVE_SD_S)
+        .collect();
+    let set = shared_axes(&units, &determined, tolerance)?;
+    Some(
+        set.iter()
+            .flat_map(|&u| groups[u].iter().copied())
+            .collect(),
+    )
+}
+
 /// A clock offset seen in a residual.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OffsetEstimate {
@@ -233,10 +272,11 @@ pub fn clock_offset(
             let informative: Vec<usize> = (0..dof)
                 .filter(|&j| al.g[(j, j)] > 0.0 && lags[j].1 < INFORMATIVE_SD_S)
                 .collect();
-            if informative.len() < 2 {
-                return None;
+            if informative.len() >= 2 {
+                shared_axes(&lags, &informative, tolerance)?
+            } else {
+                shared_with_rest(&al, sigma, &informative, tolerance)?
             }
-            shared_axes(&lags, &informative, tolerance)?
         }
     };
     // Reduced fit: one common lag for the set, an own lag for every other
