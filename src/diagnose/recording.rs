@@ -426,45 +426,34 @@ impl<R: BufRead> Iterator for RecordingReader<R> {
         if self.done {
             return None;
         }
-        if std::mem::take(&mut self.pending) {
-            let r = self.parse_line();
-            if r.is_err() {
-                self.done = true;
+        // The first sample's line may have been read with the header.
+        if !std::mem::take(&mut self.pending) {
+            loop {
+                match next_line(
+                    &mut self.input,
+                    &self.file,
+                    &mut self.line_no,
+                    &mut self.bytes,
+                    &mut self.buf,
+                ) {
+                    Ok(true) if is_skippable(&self.buf) => continue,
+                    Ok(true) => break,
+                    Ok(false) => {
+                        self.done = true;
+                        return None;
+                    }
+                    Err(e) => {
+                        self.done = true;
+                        return Some(Err(e));
+                    }
+                }
             }
-            return Some(r);
         }
-        loop {
-            self.bytes.clear();
-            match self.input.read_until(b'\n', &mut self.bytes) {
-                Ok(0) => {
-                    self.done = true;
-                    return None;
-                }
-                Ok(_) => {}
-                Err(e) => {
-                    self.done = true;
-                    return Some(Err(Error::io(self.file.clone(), e)));
-                }
-            }
-            self.line_no += 1;
-            self.buf.clear();
-            match crate::text::line_utf8(&self.bytes, &self.file, self.line_no) {
-                Ok(s) => self.buf.push_str(s),
-                Err(e) => {
-                    self.done = true;
-                    return Some(Err(e));
-                }
-            }
-            strip_eol(&mut self.buf);
-            if is_skippable(&self.buf) {
-                continue;
-            }
-            let r = self.parse_line();
-            if r.is_err() {
-                self.done = true;
-            }
-            return Some(r);
+        let r = self.parse_line();
+        if r.is_err() {
+            self.done = true;
         }
+        Some(r)
     }
 }
 

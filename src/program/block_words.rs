@@ -23,17 +23,13 @@ pub fn block_words<'l>(
             }),
             // `TRAORI (1,0,1,0)`: a blank between the call and its
             // arguments, which the parser reads as a comment.
-            ItemKind::Keyword(k) if k == "TRAORI" && spaced_arguments(line, i).is_some() => {
-                let args = spaced_arguments(line, i).unwrap_or_default();
-                keywords.push((
-                    i,
-                    if args.contains(',') {
-                        "TRAORI(…)"
-                    } else {
-                        "TRAORI"
-                    },
-                ));
-            }
+            ItemKind::Keyword(k) if k == "TRAORI" => keywords.push((
+                i,
+                match spaced_arguments(line, i) {
+                    Some(args) if args.contains(',') => "TRAORI(…)",
+                    _ => "TRAORI",
+                },
+            )),
             ItemKind::Keyword(k) => keywords.push((i, k.as_str())),
             ItemKind::BlockDelete => keywords.push((i, "/")),
             ItemKind::Opaque => {

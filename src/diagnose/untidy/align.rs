@@ -80,10 +80,7 @@ pub fn align_clock(rec: &Recording, clock: Clock) -> Aligned {
     // standard deviation is √(20/12)·q for a step q); three of those are
     // not a change of acceleration.
     let rounding: Vec<f64> = (0..dof)
-        .map(|j| {
-            let col: Vec<f64> = s.iter().map(|x| x.q[j]).collect();
-            quantum(&col).map_or(0.0, |q| 3.0 * (20.0f64 / 12.0).sqrt() * q)
-        })
+        .map(|j| rounding_allowance(&s.iter().map(|x| x.q[j]).collect::<Vec<f64>>()))
         .collect();
     // Near the ends the tangents are one-sided and nothing bounds the
     // error: such samples count as doubtful (a bound of 1 m).
@@ -141,6 +138,13 @@ pub fn align_clock(rec: &Recording, clock: Clock) -> Aligned {
         kept,
         blur,
     }
+}
+
+/// What the rounding of a column of values alone can give as a third
+/// difference: three standard deviations of it (√(20/12)·q for a step q,
+/// [`quantum`]); 0 where the values are not rounded.
+pub(super) fn rounding_allowance(values: &[f64]) -> f64 {
+    quantum(values).map_or(0.0, |q| 3.0 * (20.0f64 / 12.0).sqrt() * q)
 }
 
 /// The third difference of four samples `y` at the increasing times `t`,

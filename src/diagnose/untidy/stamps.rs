@@ -16,8 +16,7 @@ use std::collections::BTreeMap;
 
 use super::super::recording::Recording;
 use super::super::report::{MeasurementFinding, Where};
-use super::align::third_difference;
-use super::resolution::quantum;
+use super::align::{rounding_allowance, third_difference};
 
 /// The regular clock is taken when the commands' third differences on it
 /// are at most this fraction of those on the stamps.
@@ -54,17 +53,15 @@ pub fn regular_clock(rec: &Recording) -> Option<RegularClock> {
         return None;
     }
     let t: Vec<f64> = s.iter().map(|x| x.t).collect();
-    let mut dt: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    let mid = dt.len() / 2;
-    let (_, &mut median, _) = dt.select_nth_unstable_by(mid, f64::total_cmp);
+    let median = super::median_interval(rec);
     if !(median > 0.0 && median.is_finite()) {
         return None;
     }
     // The mean step without the gaps: stamps rounded to 1 ms at a 7.5 ms
     // rate step by 7 and 8 ms, and their median is either.
-    let usual: Vec<f64> = dt
-        .iter()
-        .copied()
+    let usual: Vec<f64> = t
+        .windows(2)
+        .map(|w| w[1] - w[0])
         .filter(|d| (0.5 * median..=1.5 * median).contains(d))
         .collect();
     let period0 = usual.iter().sum::<f64>() / usual.len() as f64;
@@ -88,8 +85,12 @@ pub fn regular_clock(rec: &Recording) -> Option<RegularClock> {
     if largest > MAX_STRAY * b || largest <= 1e-9 * scale {
         return None;
     }
-    let on_grid = roughness(rec, &grid)?;
-    let on_stamps = roughness(rec, &t)?;
+    let axes = moving_axes(rec);
+    if axes.is_empty() {
+        return None;
+    }
+    let on_grid = roughness(rec, &axes, &grid);
+    let on_stamps = roughness(rec, &axes, &t);
     if on_grid > SMOOTHER * on_stamps {
         return None;
     }
@@ -121,47 +122,66 @@ fn line_fit(x: &[f64], y: &[f64]) -> Option<(f64, f64)> {
     })
 }
 
-/// How rough the commands of `rec` are on the times `t`: over the axes
-/// that move, the median third difference (at the local spacing, less
-/// what the rounding of the values alone gives) relative to the median
-/// step of that axis. `None` when no axis moves.
-fn roughness(rec: &Recording, t: &[f64]) -> Option<f64> {
+/// An axis whose command moves in at least a quarter of the steps: its
+/// index, its median step (mm or deg) and its values' rounding allowance
+/// ([`rounding_allowance`]).
+struct Moving {
+    j: usize,
+    step: f64,
+    rounding: f64,
+}
+
+/// The axes of `rec` that move ([`Moving`]).
+fn moving_axes(rec: &Recording) -> Vec<Moving> {
+    let n = rec.samples.len();
+    (0..rec.axes.len())
+        .filter_map(|j| {
+            let q: Vec<f64> = rec.samples.iter().map(|x| x.q[j]).collect();
+            let mut steps: Vec<f64> = q
+                .windows(2)
+                .map(|w| (w[1] - w[0]).abs())
+                .filter(|d| *d > 0.0)
+                .collect();
+            (steps.len() >= n / 4 && !steps.is_empty()).then(|| Moving {
+                j,
+                step: median(&mut steps),
+                rounding: rounding_allowance(&q),
+            })
+        })
+        .collect()
+}
+
+/// How rough the commands of the moving `axes` of `rec` are on the times
+/// `t`: the sum over them of the median third difference (at the local
+/// spacing, less what the rounding of the values alone gives) relative to
+/// the axis's median step.
+fn roughness(rec: &Recording, axes: &[Moving], t: &[f64]) -> f64 {
     let s = &rec.samples;
     let n = s.len();
     let mut total = 0.0;
-    let mut moving = 0;
-    for j in 0..rec.axes.len() {
-        let q: Vec<f64> = s.iter().map(|x| x.q[j]).collect();
-        let mut steps: Vec<f64> = q
-            .windows(2)
-            .map(|w| (w[1] - w[0]).abs())
-            .filter(|d| *d > 0.0)
-            .collect();
-        if steps.len() < n / 4 {
-            continue;
-        }
-        let mid = steps.len() / 2;
-        let (_, &mut step, _) = steps.select_nth_unstable_by(mid, f64::total_cmp);
-        let rounding = quantum(&q).map_or(0.0, |r| 3.0 * (20.0f64 / 12.0).sqrt() * r);
+    for m in axes {
+        let q = |k: usize| s[k].q[m.j];
         let mut d3: Vec<f64> = (1..n - 2)
-            .filter(|&k| q[k - 1] != q[k] || q[k] != q[k + 1] || q[k + 1] != q[k + 2])
+            .filter(|&k| q(k - 1) != q(k) || q(k) != q(k + 1) || q(k + 1) != q(k + 2))
             .map(|k| {
                 let d = third_difference(
                     [t[k - 1], t[k], t[k + 1], t[k + 2]],
-                    [q[k - 1], q[k], q[k + 1], q[k + 2]],
+                    [q(k - 1), q(k), q(k + 1), q(k + 2)],
                 );
-                (d - rounding).max(0.0) / step
+                (d - m.rounding).max(0.0) / m.step
             })
             .collect();
-        if d3.is_empty() {
-            continue;
+        if !d3.is_empty() {
+            total += median(&mut d3);
         }
-        let mid = d3.len() / 2;
-        let (_, &mut median, _) = d3.select_nth_unstable_by(mid, f64::total_cmp);
-        total += median;
-        moving += 1;
     }
-    (moving > 0).then_some(total)
+    total
+}
+
+/// The upper median of `v` (not empty); reorders it.
+fn median(v: &mut [f64]) -> f64 {
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 impl RegularClock {
