@@ -43,6 +43,7 @@ use crate::error::{Error, Location};
 
 mod arc;
 mod cycle;
+mod insert;
 mod lower;
 mod state;
 mod statement;
@@ -133,8 +134,10 @@ pub enum ClStatement {
     Comment(String),
     /// `FINI` or `END`: end of the program.
     End,
-    /// A literal G-code block to write as it is (made by [`lower`], never
-    /// by the reader): `G41 D1`, `T3 M6`, `G4 P0.5`, ...
+    /// A literal G-code block to write as it is: made by [`lower`]
+    /// (`G41 D1`, `T3 M6`, `G4 P0.5`, ...), or the NC code of an
+    /// `INSERT/` that only switches the spindle or coolant, stops or ends
+    /// (`M8`, `S1200 M3`; `cl/insert.rs`).
     Block(String),
     /// Cutter compensation (made by [`lower`], never by the reader):
     /// `CUTCOM/LEFT|RIGHT` (`on`) or `CUTCOM/OFF`, with the block that

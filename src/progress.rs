@@ -75,3 +75,33 @@ impl Drop for RunProgress {
         self.finish();
     }
 }
+
+/// A spinner with the elapsed time on standard error while a run without
+/// a byte count works (`diagnose`'s searches take minutes on a long
+/// recording): only where standard error is a terminal and LinuxCNC's
+/// progress protocol is not in use; removed when dropped.
+pub struct Spinner(Option<ProgressBar>);
+
+impl Spinner {
+    /// Starts the spinner with `what` beside it.
+    pub fn start(what: &str) -> Self {
+        let filter_on = std::env::var_os("AXIS_PROGRESS_BAR").is_some();
+        Spinner((!filter_on && std::io::stderr().is_terminal()).then(|| {
+            let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr()).with_style(
+                ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
+                    .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+            );
+            bar.set_message(what.to_string());
+            bar.enable_steady_tick(std::time::Duration::from_millis(200));
+            bar
+        }))
+    }
+}
+
+impl Drop for Spinner {
+    fn drop(&mut self) {
+        if let Some(bar) = self.0.take() {
+            bar.finish_and_clear();
+        }
+    }
+}

@@ -49,6 +49,21 @@ pub(super) fn parse_statement(text: &[u8]) -> Result<ClStatement, StatementError
     let first_raw = major_word(text).map(|(_, w)| w).unwrap_or_default();
     let first_known = known_major(first_raw);
     let after_first = trim(&text[first_raw.len()..]);
+    if first_known == Some("INSERT") {
+        let slash = usize::from(after_first.first() == Some(&b'/'));
+        let body = String::from_utf8_lossy(&after_first[slash..]);
+        let at = after_first.as_ptr() as usize - text.as_ptr() as usize + slash;
+        match super::insert::inserted(&body) {
+            Ok(super::insert::Inserted::Code(block)) => return Ok(ClStatement::Block(block)),
+            Ok(super::insert::Inserted::Text) => {}
+            Err((offset, message)) => {
+                return Err(StatementError {
+                    offset: at + offset,
+                    message,
+                });
+            }
+        }
+    }
     if let Some(word) = first_known.filter(|w| TEXT_MAJORS.contains(w)) {
         return Ok(ClStatement::Other {
             major: word.to_string(),

@@ -541,7 +541,12 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
         noise_floor_mm: a.noise_floor,
         ..DiagOptions::default()
     };
+    let spinner = crate::progress::Spinner::start(&format!(
+        "diagnose: {} samples of {rec_name}",
+        rec.samples.len()
+    ));
     let report = run_diagnose(&machine.chain, model.as_ref(), &rec, &opts).map_err(named)?;
+    drop(spinner);
     if let Some(svg) = &a.svg {
         let text = report.to_svg()?;
         write_atomically(Some(svg), |w| {
@@ -570,18 +575,13 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
 /// Whether the recording at `path` is a joint-feedback trace (formats.md
 /// §2b): its header has an `fb_` column and no `meas_x`.
 fn is_feedback_file(path: &std::path::Path) -> Result<bool> {
-    use std::io::BufRead;
     let name = path.display().to_string();
     crate::text::check_not_dir(path)?;
     let f = std::fs::File::open(path).map_err(|e| Error::io(name.clone(), e))?;
-    for line in std::io::BufReader::new(f).split(b'\n') {
-        let line = line.map_err(|e| Error::io(name.clone(), e))?;
-        let text = String::from_utf8_lossy(&line);
-        if let Some(h) = crate::diagnose::feedback::first_header(&text) {
-            return Ok(crate::diagnose::feedback::is_feedback_header(h));
-        }
-    }
-    Ok(false)
+    Ok(
+        crate::diagnose::feedback::header_line(std::io::BufReader::new(f), &name)
+            .is_some_and(|h| crate::diagnose::feedback::is_feedback_header(&h)),
+    )
 }
 
 /// `kinpost diagnose` on a joint-feedback trace.

@@ -205,7 +205,8 @@ pub(crate) fn factors(fields: &[(usize, &str)]) -> Result<Vec<f64>, (usize, Stri
 
 /// The factors a units row under the header gives (`s,,mm,deg,…`, as
 /// many exports write one): `None` when `fields` is not such a row (its
-/// time field, `t_index`, is a number, or any field is); else each
+/// time field, `t_index`, is empty, or any field is a number; without a
+/// time column, every field is empty); else each
 /// column's factor from `header` (names with their bracket units, and
 /// their factors `from_names`), or the index of the first field whose
 /// unit is not one of its column's quantity, or disagrees with the unit
@@ -216,11 +217,14 @@ pub(crate) fn units_row(
     header: &[(usize, &str)],
     from_names: &[f64],
     fields: &[(usize, &str)],
-    t_index: usize,
+    t_index: Option<usize>,
 ) -> Option<Result<Vec<f64>, (usize, String)>> {
     let numeric = |f: &str| dialect.number(f).is_some();
-    let t = fields.get(t_index)?.1;
-    if t.is_empty() || numeric(t) || fields.iter().any(|(_, f)| numeric(f)) {
+    let unit_of_time = match t_index {
+        Some(t) => !fields.get(t)?.1.is_empty(),
+        None => fields.iter().any(|(_, f)| !f.is_empty()),
+    };
+    if !unit_of_time || fields.iter().any(|(_, f)| numeric(f)) {
         return None;
     }
     Some(

@@ -25,6 +25,7 @@ use crate::machine::chain::JointKind;
 
 mod effect;
 mod search;
+mod spectrum;
 
 pub use effect::{Fitted, nl_derivative, onset_derivative, parameter_sd, term_effect};
 pub use search::{

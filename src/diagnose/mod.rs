@@ -21,6 +21,7 @@
 #![allow(clippy::needless_range_loop)]
 
 mod csv;
+mod csv_lines;
 mod dynamic;
 pub mod feedback;
 pub mod fit;
@@ -376,6 +377,7 @@ pub fn diagnose(
             let parameters: BTreeMap<String, f64> = params.iter().cloned().collect();
             let uncertainty: BTreeMap<String, f64> = params
                 .iter()
+                .filter(|(n, _)| !Effect::is_chosen_parameter(n))
                 .zip(&f.sd)
                 .map(|((n, _), s)| (n.clone(), *s))
                 .collect();

@@ -23,6 +23,7 @@ use std::io::{BufRead, Write};
 use std::path::Path;
 
 use super::csv::{Dialect, column_name};
+use super::csv_lines::{Lines, read_header, read_units_row};
 use crate::error::{Error, Location, Result};
 
 /// One recorded sample.
@@ -72,126 +73,25 @@ struct Layout {
 
 /// Streaming reader: yields one [`Sample`] per data line.
 pub struct RecordingReader<R: BufRead> {
-    input: R,
-    file: String,
-    line_no: usize,
+    lines: Lines<R>,
     layout: Layout,
     axes: Vec<String>,
     temp_names: Vec<String>,
     last_t: Option<f64>,
-    buf: String,
-    /// The raw bytes of the current line (checked to be UTF-8 into `buf`).
-    bytes: Vec<u8>,
     done: bool,
-    /// `buf` holds the first sample's line, read with the header.
+    /// The current line is the first sample's, read with the header.
     pending: bool,
-}
-
-pub(crate) fn is_skippable(line: &str) -> bool {
-    let t = line.trim();
-    t.is_empty() || t.starts_with('#') || t.starts_with("//")
-}
-
-/// Reads the next line of `input` into `buf` (checked to be UTF-8, its
-/// line ending removed; `bytes` its raw bytes) and counts it in
-/// `line_no`; `false` at the end of the input.
-fn next_line(
-    input: &mut impl BufRead,
-    file: &str,
-    line_no: &mut usize,
-    bytes: &mut Vec<u8>,
-    buf: &mut String,
-) -> Result<bool> {
-    bytes.clear();
-    let n = input
-        .read_until(b'\n', bytes)
-        .map_err(|e| Error::io(file.to_string(), e))?;
-    if n == 0 {
-        return Ok(false);
-    }
-    *line_no += 1;
-    buf.clear();
-    buf.push_str(crate::text::line_utf8(bytes, file, *line_no)?);
-    strip_eol(buf);
-    Ok(true)
-}
-
-/// Whether every field of `line` (in its own dialect) is a number.
-fn numbers_only(line: &str) -> bool {
-    let d = Dialect::of_header(line);
-    d.fields(line).iter().all(|(_, f)| d.number(f).is_some())
-}
-
-/// Whether `line` names a time column (`t`, `time`, with or without a
-/// unit): a header.
-fn names_time(line: &str) -> bool {
-    let d = Dialect::of_header(line);
-    d.fields(line).iter().any(|(_, f)| column_name(f).0 == "t")
-}
-
-pub(crate) fn strip_eol(line: &mut String) {
-    while line.ends_with(['\n', '\r']) {
-        line.pop();
-    }
 }
 
 impl<R: BufRead> RecordingReader<R> {
     /// Reads the header of a recording for a machine with joints `axes`
     /// (chain order). Fails if a required column is missing.
-    pub fn new(mut input: R, file: &str, axes: &[String]) -> Result<Self> {
-        let mut line_no = 0;
-        let mut buf = String::new();
-        let mut bytes = Vec::new();
-        // The last comment line before the header: its number, its text,
-        // and where its content starts after `#` or `//`.
-        let mut last_comment: Option<(usize, String, usize)> = None;
-        loop {
-            if !next_line(&mut input, file, &mut line_no, &mut bytes, &mut buf)? {
-                return Err(Error::input(
-                    Location::new(file, line_no.max(1), 0),
-                    "empty recording: expected a header line `t,block,<axes>,meas_x,meas_y,meas_z`",
-                ));
-            }
-            if line_no == 1 && buf.starts_with('\u{feff}') {
-                buf.drain(..3);
-            }
-            if !is_skippable(&buf) {
-                break;
-            }
-            let lead = buf.len() - buf.trim_start().len();
-            let rest = &buf[lead..];
-            if let Some(body) = rest.strip_prefix('#').or_else(|| rest.strip_prefix("//")) {
-                let at = buf.len() - body.trim_start().len();
-                last_comment = Some((line_no, buf.clone(), at));
-            }
-        }
-        // A header written as a comment (`# t,block,…`, as NumPy's savetxt
-        // writes one): the first line that is not a comment holds numbers
-        // only, and the comment before it names the columns.
-        let mut pending = false;
-        let (header_line, header, shift) = if numbers_only(&buf) {
-            match last_comment.filter(|(_, c, at)| names_time(&c[*at..])) {
-                Some((n, c, at)) => {
-                    pending = true;
-                    (n, c[at..].to_string(), at)
-                }
-                None => {
-                    return Err(Error::input_with(
-                        Location::new(file, line_no, 1),
-                        "this line holds numbers only: a recording starts with a header line naming its columns (`t,block,<axes>,meas_x,meas_y,meas_z`; a header written as a comment, `# t,block,…`, is read where it is the comment line just before the samples)",
-                        buf.clone(),
-                    ));
-                }
-            }
-        } else {
-            (line_no, buf.clone(), 0)
-        };
+    pub fn new(input: R, file: &str, axes: &[String]) -> Result<Self> {
+        let mut lines = Lines::new(input, file);
+        let head = read_header(&mut lines, "t,block,<axes>,meas_x,meas_y,meas_z")?;
+        let (header_line, header) = (head.line, head.text.clone());
         let dialect = Dialect::of_header(&header);
-        let fs: Vec<(usize, &str)> = dialect
-            .fields(&header)
-            .into_iter()
-            .map(|(c, f)| (c + shift, f))
-            .collect();
+        let fs = head.fields(dialect);
         let loc = |col: usize| Location::new(file, header_line, col);
         let mut factor = super::csv::factors(&fs)
             .map_err(|(i, msg)| Error::input_with(loc(fs[i].0), msg, header.clone()))?;
@@ -251,27 +151,7 @@ impl<R: BufRead> RecordingReader<R> {
             }
         };
         // A units row under the header (`s,,mm,deg,…`): read and skipped.
-        if !pending {
-            while next_line(&mut input, file, &mut line_no, &mut bytes, &mut buf)? {
-                if is_skippable(&buf) {
-                    continue;
-                }
-                let row = dialect.fields(&buf);
-                match super::csv::units_row(dialect, &fs, &factor, &row, t) {
-                    Some(Ok(f)) => factor = f,
-                    Some(Err((i, msg))) => {
-                        let col = row.get(i).map_or(1, |f| f.0);
-                        return Err(Error::input_with(
-                            Location::new(file, line_no, col),
-                            msg,
-                            buf.clone(),
-                        ));
-                    }
-                    None => pending = true,
-                }
-                break;
-            }
-        }
+        let pending = read_units_row(&mut lines, &head, dialect, &mut factor, Some(t))?;
         let mut temps = Vec::new();
         let mut temp_names = Vec::new();
         for (i, (_, f)) in fs.iter().enumerate() {
@@ -281,9 +161,7 @@ impl<R: BufRead> RecordingReader<R> {
             }
         }
         Ok(RecordingReader {
-            input,
-            file: file.to_string(),
-            line_no,
+            lines,
             layout: Layout {
                 dialect,
                 factor,
@@ -298,8 +176,6 @@ impl<R: BufRead> RecordingReader<R> {
             axes: axes.to_vec(),
             temp_names,
             last_t: None,
-            buf,
-            bytes,
             done: false,
             pending,
         })
@@ -316,9 +192,9 @@ impl<R: BufRead> RecordingReader<R> {
     }
 
     fn parse_line(&mut self) -> Result<Sample> {
-        let line = self.buf.as_str();
+        let line = self.lines.buf.as_str();
         let fs = self.layout.dialect.fields(line);
-        let loc = |col: usize| Location::new(self.file.clone(), self.line_no, col);
+        let loc = |col: usize| Location::new(self.lines.file.clone(), self.lines.line_no, col);
         if fs.len() < self.layout.n_fields {
             let col = line.len() + 1;
             return Err(Error::input_with(
@@ -428,24 +304,15 @@ impl<R: BufRead> Iterator for RecordingReader<R> {
         }
         // The first sample's line may have been read with the header.
         if !std::mem::take(&mut self.pending) {
-            loop {
-                match next_line(
-                    &mut self.input,
-                    &self.file,
-                    &mut self.line_no,
-                    &mut self.bytes,
-                    &mut self.buf,
-                ) {
-                    Ok(true) if is_skippable(&self.buf) => continue,
-                    Ok(true) => break,
-                    Ok(false) => {
-                        self.done = true;
-                        return None;
-                    }
-                    Err(e) => {
-                        self.done = true;
-                        return Some(Err(e));
-                    }
+            match self.lines.next_data() {
+                Ok(true) => {}
+                Ok(false) => {
+                    self.done = true;
+                    return None;
+                }
+                Err(e) => {
+                    self.done = true;
+                    return Some(Err(e));
                 }
             }
         }

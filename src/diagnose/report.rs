@@ -378,6 +378,9 @@ fn param_text(name: &str, v: f64, sd: Option<f64>) -> String {
     if name == "fraction" {
         return format!("fraction = {:.3} %", v * 100.0);
     }
+    if name == "basis" {
+        return format!("basis = {v:.0} functions");
+    }
     let (base, unit, scale, dec) = if let Some(b) = name.strip_suffix("_mm") {
         (b, "µm", 1000.0, 3)
     } else if let Some(b) = name.strip_suffix("_deg") {
@@ -395,8 +398,8 @@ fn param_text(name: &str, v: f64, sd: Option<f64>) -> String {
     } else {
         (name, "", 1.0, 6)
     };
-    // Periods and time constants are not small.
-    let (unit, scale, dec) = if base == "period" && unit == "µm" {
+    // Periods and the ends of a range of positions are not small.
+    let (unit, scale, dec) = if matches!(base, "period" | "from" | "to") && unit == "µm" {
         ("mm", 1.0, 3)
     } else {
         (unit, scale, dec)

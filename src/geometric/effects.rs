@@ -331,6 +331,24 @@ impl Effect {
         }
     }
 
+    /// Whether the parameter `name` of [`Effect::parameters`] was chosen
+    /// rather than fitted (it has no uncertainty): the range an error
+    /// motion or a wander was fitted over, its number of basis functions
+    /// and its knot spacing.
+    pub fn is_chosen_parameter(name: &str) -> bool {
+        matches!(
+            name,
+            "from_deg"
+                | "to_deg"
+                | "from_mm"
+                | "to_mm"
+                | "basis"
+                | "from_s"
+                | "to_s"
+                | "knot_spacing_s"
+        )
+    }
+
     /// Parameters with unit-suffixed names (`formats.md` §4); `rotary` says
     /// whether the axis is rotary (`_deg` instead of `_mm`).
     pub fn parameters(&self, rotary: bool) -> Vec<(String, f64)> {

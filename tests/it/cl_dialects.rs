@@ -46,7 +46,7 @@ const FILES: &[(&str, Counts, Counts, &str)] = &[
         "neutral.cl",
         (1, 3),
         (1, 3),
-        "8 CL statements that do not move the tool kept as comments (CUTTER 1, INSERT 1, MULTAX 1, PARTNO 1, PPRINT 4)",
+        "7 CL statements that do not move the tool kept as comments (CUTTER 1, MULTAX 1, PARTNO 1, PPRINT 4)",
     ),
     (
         "camplete.apt",

@@ -332,6 +332,93 @@ fn a_joint_feedback_trace_without_time_is_diagnosed_at_its_sample_rate() {
     assert_eq!(v["findings"].as_array().unwrap().len(), 1, "{v}");
 }
 
+/// A joint-feedback trace whose header is written as a comment
+/// (`# t,block,…`, as NumPy's savetxt writes it), or with a units row
+/// under it (feedback of the linear axes in µm): before, the first was
+/// taken for a tool-tip recording ("the header has no `meas_x` column")
+/// and the second refused ("`s` is not a finite number"). Both give the
+/// plain trace's findings.
+#[test]
+fn a_joint_feedback_trace_with_a_comment_header_or_a_units_row_is_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = dir.path().join("fb.csv");
+    kinpost(&[
+        "simulate",
+        "--machine",
+        "zhao2022-xzbc",
+        "--program",
+        &repo_file("fixtures/programs/zhao2022-xzbc-exercise.nc"),
+        "--feedback",
+        "--sample-interval",
+        "0.01",
+        "--noise",
+        "0.0005",
+        "--inject",
+        "servo_lag:X=0.004",
+        "-o",
+        trace.to_str().unwrap(),
+    ]);
+    let findings = |path: &Path| -> serde_json::Value {
+        let v: serde_json::Value = serde_json::from_str(&kinpost(&[
+            "diagnose",
+            "--machine",
+            "zhao2022-xzbc",
+            "--recording",
+            path.to_str().unwrap(),
+            "--json",
+        ]))
+        .unwrap();
+        assert_eq!(v["recording"], "joint_feedback", "{}", path.display());
+        v["findings"].clone()
+    };
+    let plain = findings(&trace);
+    assert_eq!(plain[0]["effect"], "servo_lag");
+    let text = std::fs::read_to_string(&trace).unwrap();
+    let (header, body) = text.split_once('\n').unwrap();
+    let commented = dir.path().join("commented.csv");
+    std::fs::write(&commented, format!("# simulated\n# {header}\n{body}")).unwrap();
+    assert_eq!(findings(&commented), plain);
+    // The units row: s, no unit for the block, mm and deg for the
+    // commands, µm for the linear axes' feedback (its values × 1000).
+    let names: Vec<&str> = header.split(',').collect();
+    let unit = |n: &str| match n {
+        "t" => "s",
+        "block" => "",
+        "fb_X" | "fb_Z" => "um",
+        "X" | "Z" => "mm",
+        _ => "deg",
+    };
+    let mut units = format!(
+        "{header}\n{}\n",
+        names.iter().map(|n| unit(n)).collect::<Vec<_>>().join(",")
+    );
+    for line in body.lines() {
+        let fields: Vec<String> = line
+            .split(',')
+            .zip(&names)
+            .map(|(f, n)| {
+                if unit(n) == "um" {
+                    format!("{:.4}", f.parse::<f64>().unwrap() * 1e3)
+                } else {
+                    f.to_string()
+                }
+            })
+            .collect();
+        units.push_str(&fields.join(","));
+        units.push('\n');
+    }
+    let with_units = dir.path().join("units.csv");
+    std::fs::write(&with_units, units).unwrap();
+    let found = findings(&with_units);
+    assert_eq!(found.as_array().unwrap().len(), 1, "{found}");
+    assert_eq!(found[0]["effect"], "servo_lag");
+    let tau = |f: &serde_json::Value| f[0]["parameters"]["tau_s"].as_f64().unwrap();
+    assert!(
+        (tau(&found) - tau(&plain)).abs() < 1e-6,
+        "{found} against {plain}"
+    );
+}
+
 /// `diagnose --svg` on a joint-feedback trace draws one panel per axis of
 /// `fb − command` before and after the fit (before: "--svg ignored").
 #[test]

@@ -130,6 +130,24 @@ fn case_with(m: Machine, seed: u64, spec: &str, extra: Option<&str>, rot: bool) 
     else {
         return Some(format!("seed {seed}: no error motion: {names:?}"));
     };
+    // Every fitted parameter carries its own uncertainty, and the range
+    // and basis, chosen rather than fitted, none (before: a rotary axis's
+    // `from_deg`/`to_deg` took the first two coefficients' uncertainties,
+    // each coefficient the one two places on, the last two none).
+    for f in r.findings.iter().filter(|f| f.effect == "error_motion") {
+        let fitted: Vec<&String> = f
+            .parameters
+            .keys()
+            .filter(|k| !Effect::is_chosen_parameter(k))
+            .collect();
+        let with_sd: Vec<&String> = f.uncertainty.keys().collect();
+        if fitted != with_sd || f.uncertainty.values().any(|s| !(s.is_finite() && *s > 0.0)) {
+            return Some(format!(
+                "seed {seed}: uncertainties {:?} of parameters {fitted:?}",
+                f.uncertainty
+            ));
+        }
+    }
     let want = truth_peak_over(&truth_effect, arc, rot);
     if ((found - want) / want).abs() > 0.25 {
         return Some(format!(

@@ -23,7 +23,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::{DMatrix, DVector};
 
-pub use recording::{FeedbackRecording, first_header, is_feedback_header};
+pub use recording::{FeedbackRecording, header_line, is_feedback_header};
 pub use report::{AxisSummary, FeedbackReport, JointFinding};
 pub use simulate::{FeedbackRow, FeedbackSimOptions, FeedbackSimulator, simulate_feedback};
 

@@ -6,7 +6,7 @@
 use std::io::{BufRead, Write};
 
 use super::super::csv::{Dialect, column_name, factors};
-use super::super::recording::{is_skippable, strip_eol};
+use super::super::csv_lines::{Lines, read_header, read_units_row};
 use crate::error::{Error, Location, Result};
 
 /// A joint-feedback recording: per traced axis, command and feedback.
@@ -39,11 +39,13 @@ pub fn is_feedback_header(header: &str) -> bool {
     names.iter().any(|n| n.starts_with("fb_")) && !names.iter().any(|n| n == "meas_x")
 }
 
-/// The first line that is not blank or a comment, BOM removed.
-pub fn first_header(text: &str) -> Option<&str> {
-    text.lines()
-        .map(|l| l.trim_start_matches('\u{feff}'))
-        .find(|l| !is_skippable(l))
+/// The header of the recording read from `input` (a header written as a
+/// comment included); `None` where none is found (the recording's reader
+/// then says why).
+pub fn header_line<R: BufRead>(input: R, file: &str) -> Option<String> {
+    read_header(&mut Lines::new(input, file), "")
+        .ok()
+        .map(|h| h.text)
 }
 
 impl FeedbackRecording {
@@ -57,33 +59,14 @@ impl FeedbackRecording {
         rotary: &[bool],
         sample_rate_hz: Option<f64>,
     ) -> Result<FeedbackRecording> {
-        let mut lines = input.split(b'\n');
-        let mut line_no = 0usize;
-        let mut header = String::new();
-        for raw in lines.by_ref() {
-            let raw = raw.map_err(|e| Error::io(file.to_string(), e))?;
-            line_no += 1;
-            header = crate::text::line_utf8(&raw, file, line_no)?.to_string();
-            strip_eol(&mut header);
-            if line_no == 1 && header.starts_with('\u{feff}') {
-                header.drain(..3);
-            }
-            if !is_skippable(&header) {
-                break;
-            }
-            header.clear();
-        }
-        if header.is_empty() {
-            return Err(Error::input(
-                Location::new(file, line_no.max(1), 0),
-                "empty recording: expected a header line `t,block,<axes>,fb_<axis>,…`",
-            ));
-        }
+        let mut lines = Lines::new(input, file);
+        let head = read_header(&mut lines, "t,block,<axes>,fb_<axis>,…")?;
+        let (line_no, header) = (head.line, head.text.clone());
         let dialect = Dialect::of_header(&header);
-        let hf = dialect.fields(&header);
+        let hf = head.fields(dialect);
         let names: Vec<String> = hf.iter().map(|(_, f)| column_name(f).0).collect();
         let hloc = |col: usize| Location::new(file, line_no, col);
-        let factor = factors(&hf)
+        let mut factor = factors(&hf)
             .map_err(|(i, msg)| Error::input_with(hloc(hf[i].0), msg, header.clone()))?;
         let find = |n: &str| names.iter().position(|c| c == n);
         let mut traced: Vec<(usize, usize, usize)> = Vec::new(); // (joint, cmd col, fb col)
@@ -160,16 +143,12 @@ impl FeedbackRecording {
             time_from_rate: rate.is_some(),
             ..Default::default()
         };
-        for raw in lines {
-            let raw = raw.map_err(|e| Error::io(file.to_string(), e))?;
-            line_no += 1;
-            let mut line = crate::text::line_utf8(&raw, file, line_no)?.to_string();
-            strip_eol(&mut line);
-            if is_skippable(&line) {
-                continue;
-            }
+        // A units row under the header (`s,,mm,deg,…`): read and skipped.
+        let mut pending = read_units_row(&mut lines, &head, dialect, &mut factor, t_col)?;
+        while std::mem::take(&mut pending) || lines.next_data()? {
+            let line = lines.buf.clone();
             let fs = dialect.fields(&line);
-            let loc = |col: usize| Location::new(file, line_no, col);
+            let loc = |col: usize| Location::new(file, lines.line_no, col);
             if fs.len() < hf.len() {
                 return Err(Error::input_with(
                     loc(line.len() + 1),

@@ -110,8 +110,9 @@ pub fn term_effect(prep: &Prepared, term: &Term, beta: &[f64]) -> Effect {
     }
 }
 
-/// Standard deviations of the reported parameters (in the order of
-/// [`Effect::parameters`]) from the covariance of `[β…, nl]`.
+/// Standard deviations of the fitted parameters (in the order of
+/// [`Effect::parameters`], those chosen rather than fitted left out:
+/// [`Effect::is_chosen_parameter`]) from the covariance of `[β…, nl]`.
 pub fn parameter_sd(prep: &Prepared, term: &Term, beta: &[f64], cov: &DMatrix<f64>) -> Vec<f64> {
     let sd = |k: usize| cov[(k, k)].max(0.0).sqrt();
     match term.family {
@@ -163,9 +164,6 @@ pub fn parameter_sd(prep: &Prepared, term: &Term, beta: &[f64], cov: &DMatrix<f6
             if mask & !TRANSLATIONS != 0 {
                 v.push(peak(true));
             }
-            if matches!(term.family, Family::LinearMotion(..)) {
-                v.extend([0.0; 3]);
-            }
             v.extend((0..n).map(scaled));
             v
         }
@@ -179,7 +177,7 @@ pub fn parameter_sd(prep: &Prepared, term: &Term, beta: &[f64], cov: &DMatrix<f6
                     .fold(0.0, f64::max)
                     * std::f64::consts::SQRT_2
             };
-            vec![coord(0), coord(1), coord(2), 0.0, 0.0, 0.0]
+            vec![coord(0), coord(1), coord(2)]
         }
         _ => vec![sd(0)],
     }

@@ -180,7 +180,7 @@ pub fn search_family(
             let df = 1.0 / (2.5 * range);
             let x: Vec<f64> = (0..prep.n).map(|i| prep.qj(i, j)).collect();
             let (f, d, k, pen, grid) =
-                periodic_search(prep, sel, ctx, fam, j, &x, (f_lo, f_hi), df, 250)?;
+                periodic_search(prep, sel, ctx, fam, j, &x, None, (f_lo, f_hi), df, 250)?;
             let penalty = (k_lin + 1.0) * ctx.ln_n + 2.0 * (grid as f64).ln() + pen;
             Some(Candidate {
                 term: Term {
@@ -210,6 +210,7 @@ pub fn search_family(
                 return None;
             }
             let df = 1.0 / (2.5 * span);
+            let clock = super::spectrum::regular_clock(&prep.t, dts[mid]);
             let (f, d, k, pen, grid) = periodic_search(
                 prep,
                 sel,
@@ -217,6 +218,7 @@ pub fn search_family(
                 fam,
                 j,
                 &prep.t,
+                clock.as_ref(),
                 (f_lo, f_hi),
                 df,
                 VIBRATION_GRID,
@@ -296,14 +298,17 @@ pub fn search_family(
 /// Lowest frequency searched for a vibration, Hz.
 pub const MIN_VIBRATION_HZ: f64 = 0.2;
 
-/// Grid size cap of the vibration frequency search.
+/// Grid size cap of the vibration frequency search where the samples are
+/// not on a regular clock (on one, the scan by FFT takes every frequency).
 pub const VIBRATION_GRID: usize = 20_000;
 
 /// The frequency search of a periodic family (cyclic in a position,
 /// vibration in time): sinusoid columns `J_j·[sin 2πf·x, cos 2πf·x]` scored
 /// on a uniform frequency grid over `band` with spacing `df` (at most
-/// `max_grid` values), refined by golden section, then the onset profiled.
-/// Returns (frequency, ΔRSS, onset index, onset penalty, grid size).
+/// `max_grid` values; where `x` lies on the regular `clock`, every
+/// frequency of the grid, scored by FFT), refined by golden section, then
+/// the onset profiled. Returns (frequency, ΔRSS, onset index, onset
+/// penalty, grid size).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn periodic_search(
     prep: &Prepared,
@@ -312,14 +317,13 @@ pub(super) fn periodic_search(
     fam: Family,
     j: usize,
     x: &[f64],
+    clock: Option<&super::spectrum::Clock>,
     band: (f64, f64),
     df: f64,
     max_grid: usize,
 ) -> Option<(f64, f64, usize, f64, usize)> {
     let (f_lo, f_hi) = band;
     let onsets = &prep.onsets;
-    let grid = (((f_hi - f_lo) / df).ceil() as usize).clamp(2, max_grid);
-    let step = (f_hi - f_lo) / (grid - 1) as f64;
     // Per-sample projections, so that a frequency costs one pass:
     // columns J_j·[sin θ, cos θ], θ = 2π f x (x a position or time).
     let ks = sel.cols.k;
@@ -380,6 +384,59 @@ pub(super) fn periodic_search(
         let omega = std::f64::consts::TAU * f;
         (0..prep.n).map(|i| (omega * x[i]).sin_cos()).collect()
     };
+    let scanned = clock.map(|clock| {
+        let proj = super::spectrum::Projections {
+            w: &w,
+            pr: &pr,
+            ps: &ps,
+            ks,
+        };
+        super::spectrum::scan(clock, &proj, &sel.ginv, &sel.h, band, df)
+    });
+    let (mut vals, step) = match scanned {
+        Some(v) if v.len() >= 2 => {
+            let step = v[1].1 - v[0].1;
+            (v, step)
+        }
+        _ => direct_scan(band, df, max_grid, &score, &trig_at, ks),
+    };
+    let grid = vals.len();
+    vals.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let f_best = vals[0].1;
+    let mut cs = vec![0.0; 2 * ks];
+    let (f, _) = crate::numeric::golden_section_max(
+        &mut |f| score(&trig_at(f), &mut cs),
+        (f_best - step).max(f_lo),
+        (f_best + step).min(f_hi),
+        16,
+    );
+    let nl = match fam {
+        Family::Cyclic(_) => 1.0 / f,
+        _ => f,
+    };
+    let base = base_columns(prep, fam, nl);
+    let prof = scan(prep, sel, &base, onsets, None, ctx.min_after);
+    let (k, d, pen) = choose_onset(&prof, ctx, onsets.len());
+    Some((f, d, k, pen, grid))
+}
+
+/// The score of one frequency from each sample's `(sin θ, cos θ)`, with a
+/// buffer of twice the selected columns.
+type ScoreFn<'a> = dyn Fn(&[(f64, f64)], &mut [f64]) -> f64 + Sync + 'a;
+
+/// The direct scan: `(score, frequency)` on a uniform grid over `band`
+/// with spacing `df` (at most `max_grid` values), and the spacing used.
+fn direct_scan(
+    band: (f64, f64),
+    df: f64,
+    max_grid: usize,
+    score: &ScoreFn<'_>,
+    trig_at: &(dyn Fn(f64) -> Vec<(f64, f64)> + Sync),
+    ks: usize,
+) -> (Vec<(f64, f64)>, f64) {
+    let (f_lo, f_hi) = band;
+    let grid = (((f_hi - f_lo) / df).ceil() as usize).clamp(2, max_grid);
+    let step = (f_hi - f_lo) / (grid - 1) as f64;
     // The grid is uniform in frequency: each sample's (sin, cos)
     // advances by a fixed rotation from one grid value to the next,
     // re-seeded exactly every `RESEED` steps against rounding drift; the
@@ -387,7 +444,7 @@ pub(super) fn periodic_search(
     // (the same numbers as one after the other).
     const RESEED: usize = 32;
     let rot = trig_at(step);
-    let mut vals: Vec<(f64, f64)> = (0..grid.div_ceil(RESEED))
+    let vals: Vec<(f64, f64)> = (0..grid.div_ceil(RESEED))
         .into_par_iter()
         .flat_map_iter(|run| {
             let mut cs = vec![0.0; 2 * ks];
@@ -408,21 +465,5 @@ pub(super) fn periodic_search(
                 .collect::<Vec<_>>()
         })
         .collect();
-    vals.sort_by(|a, b| b.0.total_cmp(&a.0));
-    let f_best = vals[0].1;
-    let mut cs = vec![0.0; 2 * ks];
-    let (f, _) = crate::numeric::golden_section_max(
-        &mut |f| score(&trig_at(f), &mut cs),
-        (f_best - step).max(f_lo),
-        (f_best + step).min(f_hi),
-        16,
-    );
-    let nl = match fam {
-        Family::Cyclic(_) => 1.0 / f,
-        _ => f,
-    };
-    let base = base_columns(prep, fam, nl);
-    let prof = scan(prep, sel, &base, onsets, None, ctx.min_after);
-    let (k, d, pen) = choose_onset(&prof, ctx, onsets.len());
-    Some((f, d, k, pen, grid))
+    (vals, step)
 }

@@ -184,6 +184,16 @@ fn median(v: &mut [f64]) -> f64 {
     *v.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
+/// A stray of a stamp, in ms, or in µs below 0.1 ms (a stamp rounded to
+/// the microsecond strays by 0.5 µs, which reads as 0.000 ms).
+fn short_time(s: f64) -> String {
+    if s.abs() < 1e-4 {
+        format!("{:.2} µs", s * 1e6)
+    } else {
+        format!("{:.3} ms", s * 1e3)
+    }
+}
+
 impl RegularClock {
     /// The note of the report (`formats.md` §2c: repaired and reported;
     /// not a finding, since no effect is fitted to it).
@@ -203,15 +213,29 @@ impl RegularClock {
                 blocks: [first.and_then(|x| x.block), last.and_then(|x| x.block)],
                 t_s: [first.map_or(0.0, |x| x.t), last.map_or(0.0, |x| x.t)],
                 condition: format!(
-                    "the time stamps stray from a regular clock of {:.3} ms by up to {:.3} ms (RMS {:.3} ms: rounded by the export or jittered by the logging computer), while the commands move smoothly on that clock and not on the stamps; the samples are taken at the clock's times",
+                    "the time stamps stray from a regular clock of {:.3} ms by up to {} (RMS {}: rounded by the export or jittered by the logging computer), while the commands move smoothly on that clock and not on the stamps; the samples are taken at the clock's times",
                     self.period_s * 1e3,
-                    self.largest_s * 1e3,
-                    self.rms_s * 1e3
+                    short_time(self.largest_s),
+                    short_time(self.rms_s)
                 ),
             },
             rms_explained_mm: 0.0,
             machine_physics: false,
             samples: Vec::new(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Stamps rounded to the microsecond at 300 Hz read "by up to 0.000 ms
+    /// (RMS 0.000 ms)" before.
+    #[test]
+    fn strays_below_a_tenth_of_a_millisecond_are_given_in_microseconds() {
+        assert_eq!(short_time(5e-7), "0.50 µs");
+        assert_eq!(short_time(2.9e-7), "0.29 µs");
+        assert_eq!(short_time(5e-4), "0.500 ms");
     }
 }
