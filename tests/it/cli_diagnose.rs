@@ -270,10 +270,10 @@ fn a_recording_of_another_machine_is_a_clear_error() {
     assert!(err.contains("trt.csv"), "{err}");
 }
 
-#[test]
-fn a_joint_feedback_trace_without_time_is_diagnosed_at_its_sample_rate() {
-    let dir = tempfile::tempdir().unwrap();
-    let trace = dir.path().join("fb.csv");
+/// A joint-feedback trace of zhao2022-xzbc's exercise program at 100 Hz
+/// with a servo lag of X of 4 ms, written in `dir`.
+fn lagging_trace(dir: &Path) -> PathBuf {
+    let trace = dir.join("fb.csv");
     kinpost(&[
         "simulate",
         "--machine",
@@ -290,6 +290,13 @@ fn a_joint_feedback_trace_without_time_is_diagnosed_at_its_sample_rate() {
         "-o",
         trace.to_str().unwrap(),
     ]);
+    trace
+}
+
+#[test]
+fn a_joint_feedback_trace_without_time_is_diagnosed_at_its_sample_rate() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = lagging_trace(dir.path());
     // As halsampler writes it: no time column (the rate is known).
     let text = std::fs::read_to_string(&trace).unwrap();
     let no_t: String = text
@@ -341,23 +348,7 @@ fn a_joint_feedback_trace_without_time_is_diagnosed_at_its_sample_rate() {
 #[test]
 fn a_joint_feedback_trace_with_a_comment_header_or_a_units_row_is_read() {
     let dir = tempfile::tempdir().unwrap();
-    let trace = dir.path().join("fb.csv");
-    kinpost(&[
-        "simulate",
-        "--machine",
-        "zhao2022-xzbc",
-        "--program",
-        &repo_file("fixtures/programs/zhao2022-xzbc-exercise.nc"),
-        "--feedback",
-        "--sample-interval",
-        "0.01",
-        "--noise",
-        "0.0005",
-        "--inject",
-        "servo_lag:X=0.004",
-        "-o",
-        trace.to_str().unwrap(),
-    ]);
+    let trace = lagging_trace(dir.path());
     let findings = |path: &Path| -> serde_json::Value {
         let v: serde_json::Value = serde_json::from_str(&kinpost(&[
             "diagnose",
