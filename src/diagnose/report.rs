@@ -371,7 +371,7 @@ fn um(mm: f64) -> String {
 }
 
 /// Formats a parameter with its unit from the suffix.
-fn param_text(name: &str, v: f64, sd: Option<f64>) -> String {
+pub(crate) fn param_text(name: &str, v: f64, sd: Option<f64>) -> String {
     if name == "count" {
         return format!("count = {v:.0}");
     }

@@ -364,6 +364,23 @@ fn a_joint_feedback_trace_with_a_comment_header_or_a_units_row_is_read() {
     };
     let plain = findings(&trace);
     assert_eq!(plain[0]["effect"], "servo_lag");
+    // The text report gives the values with their units (before:
+    // `tau_s = 0.004001 ± 0.000000`, a fault's parameters as a map).
+    let text = kinpost(&[
+        "diagnose",
+        "--machine",
+        "zhao2022-xzbc",
+        "--recording",
+        trace.to_str().unwrap(),
+    ]);
+    let line = text
+        .lines()
+        .find(|l| l.contains("servo_lag X:"))
+        .unwrap_or("");
+    assert!(
+        line.contains("tau = 0.00") && line.ends_with(" s") && !text.contains('{'),
+        "{text}"
+    );
     let text = std::fs::read_to_string(&trace).unwrap();
     let (header, body) = text.split_once('\n').unwrap();
     let commented = dir.path().join("commented.csv");

@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use super::super::report::{MeasurementFinding, Rejected, Where};
+use super::super::report::{MeasurementFinding, Rejected, Where, param_text};
 use crate::geometric::effects::EffectSpec;
 
 /// One axis's figures in the report.
@@ -155,29 +155,32 @@ impl FeedbackReport {
                 g.where_.condition
             ));
         }
+        // Parameters with their units (`formats.md` suffixes), as the
+        // tool-tip report writes them; before, the measurement faults were
+        // written as a map (`time_offset {"offset_s": 0.014998560076253355}`)
+        // and the findings' values without units.
+        let params = |p: &BTreeMap<String, f64>, sd: &BTreeMap<String, f64>| {
+            p.iter()
+                .map(|(n, v)| param_text(n, *v, sd.get(n).copied()))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
         for m in &self.measurement {
             s.push_str(&format!(
-                "  measurement fault, not machine physics: {} {:?}: {}\n",
-                m.effect, m.parameters, m.where_.condition
+                "  measurement fault, not machine physics: {}: {}: {}\n",
+                m.effect,
+                params(&m.parameters, &m.uncertainty),
+                m.where_.condition
             ));
         }
         for (k, f) in self.findings.iter().enumerate() {
-            let ps: Vec<String> = f
-                .parameters
-                .iter()
-                .map(|(n, v)| {
-                    format!(
-                        "{n} = {v:.6} ± {:.6}",
-                        f.uncertainty.get(n).copied().unwrap_or(0.0)
-                    )
-                })
-                .collect();
+            let ps = params(&f.parameters, &f.uncertainty);
             s.push_str(&format!(
                 "  {}. {} {}: {}\n     {}\n",
                 k + 1,
                 f.effect,
                 f.axis.as_deref().unwrap_or(""),
-                ps.join(", "),
+                ps,
                 f.where_.condition
             ));
         }
