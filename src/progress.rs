@@ -12,6 +12,12 @@ use std::io::IsTerminal;
 /// few times a second; this keeps the per-line cost to a comparison).
 const BAR_STEP: u64 = 1 << 16;
 
+/// Whether progress is drawn: standard error is a terminal and LinuxCNC's
+/// progress protocol is not in use.
+fn draws_on_terminal() -> bool {
+    std::env::var_os("AXIS_PROGRESS_BAR").is_none() && std::io::stderr().is_terminal()
+}
+
 /// Progress reporting of one run over an input of `size` bytes (if known).
 pub struct RunProgress {
     filter: FilterProgress,
@@ -23,8 +29,7 @@ impl RunProgress {
     /// Progress for an input of `size` bytes; the bar only when `quiet` is
     /// off, standard error is a terminal and LinuxCNC's protocol is not in use.
     pub fn new(size: Option<u64>, quiet: bool, what: &str) -> Self {
-        let filter_on = std::env::var_os("AXIS_PROGRESS_BAR").is_some();
-        let bar = (!quiet && !filter_on && std::io::stderr().is_terminal()).then(|| {
+        let bar = (!quiet && draws_on_terminal()).then(|| {
             let bar = match size {
                 Some(s) => ProgressBar::with_draw_target(Some(s), ProgressDrawTarget::stderr())
                     .with_style(
@@ -85,8 +90,7 @@ pub struct Spinner(Option<ProgressBar>);
 impl Spinner {
     /// Starts the spinner with `what` beside it.
     pub fn start(what: &str) -> Self {
-        let filter_on = std::env::var_os("AXIS_PROGRESS_BAR").is_some();
-        Spinner((!filter_on && std::io::stderr().is_terminal()).then(|| {
+        Spinner(draws_on_terminal().then(|| {
             let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::stderr()).with_style(
                 ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
                     .unwrap_or_else(|_| ProgressStyle::default_spinner()),

@@ -23,54 +23,6 @@ pub(super) enum Inserted {
     Code(String),
 }
 
-/// One word of NC code: its letter and number, and its offset in the text.
-struct Word<'a> {
-    letter: char,
-    number: &'a str,
-    at: usize,
-}
-
-/// The NC words of `text` (parenthesised comments and a `;` comment
-/// skipped); `Err(offset)` at the first byte that is not part of a word.
-fn words(text: &str) -> Result<Vec<Word<'_>>, usize> {
-    let b = text.as_bytes();
-    let mut out = Vec::new();
-    let mut i = 0;
-    while i < b.len() {
-        match b[i] {
-            b' ' | b'\t' => i += 1,
-            b'(' => match text[i..].find(')') {
-                Some(end) => i += end + 1,
-                None => return Err(i),
-            },
-            b';' => break,
-            c if c.is_ascii_alphabetic() => {
-                let start = i + 1;
-                let mut j = start;
-                if j < b.len() && matches!(b[j], b'+' | b'-') {
-                    j += 1;
-                }
-                let digits = j;
-                while j < b.len() && (b[j].is_ascii_digit() || b[j] == b'.') {
-                    j += 1;
-                }
-                let number = &text[start..j];
-                if j == digits || number.parse::<f64>().is_err() {
-                    return Err(i);
-                }
-                out.push(Word {
-                    letter: c.to_ascii_uppercase() as char,
-                    number,
-                    at: i,
-                });
-                i = j;
-            }
-            _ => return Err(i),
-        }
-    }
-    Ok(out)
-}
-
 /// Reads an INSERT's text: NC code where it starts with a word (a letter
 /// and a number: `G0`, `M8`); `Err((offset in text, message))` for code
 /// that is not passed through.
@@ -94,35 +46,36 @@ pub(super) fn inserted(text: &str) -> Result<Inserted, (usize, String)> {
             ),
         )
     };
-    let ws = words(body).map_err(|at| {
-        refuse(
-            at,
-            format!(
-                "`{}` is not an NC word (a letter and a number)",
-                body[at..].split_whitespace().next().unwrap_or("")
-            ),
-        )
-    })?;
-    for w in &ws {
-        let passed = match w.letter {
-            'M' => w
-                .number
-                .parse::<f64>()
-                .ok()
-                .filter(|v| v.fract() == 0.0 && *v >= 0.0)
-                .is_some_and(|v| PASSED_M.contains(&(v as u32))),
-            'S' | 'N' => true,
+    // The text read by the G-code lexer: words, comments and blanks pass
+    // the check below; anything else (a keyword, an expression) is refused.
+    use crate::gcode::ItemKind;
+    let line = crate::gcode::parse_line(body.as_bytes(), 1);
+    for item in &line.items {
+        let text = &body[item.start..item.end.min(body.len())];
+        let passed = match &item.kind {
+            ItemKind::Space | ItemKind::Comment | ItemKind::EndOfLine => true,
+            ItemKind::Word(w) if w.is("M") => {
+                w.value.fract() == 0.0 && w.value >= 0.0 && PASSED_M.contains(&(w.value as u32))
+            }
+            ItemKind::Word(w) => w.is("S") || w.is("N"),
             _ => false,
         };
-        if !passed {
-            return Err(refuse(
-                w.at,
-                format!(
-                    "`{}{}` is not passed through (only M0, M1, M2, M3, M4, M5, M7, M8, M9, M30, S and N words are)",
-                    w.letter, w.number
-                ),
-            ));
+        if passed {
+            continue;
         }
+        return Err(refuse(
+            item.start,
+            if matches!(item.kind, ItemKind::Word(_)) {
+                format!(
+                    "`{text}` is not passed through (only M0, M1, M2, M3, M4, M5, M7, M8, M9, M30, S and N words are)"
+                )
+            } else {
+                format!(
+                    "`{}` is not an NC word (a letter and a number)",
+                    text.split_whitespace().next().unwrap_or("")
+                )
+            },
+        ));
     }
     Ok(Inserted::Code(body.to_string()))
 }

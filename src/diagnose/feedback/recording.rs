@@ -146,8 +146,8 @@ impl FeedbackRecording {
         // A units row under the header (`s,,mm,deg,…`): read and skipped.
         let mut pending = read_units_row(&mut lines, &head, dialect, &mut factor, t_col)?;
         while std::mem::take(&mut pending) || lines.next_data()? {
-            let line = lines.buf.clone();
-            let fs = dialect.fields(&line);
+            let line = lines.buf.as_str();
+            let fs = dialect.fields(line);
             let loc = |col: usize| Location::new(file, lines.line_no, col);
             if fs.len() < hf.len() {
                 return Err(Error::input_with(
@@ -157,7 +157,7 @@ impl FeedbackRecording {
                         hf.len(),
                         fs.len()
                     ),
-                    line.clone(),
+                    line,
                 ));
             }
             let num = |idx: usize, what: &str| -> Result<f64> {
@@ -167,7 +167,7 @@ impl FeedbackRecording {
                     _ => Err(Error::input_with(
                         loc(col),
                         format!("{what}: `{f}` is not a finite number"),
-                        line.clone(),
+                        line,
                     )),
                 }
             };
@@ -184,7 +184,7 @@ impl FeedbackRecording {
                     format!(
                         "time must increase: t = {t} s after t = {prev} s (repeated or out-of-order samples)"
                     ),
-                    line.clone(),
+                    line,
                 ));
             }
             let block = match block_col {
@@ -195,7 +195,7 @@ impl FeedbackRecording {
                         Error::input_with(
                             loc(fs[c].0),
                             format!("block: `{f}` is not a block number"),
-                            line.clone(),
+                            line,
                         )
                     })?)
                 }

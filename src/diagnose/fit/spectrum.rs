@@ -63,31 +63,17 @@ pub(super) fn regular_clock(t: &[f64], median: f64) -> Option<Clock> {
     if n < 4 || !(median > 0.0 && median.is_finite()) {
         return None;
     }
-    let mut period = median;
-    let mut ticks = vec![0usize; n];
-    // Ticks from the median, the period refitted by least squares through
-    // the first sample, the ticks read again on it.
-    for _ in 0..2 {
-        let (mut kk, mut kt) = (0.0, 0.0);
-        for i in 0..n {
-            let k = ((t[i] - t[0]) / period).round();
-            if !(k >= 0.0 && k < (MAX_LENGTH_PER_SAMPLE * n) as f64) {
-                return None;
-            }
-            ticks[i] = k as usize;
-            kk += k * k;
-            kt += k * (t[i] - t[0]);
-        }
-        if kk <= 0.0 {
-            return None;
-        }
-        period = kt / kk;
+    let (ticks, a, period) = crate::diagnose::untidy::stamps::fit_clock(t, median)?;
+    let first = ticks[0];
+    if ticks[n - 1] - first >= (MAX_LENGTH_PER_SAMPLE * n) as f64
+        || (0..n).any(|i| (t[i] - a - ticks[i] * period).abs() > MAX_STRAY * period)
+    {
+        return None;
     }
-    let strays = (0..n).all(|i| {
-        (i == 0 || ticks[i] > ticks[i - 1])
-            && (t[i] - t[0] - ticks[i] as f64 * period).abs() <= MAX_STRAY * period
-    });
-    (strays && period > 0.0).then_some(Clock { ticks, period })
+    Some(Clock {
+        ticks: ticks.iter().map(|k| (k - first) as usize).collect(),
+        period,
+    })
 }
 
 /// Per-sample projections onto joint `j`'s tip direction: weights

@@ -65,19 +65,7 @@ pub fn regular_clock(rec: &Recording) -> Option<RegularClock> {
         .filter(|d| (0.5 * median..=1.5 * median).contains(d))
         .collect();
     let period0 = usual.iter().sum::<f64>() / usual.len() as f64;
-    // The tick of each sample, and the clock t = a + b·tick fitted to the
-    // stamps by least squares, twice (the ticks read again on the first fit).
-    let (mut a, mut b) = (t[0], period0);
-    let mut ticks = vec![0.0; n];
-    for _ in 0..2 {
-        for i in 0..n {
-            ticks[i] = ((t[i] - a) / b).round();
-        }
-        (a, b) = line_fit(&ticks, &t)?;
-    }
-    if b.is_nan() || b <= 0.0 || ticks.windows(2).any(|w| w[1] <= w[0]) {
-        return None;
-    }
+    let (ticks, a, b) = fit_clock(&t, period0)?;
     let grid: Vec<f64> = ticks.iter().map(|k| a + b * k).collect();
     let stray: Vec<f64> = (0..n).map(|i| t[i] - grid[i]).collect();
     let largest = stray.iter().fold(0.0f64, |m, e| m.max(e.abs()));
@@ -105,6 +93,23 @@ pub fn regular_clock(rec: &Recording) -> Option<RegularClock> {
         largest_s: largest,
         rms_s: rms,
     })
+}
+
+/// The regular clock `t ≈ a + b·tick` of the times `t`, from a first
+/// guess `period0` of its period: each time's tick and the line fitted to
+/// them by least squares, twice (the ticks read again on the first fit).
+/// Returns `(ticks, a, b)`; `None` where the fit fails, its period is not
+/// positive, or two times share a tick.
+pub(crate) fn fit_clock(t: &[f64], period0: f64) -> Option<(Vec<f64>, f64, f64)> {
+    let (mut a, mut b) = (*t.first()?, period0);
+    let mut ticks = vec![0.0; t.len()];
+    for _ in 0..2 {
+        for (k, x) in ticks.iter_mut().zip(t) {
+            *k = ((x - a) / b).round();
+        }
+        (a, b) = line_fit(&ticks, t)?;
+    }
+    (b > 0.0 && ticks.windows(2).all(|w| w[1] > w[0])).then_some((ticks, a, b))
 }
 
 /// Least-squares line `y = a + b·x`.
