@@ -357,3 +357,60 @@ fn gaps_in_a_feedback_trace_are_reported() {
         }
     }
 }
+
+/// A trace with many faults: 10 % of the rows with one axis off by
+/// 10–100 µm (or mdeg). They are named and counted, the servo lag and the
+/// backlash under them are found alone, and the axes without an effect
+/// are left at their noise floor. Before, faults beside a reversal were
+/// never flagged, so every axis's residual stayed above its noise ("a
+/// mismatch above the noise remains on C, X, Z, B").
+#[test]
+fn a_servo_lag_and_a_backlash_are_found_under_many_outliers() {
+    for m in [Machine::Zhao, Machine::Wang] {
+        let (lin, other) = match m {
+            Machine::Zhao => ("X", "Z"),
+            Machine::Wang => ("Y", "X"),
+        };
+        let lag = format!("servo_lag:{lin}=0.004");
+        let bl = format!("backlash:{other}=0.003");
+        let seeds: Vec<u64> = (5600..5603).collect();
+        let res = par_map(&seeds, |&s| {
+            let r = run(m, s, &[&lag, &bl], |o| o.outlier_fraction = 0.1);
+            let count = r
+                .measurement
+                .iter()
+                .find(|x| x.effect == "outliers")
+                .and_then(|x| x.parameters.get("fraction").copied());
+            let quiet: Vec<(String, f64)> = r
+                .axes
+                .iter()
+                .filter(|a| a.axis != lin && a.axis != other)
+                .map(|a| (a.axis.clone(), a.rms_after / a.noise_floor))
+                .collect();
+            (
+                count,
+                param(&r, "servo_lag", "tau_s"),
+                param(&r, "backlash", "value_mm"),
+                names(&r),
+                quiet,
+            )
+        });
+        for (flagged, tau, backlash, names, quiet) in &res {
+            println!("{m:?}: {flagged:?} {tau:?} {backlash:?} {names:?} {quiet:?}");
+            let f = flagged.unwrap_or_else(|| panic!("{m:?}: no outliers named"));
+            assert!((f - 0.1).abs() < 0.03, "{m:?}: {f} flagged");
+            assert!(
+                tau.is_some_and(|t| (t - 0.004).abs() < 0.001),
+                "{m:?}: {tau:?} {names:?}"
+            );
+            assert!(
+                backlash.is_some_and(|b| (b - 0.003).abs() < 0.00075),
+                "{m:?}: {backlash:?} {names:?}"
+            );
+            assert_eq!(names.len(), 2, "{m:?}: {names:?}");
+            for (axis, ratio) in quiet {
+                assert!(*ratio < 1.1, "{m:?} {axis}: RMS {ratio} noise floors");
+            }
+        }
+    }
+}

@@ -377,3 +377,51 @@ fn short_clean_traces_are_consistent_with_noise() {
         assert!(loud.is_empty(), "{m:?}: {loud:?}");
     }
 }
+
+/// Gross outliers well above 5 % of the samples (a tracker whose beam is
+/// broken often; `simulate` allows up to 50 %): scattered at random, they
+/// are named and counted, and a backlash under them is still found alone
+/// (at 25–30 % in some runs, not in all: `docs/robustness.md`).
+/// Before, more than 5 % flagged was taken for a signal: none was named,
+/// and the verdict was "unexplained mismatch" (residual 82–160 µm) with
+/// the backlash lost, from 5 % of outliers on.
+#[test]
+fn a_backlash_is_found_under_a_fifth_of_outliers() {
+    for m in [Machine::Zhao, Machine::Wang] {
+        let axis = match m {
+            Machine::Zhao => "X",
+            Machine::Wang => "Y",
+        };
+        let cases: Vec<(f64, u64)> = [0.1, 0.2]
+            .iter()
+            .flat_map(|&f| (3400..3402).map(move |s| (f, s)))
+            .collect();
+        let res = par_map(&cases, |&(fraction, seed)| {
+            let sc = m.scenario(blocks(m), seed);
+            let spec = format!("backlash:{axis}=0.004");
+            let (rec, r) = run(&sc, &[spec.as_str()], |o| o.outlier_fraction = fraction);
+            let backlash = r.findings.iter().find_map(|f| match &f.spec.effect {
+                Effect::Backlash { axis: a, value } if a == axis => Some(*value),
+                _ => None,
+            });
+            (
+                fraction,
+                measurement(&r, "outliers").map(|c| c / rec.len() as f64),
+                backlash,
+                machine_findings(&r),
+                r.verdict.clone(),
+            )
+        });
+        for (fraction, flagged, backlash, names, verdict) in &res {
+            println!("{m:?} {fraction}: flagged {flagged:?}, backlash {backlash:?}, {names:?}");
+            let flagged = flagged.unwrap_or_else(|| panic!("{m:?} {fraction}: {verdict}"));
+            assert!(
+                (flagged - fraction).abs() < 0.25 * fraction,
+                "{m:?} {fraction}: {flagged} flagged"
+            );
+            let b = backlash.unwrap_or_else(|| panic!("{m:?} {fraction}: {verdict}"));
+            assert!((b - 0.004).abs() < 0.001, "{m:?} {fraction}: {b}");
+            assert_eq!(names.len(), 1, "{m:?} {fraction}: {names:?}");
+        }
+    }
+}

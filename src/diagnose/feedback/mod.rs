@@ -119,34 +119,86 @@ fn outliers_1d(d: &AxisData, e: &[f64], sigma: f64) -> Vec<usize> {
     };
     let (beta, _, _) = lsq(&on_e, &fams, &|i| !skip[i]);
     let tau = beta[0].clamp(0.0, MAX_FOLLOWING_TAU_S);
-    spikes(d, e, sigma, 4.0 * tau)
+    let allowed = spikes(d, e, sigma, 4.0 * tau);
+    // A fault where the command changes speed hides in the lag's own
+    // departure there: looked for again on what the fit leaves, beyond
+    // what the fit itself may miss there (the speed between samples is
+    // not known: up to about the lag times the change of speed).
+    let left: Vec<f64> = (0..e.len())
+        .map(|i| {
+            e[i] - fams
+                .iter()
+                .zip(&beta)
+                .map(|(f, b)| b * column(&on_e, *f, i))
+                .sum::<f64>()
+        })
+        .collect();
+    let mut both: Vec<usize> = spikes(d, &left, sigma, 1.5 * tau)
+        .into_iter()
+        .filter(|&i| skip[i])
+        .chain(allowed)
+        .collect();
+    both.sort_unstable();
+    both.dedup();
+    both
 }
 
 /// Samples of `e` that depart from their neighbours by more than
-/// [`OUTLIER_SIGMAS`] noise floors, away from a reversal of the axis and
-/// beyond `allow_s` times the change of the commanded speed around them;
-/// never the first or the last sample. None when more than 5 % depart:
-/// that is a signal, not faults.
+/// [`OUTLIER_SIGMAS`] noise floors, beyond `allow_s` times the change of
+/// the commanded speed around them; never the first or the last sample.
+/// Faults side by side hide each other: the samples flagged are taken out
+/// of the series and the others looked at again, until no more are
+/// flagged. When more flagged samples sit within two samples of a
+/// reversal of the axis than chance would put there (Poisson, three
+/// standard deviations), those are its following error, machine physics,
+/// and stay in; otherwise faults scattered at random are flagged there
+/// too. None when they are not scattered as faults are
+/// ([`super::untidy::are_faults`]): that is a signal.
 fn spikes(d: &AxisData, e: &[f64], sigma: f64, allow_s: f64) -> Vec<usize> {
     let n = e.len();
-    let mut out = Vec::new();
     if n < 7 {
-        return out;
+        return Vec::new();
     }
-    let dir = &d.dir;
-    // The first and last samples are judged from one side only, and a
-    // change of speed just outside the trace does not show: not flagged.
-    for i in 1..n - 1 {
-        let reversal = (i.saturating_sub(2)..(i + 2).min(n - 1)).any(|k| dir[k] * dir[k + 1] < 0.0);
-        let dep = departure(e, i).abs();
-        if dep > OUTLIER_SIGMAS * sigma.max(1e-12)
-            && !reversal
-            && (allow_s == 0.0 || dep > allow_s * speed_change(d, i))
-        {
-            out.push(i);
+    let mut far = vec![false; n];
+    for _ in 0..4 {
+        let series: Vec<usize> = (0..n).filter(|&i| !far[i]).collect();
+        let column: Vec<f64> = series.iter().map(|&i| e[i]).collect();
+        let mut flagged = Vec::new();
+        // The first and last samples are judged from one side only, and a
+        // change of speed just outside the trace does not show: not
+        // flagged.
+        for (k, &i) in series.iter().enumerate() {
+            if i == 0 || i == n - 1 {
+                continue;
+            }
+            let dep = departure(&column, k).abs();
+            if dep > OUTLIER_SIGMAS * sigma.max(1e-12)
+                && (allow_s == 0.0 || dep > allow_s * speed_change(d, i))
+            {
+                flagged.push(i);
+            }
+        }
+        if flagged.is_empty() {
+            break;
+        }
+        for i in flagged {
+            far[i] = true;
         }
     }
-    if out.len() * 20 > n { Vec::new() } else { out }
+    let dir = &d.dir;
+    let reversal =
+        |i: usize| (i.saturating_sub(2)..(i + 2).min(n - 1)).any(|k| dir[k] * dir[k + 1] < 0.0);
+    let mut out: Vec<usize> = (0..n).filter(|&i| far[i]).collect();
+    let near = out.iter().filter(|&&i| reversal(i)).count() as f64;
+    let chance = out.len() as f64 * (0..n).filter(|&i| reversal(i)).count() as f64 / n as f64;
+    if near > chance + 3.0 * chance.sqrt() + 1.0 {
+        out.retain(|&i| !reversal(i));
+    }
+    if super::untidy::are_faults(&out, n) {
+        out
+    } else {
+        Vec::new()
+    }
 }
 
 /// The slowest servo whose following error a trace may show (time

@@ -4,18 +4,47 @@
 // Numerical code: several parallel arrays are indexed by one counter.
 #![allow(clippy::needless_range_loop)]
 
-use super::super::prepare::Prepared;
+use super::super::prepare::{Prepared, noise_floor};
 
 /// A sample departs from its neighbours by more than this many noise
 /// floors to be a gross outlier.
 pub const OUTLIER_SIGMAS: f64 = 10.0;
 
+/// Passes of the search, each over the samples not flagged before.
+const MAX_PASSES: usize = 4;
+
 /// Half-width of the running median the outliers are measured against.
 const MEDIAN_HALF: usize = 3;
 
-/// More flagged samples than this fraction are not gross faults but a
-/// signal the running median cannot follow: none is called an outlier.
+/// Up to this fraction of the samples flagged are gross faults wherever
+/// they fall.
 const MAX_OUTLIER_FRACTION: f64 = 0.05;
+
+/// Up to this fraction flagged are gross faults when they fall apart from
+/// each other as faults at random do ([`are_faults`]); more is not a
+/// trace with faults but a fault with a trace.
+const MAX_SCATTERED_FRACTION: f64 = 1.0 / 3.0;
+
+/// Whether the samples `flagged` (increasing indices among `n`) are gross
+/// faults rather than a signal the running median cannot follow: up to
+/// 5 % of the samples always; up to a third when they are scattered as
+/// faults at random are, that is when no more of them sit next to each
+/// other than chance puts there (`m` faults at random among `n` samples
+/// give about `m²/n` neighbouring pairs, Poisson-distributed; a signal
+/// flags runs of samples, nearly every one beside another).
+pub fn are_faults(flagged: &[usize], n: usize) -> bool {
+    let m = flagged.len() as f64;
+    let share = m / n.max(1) as f64;
+    if share <= MAX_OUTLIER_FRACTION {
+        return true;
+    }
+    if share > MAX_SCATTERED_FRACTION {
+        return false;
+    }
+    let pairs = flagged.windows(2).filter(|w| w[1] == w[0] + 1).count() as f64;
+    let chance = m * share;
+    pairs <= chance + 3.0 * chance.sqrt() + 1.0
+}
 
 /// Gross outliers of a residual: samples whose residual, without each
 /// axis's apparent lag ([`super::offset::lag_free`]), departs from its
@@ -24,8 +53,9 @@ const MAX_OUTLIER_FRACTION: f64 = 0.05;
 /// effect, a kink, a step at a reversal or an onset is never flagged. When
 /// most flagged samples sit within two samples of a reversal (more than
 /// chance would put there), those are a following error at reversals,
-/// machine physics, and stay in. More than 5 % flagged is not a fault
-/// but a signal the running median cannot follow: then none is flagged.
+/// machine physics, and stay in. Flags that are not scattered as faults
+/// are ([`are_faults`]) are a signal the running median cannot follow:
+/// then none is flagged.
 /// Returns the flagged sample indices and each one's departure (mm).
 pub fn gross_outliers(
     prep: &Prepared,
@@ -37,26 +67,49 @@ pub fn gross_outliers(
         return Vec::new();
     }
     let mut out = Vec::new();
-    let mut column = vec![0.0; n];
     let mut dev = vec![[0.0; 3]; n];
     let mut far = vec![false; n];
     // Without each axis's apparent lag: where the feed changes, a lag
     // moves the tip by more between two samples than the running median
     // follows, and those samples are physics, not faults.
     let r = super::offset::lag_free(prep);
-    for c in 0..3 {
-        for i in 0..n {
-            column[i] = r[i][c];
+    // Faults side by side hide each other from the line predictions, and
+    // many faults raise the noise floor they are measured against: the
+    // samples flagged are taken out of the series, the floor is lowered by
+    // what its estimate loses without them, and the others are looked at
+    // again, until no more are flagged.
+    let (all, _) = noise_floor(&r);
+    let mut limit: [f64; 3] = std::array::from_fn(|c| OUTLIER_SIGMAS * sigma_xyz[c].max(1e-9));
+    for _ in 0..MAX_PASSES {
+        let series: Vec<usize> = (0..n).filter(|&i| !far[i]).collect();
+        if series.len() < n {
+            let (clean, _) = noise_floor(&series.iter().map(|&i| r[i]).collect::<Vec<_>>());
+            for c in 0..3 {
+                if all[c] > 0.0 {
+                    limit[c] = limit[c].min(
+                        OUTLIER_SIGMAS * sigma_xyz[c].max(1e-9) * (clean[c] / all[c]).min(1.0),
+                    );
+                }
+            }
         }
-        for i in 0..n {
+        let columns: [Vec<f64>; 3] =
+            std::array::from_fn(|c| series.iter().map(|&i| r[i][c]).collect());
+        let mut flagged = Vec::new();
+        for (k, &i) in series.iter().enumerate() {
             if skip.get(i).copied().unwrap_or(false) {
                 continue;
             }
-            let d = departure(&column, i);
-            dev[i][c] = d;
-            if d.abs() > OUTLIER_SIGMAS * sigma_xyz[c].max(1e-9) {
-                far[i] = true;
+            let d: [f64; 3] = std::array::from_fn(|c| departure(&columns[c], k));
+            if (0..3).any(|c| d[c].abs() > limit[c]) {
+                dev[i] = d;
+                flagged.push(i);
             }
+        }
+        if flagged.is_empty() {
+            break;
+        }
+        for i in flagged {
+            far[i] = true;
         }
     }
     for i in 0..n {
@@ -72,7 +125,8 @@ pub fn gross_outliers(
     if out.len() >= 5 && near as f64 >= 0.6 * out.len() as f64 && base < 0.3 {
         out.retain(|(i, _)| !near_reversal(prep, *i));
     }
-    if out.len() as f64 > MAX_OUTLIER_FRACTION * n as f64 {
+    let flagged: Vec<usize> = out.iter().map(|(i, _)| *i).collect();
+    if !are_faults(&flagged, n) {
         return Vec::new();
     }
     out
@@ -119,4 +173,45 @@ fn near_reversal(prep: &Prepared, i: usize) -> bool {
     let a = i.saturating_sub(2);
     let b = (i + 2).min(prep.n - 1);
     (0..prep.dof).any(|j| (a..b).any(|k| prep.dirj(k, j) * prep.dirj(k + 1, j) < 0.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every `step`-th sample of `n` (with a fixed pseudo-random jitter
+    /// of up to `step / 2`, so that some fall side by side as faults at
+    /// random do).
+    fn scattered(n: usize, step: usize) -> Vec<usize> {
+        let mut state = 12345u64;
+        let mut out: Vec<usize> = (0..n / step)
+            .map(|k| {
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                k * step + (state >> 33) as usize % step
+            })
+            .collect();
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
+    #[test]
+    fn scattered_flags_are_faults_and_runs_are_a_signal() {
+        let n = 5000;
+        // Up to 5 % anywhere, even in one run.
+        assert!(are_faults(&(100..350).collect::<Vec<_>>(), n));
+        // 10 % and 25 % scattered: faults; the same numbers in runs of
+        // ten samples: a signal.
+        for step in [10, 4] {
+            let flags = scattered(n, step);
+            assert!(are_faults(&flags, n), "1 in {step} scattered");
+            let runs: Vec<usize> = (0..n).filter(|i| (i / 10) % step == 0).collect();
+            assert!(!are_faults(&runs, n), "1 in {step} in runs");
+        }
+        // Every sample of a third and more: never faults.
+        let every_second: Vec<usize> = (0..n).step_by(2).collect();
+        assert!(!are_faults(&every_second, n));
+    }
 }
