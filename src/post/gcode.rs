@@ -85,6 +85,9 @@ pub struct BlockReader<'a> {
     /// follows it in the file is a subprogram's body, which runs under the
     /// modes of its call.
     ended_at: Option<usize>,
+    /// The line of a LinuxCNC subroutine's definition (`o100 sub`) while
+    /// its body is read: the body runs under the modes of each call.
+    in_sub: Option<usize>,
     warnings: Warnings,
 }
 
@@ -150,6 +153,7 @@ impl<'a> GcodeConverter<'a> {
                 lines: 0,
                 max_vector_deviation: 0.0,
                 ended_at: None,
+                in_sub: None,
                 warnings: Vec::new(),
             },
             writer: BlockWriter {
@@ -314,6 +318,9 @@ impl BlockReader<'_> {
             if self.ended_at.is_none() && crate::program::integrity::ends_main_program(line) {
                 self.ended_at = Some(line.number);
             }
+            if let Some(sub) = subroutine_bound(line) {
+                self.in_sub = sub.then_some(line.number);
+            }
             let crlf = line.bytes.ends_with(b"\r\n");
             if opts.inverse_time
                 && let Some(w) = writer
@@ -344,6 +351,18 @@ impl BlockReader<'_> {
                 loc(meaning.pose_items.first().copied()),
                 format!(
                     "a pose after the end of the main program (M2/M30 at line {end}): a subprogram's, which runs under the units, G90/G91 and offsets in force where it is called, and kinpost does not follow calls; convert the subprogram as a program of its own, or have the CAM system write its poses in the main program"
+                ),
+                String::from_utf8_lossy(&line.bytes),
+            ));
+        }
+        // A pose in a LinuxCNC subroutine's body runs under the modes of
+        // each call (units, G90/G91, offsets, where the machine is), not
+        // those where the body stands in the file.
+        if let Some(sub) = self.in_sub {
+            return Err(Error::input_with(
+                loc(meaning.pose_items.first().copied()),
+                format!(
+                    "a pose in the body of a subroutine (o-word `sub` at line {sub}): it runs under the units, G90/G91 and offsets in force where it is called, and from where the machine is then, and kinpost does not follow calls; write the subroutine's poses where it is called (have the CAM post expand it), or convert it as a program of its own"
                 ),
                 String::from_utf8_lossy(&line.bytes),
             ));
@@ -841,6 +860,25 @@ fn separator(line: &Line, replace: &[usize]) -> &'static str {
     match replace.first() {
         Some(&i) if i > 0 && !matches!(line.items[i - 1].kind, ItemKind::Space) => "",
         _ => " ",
+    }
+}
+
+/// Whether `line` opens (`Some(true)`: `o100 sub`) or closes
+/// (`Some(false)`: `o100 endsub`) a LinuxCNC subroutine's definition.
+fn subroutine_bound(line: &Line) -> Option<bool> {
+    let first = line.bytes.iter().find(|b| !b.is_ascii_whitespace())?;
+    if !matches!(first, b'o' | b'O') {
+        return None;
+    }
+    let text = std::str::from_utf8(&line.bytes).ok()?;
+    let statement = crate::program::opaque::o_word_statement(text)?;
+    let keyword = statement.rsplit(' ').next()?;
+    if keyword.eq_ignore_ascii_case("sub") {
+        Some(true)
+    } else if keyword.eq_ignore_ascii_case("endsub") {
+        Some(false)
+    } else {
+        None
     }
 }
 

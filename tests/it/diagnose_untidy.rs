@@ -381,18 +381,18 @@ fn short_clean_traces_are_consistent_with_noise() {
 /// Gross outliers well above 5 % of the samples (a tracker whose beam is
 /// broken often; `simulate` allows up to 50 %): scattered at random, they
 /// are named and counted, and a backlash under them is still found alone
-/// (at 25–30 % in some runs, not in all: `docs/robustness.md`).
+/// (at 30 % in some runs, not in all: `docs/robustness.md`).
 /// Before, more than 5 % flagged was taken for a signal: none was named,
 /// and the verdict was "unexplained mismatch" (residual 82–160 µm) with
 /// the backlash lost, from 5 % of outliers on.
 #[test]
-fn a_backlash_is_found_under_a_fifth_of_outliers() {
+fn a_backlash_is_found_under_a_quarter_of_outliers() {
     for m in [Machine::Zhao, Machine::Wang] {
         let axis = match m {
             Machine::Zhao => "X",
             Machine::Wang => "Y",
         };
-        let cases: Vec<(f64, u64)> = [0.1, 0.2]
+        let cases: Vec<(f64, u64)> = [0.1, 0.2, 0.25]
             .iter()
             .flat_map(|&f| (3400..3402).map(move |s| (f, s)))
             .collect();

@@ -87,6 +87,7 @@ mod seed000;
 mod seed003;
 mod simulate_arcs;
 mod simulate_stream;
+mod sixteenth_hunt;
 mod sixth_hunt;
 mod thirteenth_hunt;
 mod twelfth_hunt;

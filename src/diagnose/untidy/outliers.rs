@@ -28,10 +28,12 @@ const MAX_SCATTERED_FRACTION: f64 = 1.0 / 3.0;
 /// Whether the samples `flagged` (increasing indices among `n`) are gross
 /// faults rather than a signal the running median cannot follow: up to
 /// 5 % of the samples always; up to a third when they are scattered as
-/// faults at random are, that is when no more of them sit next to each
-/// other than chance puts there (`m` faults at random among `n` samples
-/// give about `m²/n` neighbouring pairs, Poisson-distributed; a signal
-/// flags runs of samples, nearly every one beside another).
+/// faults at random are, that is when not many more of them sit next to
+/// each other than chance puts there (`m` faults at random among `n`
+/// samples give about `m²/n` neighbouring pairs, Poisson-distributed; half
+/// as many again are allowed, since a clean sample among several faults
+/// may be flagged beside them; a signal flags runs of samples, nearly
+/// every one beside another).
 pub fn are_faults(flagged: &[usize], n: usize) -> bool {
     let m = flagged.len() as f64;
     let share = m / n.max(1) as f64;
@@ -43,7 +45,7 @@ pub fn are_faults(flagged: &[usize], n: usize) -> bool {
     }
     let pairs = flagged.windows(2).filter(|w| w[1] == w[0] + 1).count() as f64;
     let chance = m * share;
-    pairs <= chance + 3.0 * chance.sqrt() + 1.0
+    pairs <= 1.5 * chance + 3.0 * chance.sqrt() + 1.0
 }
 
 /// Gross outliers of a residual: samples whose residual, without each
