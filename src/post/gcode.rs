@@ -343,27 +343,24 @@ impl BlockReader<'_> {
             return Ok(None);
         };
         // A pose after the main program's end belongs to a subprogram
-        // (Fanuc `O1000` … `M99` called by `M98 P1000`, Haas `M97 P100`):
-        // it runs under the modes of its call (units, G90/G91, offsets),
-        // not those the main program ended with.
-        if let Some(end) = self.ended_at {
+        // (Fanuc `O1000` … `M99` called by `M98 P1000`, Haas `M97 P100`),
+        // and one in a LinuxCNC subroutine's body (`o100 sub`) to the
+        // subroutine: it runs under the modes of each call (units,
+        // G90/G91, offsets, where the machine is), not those where it
+        // stands in the file.
+        let elsewhere = match (self.ended_at, self.in_sub) {
+            (Some(end), _) => Some(format!(
+                "a pose after the end of the main program (M2/M30 at line {end}): a subprogram's, which runs under the units, G90/G91 and offsets in force where it is called, and kinpost does not follow calls; convert the subprogram as a program of its own, or have the CAM system write its poses in the main program"
+            )),
+            (None, Some(sub)) => Some(format!(
+                "a pose in the body of a subroutine (o-word `sub` at line {sub}): it runs under the units, G90/G91 and offsets in force where it is called, and from where the machine is then, and kinpost does not follow calls; write the subroutine's poses where it is called (have the CAM post expand it), or convert it as a program of its own"
+            )),
+            (None, None) => None,
+        };
+        if let Some(message) = elsewhere {
             return Err(Error::input_with(
                 loc(meaning.pose_items.first().copied()),
-                format!(
-                    "a pose after the end of the main program (M2/M30 at line {end}): a subprogram's, which runs under the units, G90/G91 and offsets in force where it is called, and kinpost does not follow calls; convert the subprogram as a program of its own, or have the CAM system write its poses in the main program"
-                ),
-                String::from_utf8_lossy(&line.bytes),
-            ));
-        }
-        // A pose in a LinuxCNC subroutine's body runs under the modes of
-        // each call (units, G90/G91, offsets, where the machine is), not
-        // those where the body stands in the file.
-        if let Some(sub) = self.in_sub {
-            return Err(Error::input_with(
-                loc(meaning.pose_items.first().copied()),
-                format!(
-                    "a pose in the body of a subroutine (o-word `sub` at line {sub}): it runs under the units, G90/G91 and offsets in force where it is called, and from where the machine is then, and kinpost does not follow calls; write the subroutine's poses where it is called (have the CAM post expand it), or convert it as a program of its own"
-                ),
+                message,
                 String::from_utf8_lossy(&line.bytes),
             ));
         }

@@ -68,15 +68,25 @@ fn clean_traces_stay_quiet() {
     }
 }
 
+/// The axes of `m` that take a 4 ms servo lag and a 3 µm backlash, and
+/// the two effects' `--inject` specs.
+fn lag_and_backlash(m: Machine) -> (&'static str, &'static str, String, String) {
+    let (lin, other) = match m {
+        Machine::Zhao => ("X", "Z"),
+        Machine::Wang => ("Y", "X"),
+    };
+    (
+        lin,
+        other,
+        format!("servo_lag:{lin}=0.004"),
+        format!("backlash:{other}=0.003"),
+    )
+}
+
 #[test]
 fn servo_lag_backlash_and_clock_offset_are_found() {
     for m in [Machine::Zhao, Machine::Wang] {
-        let (lin, other) = match m {
-            Machine::Zhao => ("X", "Z"),
-            Machine::Wang => ("Y", "X"),
-        };
-        let lag = format!("servo_lag:{lin}=0.004");
-        let bl = format!("backlash:{other}=0.003");
+        let (_, _, lag, bl) = lag_and_backlash(m);
         let seeds: Vec<u64> = (5100..5100 + SEEDS).collect();
         // Each alone, then together under a 15 ms clock offset, 0.5 %
         // outliers and 0.1 µm rounding.
@@ -367,12 +377,7 @@ fn gaps_in_a_feedback_trace_are_reported() {
 #[test]
 fn a_servo_lag_and_a_backlash_are_found_under_many_outliers() {
     for m in [Machine::Zhao, Machine::Wang] {
-        let (lin, other) = match m {
-            Machine::Zhao => ("X", "Z"),
-            Machine::Wang => ("Y", "X"),
-        };
-        let lag = format!("servo_lag:{lin}=0.004");
-        let bl = format!("backlash:{other}=0.003");
+        let (lin, other, lag, bl) = lag_and_backlash(m);
         let seeds: Vec<u64> = (5600..5603).collect();
         let res = par_map(&seeds, |&s| {
             let r = run(m, s, &[&lag, &bl], |o| o.outlier_fraction = 0.1);
