@@ -181,9 +181,8 @@ fn near_reversal(prep: &Prepared, i: usize) -> bool {
 mod tests {
     use super::*;
 
-    /// Every `step`-th sample of `n` (with a fixed pseudo-random jitter
-    /// of up to `step / 2`, so that some fall side by side as faults at
-    /// random do).
+    /// One sample at a pseudo-random place in each run of `step` samples
+    /// of `n` (so that some fall side by side, as faults at random do).
     fn scattered(n: usize, step: usize) -> Vec<usize> {
         let mut state = 12345u64;
         let mut out: Vec<usize> = (0..n / step)
