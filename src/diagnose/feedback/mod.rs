@@ -146,11 +146,10 @@ fn outliers_1d(d: &AxisData, e: &[f64], sigma: f64) -> Vec<usize> {
 /// Samples of `e` that depart from their neighbours by more than
 /// [`OUTLIER_SIGMAS`] noise floors, beyond `allow_s` times the change of
 /// the commanded speed around them; never the first or the last sample.
-/// Faults side by side hide each other: the samples flagged are taken out
-/// of the series and the others looked at again, until no more are
-/// flagged. When more flagged samples sit within two samples of a
-/// reversal of the axis than chance would put there (Poisson, three
-/// standard deviations), those are its following error, machine physics,
+/// Searched for in passes, each without the samples flagged before
+/// ([`super::untidy::flag_in_passes`]). When more flagged samples sit within two samples of a
+/// reversal of the axis than chance would put there
+/// ([`super::untidy::beyond_chance_at_reversals`]), those are its following error, machine physics,
 /// and stay in; otherwise faults scattered at random are flagged there
 /// too. None when they are not scattered as faults are
 /// ([`super::untidy::are_faults`]): that is a signal.
@@ -159,39 +158,28 @@ fn spikes(d: &AxisData, e: &[f64], sigma: f64, allow_s: f64) -> Vec<usize> {
     if n < 7 {
         return Vec::new();
     }
-    let mut far = vec![false; n];
-    for _ in 0..4 {
-        let series: Vec<usize> = (0..n).filter(|&i| !far[i]).collect();
+    // The first and last samples are judged from one side only, and a
+    // change of speed just outside the trace does not show: not flagged.
+    let mut out = super::untidy::flag_in_passes(n, |series| {
         let column: Vec<f64> = series.iter().map(|&i| e[i]).collect();
-        let mut flagged = Vec::new();
-        // The first and last samples are judged from one side only, and a
-        // change of speed just outside the trace does not show: not
-        // flagged.
-        for (k, &i) in series.iter().enumerate() {
-            if i == 0 || i == n - 1 {
-                continue;
-            }
-            let dep = departure(&column, k).abs();
-            if dep > OUTLIER_SIGMAS * sigma.max(1e-12)
-                && (allow_s == 0.0 || dep > allow_s * speed_change(d, i))
-            {
-                flagged.push(i);
-            }
-        }
-        if flagged.is_empty() {
-            break;
-        }
-        for i in flagged {
-            far[i] = true;
-        }
-    }
+        series
+            .iter()
+            .enumerate()
+            .filter(|&(k, &i)| {
+                if i == 0 || i == n - 1 {
+                    return false;
+                }
+                let dep = departure(&column, k).abs();
+                dep > OUTLIER_SIGMAS * sigma.max(1e-12)
+                    && (allow_s == 0.0 || dep > allow_s * speed_change(d, i))
+            })
+            .map(|(_, &i)| i)
+            .collect()
+    });
     let dir = &d.dir;
     let reversal =
         |i: usize| (i.saturating_sub(2)..(i + 2).min(n - 1)).any(|k| dir[k] * dir[k + 1] < 0.0);
-    let mut out: Vec<usize> = (0..n).filter(|&i| far[i]).collect();
-    let near = out.iter().filter(|&&i| reversal(i)).count() as f64;
-    let chance = out.len() as f64 * (0..n).filter(|&i| reversal(i)).count() as f64 / n as f64;
-    if near > chance + 3.0 * chance.sqrt() + 1.0 {
+    if super::untidy::beyond_chance_at_reversals(&out, n, reversal) {
         out.retain(|&i| !reversal(i));
     }
     if super::untidy::are_faults(&out, n) {

@@ -34,7 +34,10 @@ use std::collections::BTreeMap;
 
 pub use align::{Aligned, Clock, align, align_clock, monotone_hermite, without};
 pub use offset::{LOOSE, OffsetEstimate, STRICT, Tolerance, clock_offset};
-pub use outliers::{OUTLIER_SIGMAS, are_faults, departure, gross_outliers};
+pub use outliers::{
+    OUTLIER_SIGMAS, are_faults, beyond_chance_at_reversals, departure, flag_in_passes,
+    gross_outliers,
+};
 pub use rate::{Rate, with_rate};
 pub use registration::{registration_finding, registration_step_finding};
 pub use resolution::{Resolution, quantum};

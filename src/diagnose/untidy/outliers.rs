@@ -48,14 +48,51 @@ pub fn are_faults(flagged: &[usize], n: usize) -> bool {
     pairs <= 1.5 * chance + 3.0 * chance.sqrt() + 1.0
 }
 
+/// The samples a per-sample search flags, searched for in passes: `flag`
+/// gets the samples not flagged so far (increasing indices among `n`) and
+/// returns those of them it flags. Faults side by side hide each other
+/// from the line predictions of [`departure`], so each pass looks again
+/// without the samples flagged before, until one flags none (at most
+/// four). Returns the samples flagged, increasing.
+pub fn flag_in_passes(n: usize, mut flag: impl FnMut(&[usize]) -> Vec<usize>) -> Vec<usize> {
+    let mut far = vec![false; n];
+    for _ in 0..MAX_PASSES {
+        let series: Vec<usize> = (0..n).filter(|&i| !far[i]).collect();
+        let flagged = flag(&series);
+        if flagged.is_empty() {
+            break;
+        }
+        for i in flagged {
+            far[i] = true;
+        }
+    }
+    (0..n).filter(|&i| far[i]).collect()
+}
+
+/// Whether more of the samples `flagged` (among `n`) sit at reversals
+/// (`at_reversal`) than chance puts there: more than the Poisson mean
+/// `m · r / n` (m flagged, r of all samples at reversals) plus three of its
+/// standard deviations and one. Such spikes are a following error at
+/// reversals, machine physics, not faults.
+pub fn beyond_chance_at_reversals(
+    flagged: &[usize],
+    n: usize,
+    at_reversal: impl Fn(usize) -> bool,
+) -> bool {
+    let near = flagged.iter().filter(|&&i| at_reversal(i)).count() as f64;
+    let share = (0..n).filter(|&i| at_reversal(i)).count() as f64 / n.max(1) as f64;
+    let chance = flagged.len() as f64 * share;
+    near > chance + 3.0 * chance.sqrt() + 1.0
+}
+
 /// Gross outliers of a residual: samples whose residual, without each
 /// axis's apparent lag ([`super::offset::lag_free`]), departs from its
 /// neighbours ([`departure`]) by more than [`OUTLIER_SIGMAS`] noise floors
 /// in some coordinate (samples `skip` marks are not looked at). A smooth
 /// effect, a kink, a step at a reversal or an onset is never flagged. When
-/// most flagged samples sit within two samples of a reversal (more than
-/// chance would put there), those are a following error at reversals,
-/// machine physics, and stay in. Flags that are not scattered as faults
+/// more flagged samples sit within two samples of a reversal than chance
+/// would put there ([`beyond_chance_at_reversals`]), those are a following
+/// error at reversals, machine physics, and stay in. Flags that are not scattered as faults
 /// are ([`are_faults`]) are a signal the running median cannot follow:
 /// then none is flagged.
 /// Returns the flagged sample indices and each one's departure (mm).
@@ -68,22 +105,17 @@ pub fn gross_outliers(
     if n < 2 * MEDIAN_HALF + 1 {
         return Vec::new();
     }
-    let mut out = Vec::new();
     let mut dev = vec![[0.0; 3]; n];
-    let mut far = vec![false; n];
     // Without each axis's apparent lag: where the feed changes, a lag
     // moves the tip by more between two samples than the running median
     // follows, and those samples are physics, not faults.
     let r = super::offset::lag_free(prep);
-    // Faults side by side hide each other from the line predictions, and
-    // many faults raise the noise floor they are measured against: the
-    // samples flagged are taken out of the series, the floor is lowered by
-    // what its estimate loses without them, and the others are looked at
-    // again, until no more are flagged.
+    // Many faults raise the noise floor they are measured against: from
+    // the second pass on, the floor is lowered by what its estimate loses
+    // without the samples flagged.
     let (all, _) = noise_floor(&r);
     let mut limit: [f64; 3] = std::array::from_fn(|c| OUTLIER_SIGMAS * sigma_xyz[c].max(1e-9));
-    for _ in 0..MAX_PASSES {
-        let series: Vec<usize> = (0..n).filter(|&i| !far[i]).collect();
+    let far = flag_in_passes(n, |series| {
         if series.len() < n {
             let (clean, _) = noise_floor(&series.iter().map(|&i| r[i]).collect::<Vec<_>>());
             for c in 0..3 {
@@ -107,31 +139,19 @@ pub fn gross_outliers(
                 flagged.push(i);
             }
         }
-        if flagged.is_empty() {
-            break;
-        }
-        for i in flagged {
-            far[i] = true;
-        }
-    }
-    for i in 0..n {
-        if far[i] {
-            out.push((i, dev[i]));
-        }
-    }
+        flagged
+    });
     // Spikes that come with reversals are a following error, machine
-    // physics: when most flagged samples sit at reversals, more than
-    // chance would put there, those are kept in the fits.
-    let near = out.iter().filter(|(i, _)| near_reversal(prep, *i)).count();
-    let base = (0..n).filter(|&i| near_reversal(prep, i)).count() as f64 / n as f64;
-    if out.len() >= 5 && near as f64 >= 0.6 * out.len() as f64 && base < 0.3 {
-        out.retain(|(i, _)| !near_reversal(prep, *i));
+    // physics: when more flagged samples sit at reversals than chance
+    // would put there, those are kept in the fits.
+    let mut flagged = far;
+    if beyond_chance_at_reversals(&flagged, n, |i| near_reversal(prep, i)) {
+        flagged.retain(|&i| !near_reversal(prep, i));
     }
-    let flagged: Vec<usize> = out.iter().map(|(i, _)| *i).collect();
     if !are_faults(&flagged, n) {
         return Vec::new();
     }
-    out
+    flagged.into_iter().map(|i| (i, dev[i])).collect()
 }
 
 /// How far sample `i` of a series departs from its neighbours: the
@@ -214,5 +234,46 @@ mod tests {
         // Every sample of a third and more: never faults.
         let every_second: Vec<usize> = (0..n).step_by(2).collect();
         assert!(!are_faults(&every_second, n));
+    }
+
+    #[test]
+    fn spikes_at_reversals_beyond_chance_are_a_following_error() {
+        // Reversals every 100 samples, each marking the 5 samples about
+        // it: 5 % of the samples are at a reversal.
+        let n = 5000;
+        let at = |i: usize| i % 100 < 5;
+        // A spike after every reversal (50 of them, all at reversals).
+        let spikes: Vec<usize> = (0..n).filter(|i| i % 100 == 2).collect();
+        assert!(beyond_chance_at_reversals(&spikes, n, at));
+        // Faults scattered at random: about 5 % of them at reversals.
+        let faults = scattered(n, 10);
+        let near = faults.iter().filter(|&&i| at(i)).count();
+        assert!(near > 0, "some faults fall at reversals");
+        assert!(!beyond_chance_at_reversals(&faults, n, at));
+        // Three spikes, all at reversals: too many for chance (0.15).
+        assert!(beyond_chance_at_reversals(&[2, 102, 202], n, at));
+        // One alone is not.
+        assert!(!beyond_chance_at_reversals(&[2], n, at));
+    }
+
+    #[test]
+    fn passes_find_faults_that_hide_each_other() {
+        // A search that flags one sample a pass (the largest above 1)
+        // finds two faults in two passes, each without those flagged
+        // before; the third pass finds none and ends the search.
+        let mut e = vec![0.0; 50];
+        e[20] = 10.0;
+        e[21] = 9.0;
+        let mut passes = 0;
+        let flagged = flag_in_passes(e.len(), |series| {
+            passes += 1;
+            let column: Vec<f64> = series.iter().map(|&i| e[i]).collect();
+            let worst = (0..series.len())
+                .max_by(|&a, &b| column[a].abs().total_cmp(&column[b].abs()))
+                .filter(|&k| column[k].abs() > 1.0);
+            worst.map(|k| series[k]).into_iter().collect()
+        });
+        assert_eq!(flagged, vec![20, 21]);
+        assert_eq!(passes, 3, "two passes flag, the third finds none");
     }
 }
