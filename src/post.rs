@@ -225,12 +225,25 @@ fn stats_of_halves<K: Ord>(
     }
 }
 
+/// The decimals an axis word of `axis` is written with in a program in
+/// `units`: `given` (`--decimals`) where given, else the machine file's;
+/// for a linear axis in an inch program one more, as a control's least
+/// input increment of 0.001 mm is 0.0001 in (Fanuc's IS-B), so that an
+/// inch word is not 25.4 times as coarse as a millimetre word (3 decimals
+/// of an inch are steps of 25.4 µm).
+pub fn written_decimals(axis: &crate::machine::AxisSpec, given: Option<u32>, units: Units) -> u32 {
+    let inch_length = units == Units::Inch && axis.kind == crate::machine::JointKind::Prismatic;
+    given.unwrap_or(axis.decimals + u32::from(inch_length))
+}
+
 /// Emits the machine's axis words for one converted block.
 struct AxisWriter<'m> {
     machine: &'m Machine,
-    decimals: Vec<usize>,
-    /// `10^decimals` of each axis.
-    scales: Vec<f64>,
+    /// Decimals of each axis in a millimetre program (0) and in an inch
+    /// program (1) ([`written_decimals`]).
+    decimals: [Vec<usize>; 2],
+    /// `10^decimals` of each axis, the same way.
+    scales: [Vec<f64>; 2],
     /// The last block's words (output order, file units), for modal output
     /// and G91; empty before the first.
     last: Vec<AxisValue>,
@@ -302,12 +315,14 @@ impl AxisValue {
 
 impl<'m> AxisWriter<'m> {
     fn new(machine: &'m Machine, decimals: Option<u32>) -> Self {
-        let decimals: Vec<usize> = machine
-            .axes
-            .iter()
-            .map(|a| decimals.unwrap_or(a.decimals) as usize)
-            .collect();
-        let scales = decimals.iter().map(|&d| 10f64.powi(d as i32)).collect();
+        let decimals = [Units::Mm, Units::Inch].map(|u| {
+            (machine.axes.iter())
+                .map(|a| written_decimals(a, decimals, u) as usize)
+                .collect::<Vec<_>>()
+        });
+        let scales = decimals
+            .each_ref()
+            .map(|d| d.iter().map(|&d| 10f64.powi(d as i32)).collect());
         AxisWriter {
             machine,
             decimals,
@@ -338,7 +353,7 @@ impl<'m> AxisWriter<'m> {
         let Some(q) = q else {
             return;
         };
-        for (axis, s) in self.machine.axes.iter().zip(&self.scales) {
+        for (axis, s) in self.machine.axes.iter().zip(&self.scales[0]) {
             let q = q.get(axis.joint).copied().unwrap_or(0.0);
             self.last.push(AxisValue::of(axis, *s, q, 1.0));
         }
@@ -357,14 +372,16 @@ impl<'m> AxisWriter<'m> {
         let mut next = std::mem::take(&mut self.next);
         next.clear();
         let per_unit = units.mm_per_unit();
+        let u = usize::from(units == Units::Inch);
         if per_unit != self.last_per_unit {
             // G20/G21 since the last block: the controller holds the
             // position and reads the next increments in the new unit.
             let ratio = self.last_per_unit / per_unit;
+            let before = usize::from(self.last_per_unit != 1.0);
             for (p, (axis, s)) in self
                 .last
                 .iter_mut()
-                .zip(self.machine.axes.iter().zip(&self.scales))
+                .zip(self.machine.axes.iter().zip(&self.scales[before]))
             {
                 if axis.kind == crate::machine::JointKind::Prismatic {
                     let raw = p.rounded(*s) * ratio;
@@ -373,13 +390,13 @@ impl<'m> AxisWriter<'m> {
             }
             self.last_per_unit = per_unit;
         }
-        for (axis, s) in self.machine.axes.iter().zip(&self.scales) {
+        for (axis, s) in self.machine.axes.iter().zip(&self.scales[u]) {
             next.push(AxisValue::of(axis, *s, q[axis.joint], per_unit));
         }
         let out = &mut self.text;
         out.clear();
         for (k, axis) in self.machine.axes.iter().enumerate() {
-            let (value, scale) = (next[k], self.scales[k]);
+            let (value, scale) = (next[k], self.scales[u][k]);
             let previous = self.last.get(k).copied();
             if modal && !self.write_all && previous.is_some_and(|p| p.same_as(value, scale)) {
                 continue;
@@ -393,7 +410,7 @@ impl<'m> AxisWriter<'m> {
             for &b in axis.name.as_bytes() {
                 out.push(b);
             }
-            let d = self.decimals[k];
+            let d = self.decimals[u][k];
             match (absolute, value.scaled, previous) {
                 // LinuxCNC's wrapped rotary: the position in [0, 360) with
                 // the sign of the block's turn (`machine::wrapped`).

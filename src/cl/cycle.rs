@@ -104,21 +104,24 @@ impl<R: BufRead> Lowered<R> {
         let bottom = -c.depth;
         match c.kind {
             CycleKind::Deep | CycleKind::BrkChp if c.first_peck > 0.0 => {
-                let mut reached = c.rapto.min(0.0);
+                // The pecks count from the R level (RAPTO), as the canned
+                // form's Q does on the controllers: the same hole drills
+                // alike as G83 / G73 and as moves.
+                let mut reached = c.rapto;
                 let mut peck = c.first_peck;
                 // The clearance above the last depth (down again, and the
                 // chip-breaking retract): 0.5 mm in the CL's units.
                 let clearance = 0.5 / self.mm_per_unit;
                 loop {
-                    let mut target = (reached.min(0.0) - peck).max(bottom);
+                    let mut target = (reached - peck).max(bottom);
                     // Pecks that add up to the depth but for rounding
                     // (0.3 + 3 × 0.2 = 0.9000000000000001) reach it.
                     if target - bottom <= 1e-9 * (1.0 + bottom.abs()) {
                         target = bottom;
                     }
-                    if reached < 0.0 {
+                    if reached < c.rapto {
                         // Back down to just above the last depth.
-                        let back = (reached + clearance.min(c.rapto.max(0.0))).min(c.rapto);
+                        let back = (reached + clearance).min(c.rapto);
                         self.go(r, at(back), true);
                     }
                     self.go(r, at(target), false);
@@ -411,9 +414,12 @@ mod tests {
         let s =
             run("UNITS/MM\nCYCLE/DEEP,FEDTO,10,1STPECK,4,MMPM,100,RAPTO,2,RTRCTO,20\nGOTO/0,0,0\n")
                 .unwrap();
+        // Pecks of 4 from the R level (2): down to -2, -6 and the bottom,
+        // as G83 Q4 R2 drills.
         let z: Vec<f64> = gotos(&s).iter().map(|p| p[2]).collect();
         assert_eq!(z.iter().cloned().fold(f64::INFINITY, f64::min), -10.0);
-        assert!(z.contains(&-4.0) && z.contains(&-8.0), "{z:?}");
+        assert!(z.contains(&-2.0) && z.contains(&-6.0), "{z:?}");
+        assert!(!z.contains(&-4.0), "{z:?}");
         let e = run("CYCLE/THREAD,FEDTO,5\n").unwrap_err();
         assert!(e.to_string().contains("t.apt:1:1"));
     }

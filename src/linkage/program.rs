@@ -148,7 +148,9 @@ impl LinkageReport {
 /// Formatting and counting of machine axis values.
 struct Axes<'m> {
     machine: &'m Machine,
-    decimals: Vec<usize>,
+    /// Decimals of each axis in a millimetre program (0) and in an inch
+    /// program (1).
+    decimals: [Vec<usize>; 2],
 }
 
 /// Lever arm assumed when turning a rotary's rounding into a tool-tip
@@ -173,21 +175,37 @@ pub fn decimals_for_tolerance(kind: JointKind, tol_mm: f64) -> u32 {
 }
 
 impl<'m> Axes<'m> {
+    /// The decimals of each axis: `decimals` (`--decimals`) where given,
+    /// else the machine's ([`crate::post::written_decimals`]: one more for
+    /// a linear axis in inch), raised where `tolerance` needs more (in the
+    /// program's unit).
     fn new(machine: &'m Machine, decimals: Option<u32>, tolerance: Option<f64>) -> Self {
-        Axes {
-            machine,
-            decimals: machine
-                .axes
-                .iter()
+        let per_units = [Units::Mm, Units::Inch].map(|units| {
+            (machine.axes.iter())
                 .map(|a| {
-                    let d = decimals.unwrap_or(a.decimals);
+                    let d = crate::post::written_decimals(a, decimals, units);
+                    let per_unit = match a.kind {
+                        JointKind::Prismatic => units.mm_per_unit(),
+                        JointKind::Revolute => 1.0,
+                    };
                     match (decimals, tolerance) {
-                        (None, Some(t)) => d.max(decimals_for_tolerance(a.kind, t)) as usize,
+                        (None, Some(t)) => {
+                            d.max(decimals_for_tolerance(a.kind, t / per_unit)) as usize
+                        }
                         _ => d as usize,
                     }
                 })
-                .collect(),
+                .collect()
+        });
+        Axes {
+            machine,
+            decimals: per_units,
         }
+    }
+
+    /// The decimals of each axis in a program in `units`.
+    fn decimals(&self, units: Units) -> &[usize] {
+        &self.decimals[usize::from(units == Units::Inch)]
     }
 
     /// External values rounded to the written precision (output order).
@@ -195,7 +213,7 @@ impl<'m> Axes<'m> {
         let ext = self.machine.to_external(q);
         ext.iter()
             .zip(&self.machine.axes)
-            .zip(&self.decimals)
+            .zip(self.decimals(units))
             .map(|((v, a), d)| {
                 let v = if a.kind == JointKind::Prismatic {
                     v / units.mm_per_unit()
@@ -269,7 +287,7 @@ impl<'m> Axes<'m> {
                 // LinuxCNC's wrapped rotary: the position in [0, 360) with
                 // the sign of the turn (`machine::wrapped`).
                 (true, RotaryMode::Wrapped) => {
-                    let scale = 10f64.powi(self.decimals[k] as i32);
+                    let scale = 10f64.powi(self.decimals(units)[k] as i32);
                     let int = |v: f64| (v * scale).round() as i64;
                     let (negative, m) = crate::machine::wrapped::wrapped_word(
                         Some(int(rf[k])),
@@ -287,7 +305,7 @@ impl<'m> Axes<'m> {
                 (false, RotaryMode::Modulo) => unwind_near_degrees(rt[k], rf[k]) - rf[k],
                 (false, _) => rt[k] - rf[k],
             };
-            push_fixed(&mut s, v, self.decimals[k]);
+            push_fixed(&mut s, v, self.decimals(units)[k]);
         }
         Ok(s)
     }
@@ -378,6 +396,8 @@ struct Block {
     q: Vec<f64>,
     motion: Motion,
     units: Units,
+    /// Units of its feed (Sinumerik `G70`/`G71`: not those of the lengths).
+    feed_units: Units,
     absolute: bool,
     feed: FeedState,
     feed_item: Option<usize>,
@@ -417,13 +437,12 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
         Mode::Insert(_) => None,
     };
     // The machine as written: decimals raised where the tolerance needs them.
+    let axes = Axes::new(machine, opts.decimals, tolerance);
     let mut written = machine.clone();
-    let raised = Axes::new(machine, opts.decimals, tolerance).decimals;
-    for (a, d) in written.axes.iter_mut().zip(&raised) {
+    for (a, d) in written.axes.iter_mut().zip(axes.decimals(Units::Mm)) {
         a.decimals = *d as u32;
     }
     let machine = &written;
-    let axes = Axes::new(machine, opts.decimals, None);
     let pair = opts
         .pair
         .or_else(|| RotaryPair::default_for(&machine.chain));
@@ -434,7 +453,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
     report.decimals = machine
         .axes
         .iter()
-        .zip(&axes.decimals)
+        .zip(axes.decimals(Units::Mm))
         .map(|(a, d)| (a.name.clone(), *d as u32))
         .collect();
     let post_opts = PostOptions {
@@ -477,6 +496,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                         q: cv.q.to_vec(),
                         motion: cv.meaning.motion,
                         units: cv.meaning.units,
+                        feed_units: cv.meaning.feed_units,
                         absolute: cv.meaning.absolute,
                         feed: FeedState {
                             mode: cv.meaning.feed_mode,
@@ -514,6 +534,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                         q: mb.q,
                         motion: mb.meaning.motion,
                         units: mb.meaning.units,
+                        feed_units: mb.meaning.feed_units,
                         absolute: mb.meaning.absolute,
                         feed: FeedState {
                             mode: mb.meaning.feed_mode,
@@ -661,10 +682,13 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             .chain(std::iter::once(qb.as_slice()))
             .collect();
         let block_minutes = move_minutes(machine, &qa, qb, &block.feed);
-        // Each segment's path as written (program units: inch in G20).
+        // Each segment's path as written (program units: inch in G20), a
+        // linear path in the feed's units (Sinumerik G70/G71: mm).
+        let to_feed_units = block.units.mm_per_unit() / block.feed_units.mm_per_unit();
         let written: Vec<(f64, bool)> = ends
             .windows(2)
             .map(|w| axes.written_feed_distance(w[0], w[1], block.units))
+            .map(|(d, linear)| (if linear { d * to_feed_units } else { d }, linear))
             .collect();
         let retimed: Option<Vec<f64>> = (block.feed.mode == FeedMode::PerMinute
             && block_minutes > 0.0

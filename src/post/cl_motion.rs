@@ -215,14 +215,15 @@ pub(super) fn plan_arc(
     })
 }
 
-/// Decimals written for the machine axis named `name`.
+/// Decimals written for the machine axis named `name` (the CL is written
+/// in millimetres).
 fn decimals_of(writer: &AxisWriter, name: &str) -> usize {
     writer
         .machine
         .axes
         .iter()
         .position(|a| a.name.eq_ignore_ascii_case(name))
-        .map_or(4, |k| writer.decimals[k])
+        .map_or(4, |k| writer.decimals[0][k])
 }
 
 /// The plane code to put before a block, when it is not the one in force.

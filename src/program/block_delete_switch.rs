@@ -21,8 +21,9 @@ struct Modes {
     interpolation_mode: bool,
     cutter_comp: bool,
     machine_orientation: bool,
-    /// Feed mode and feed, when feeds are converted (else `None`).
-    feed: Option<(FeedMode, Option<f64>)>,
+    /// Feed mode, feed and its units, when feeds are converted (else
+    /// `None`).
+    feed: Option<(FeedMode, Option<f64>, Units)>,
 }
 
 impl Modes {
@@ -39,7 +40,7 @@ impl Modes {
             interpolation_mode: m.interpolation_mode,
             cutter_comp: m.cutter_comp,
             machine_orientation: m.machine_orientation,
-            feed: converts_feeds.then_some((m.feed_mode, m.feed)),
+            feed: converts_feeds.then_some((m.feed_mode, m.feed, m.feed_units)),
         }
     }
 
@@ -83,9 +84,16 @@ impl Modes {
             self.machine_orientation != other.machine_orientation,
             "Sinumerik ORIMKS/ORIWKS",
         );
-        let (f, g) = (self.feed.unzip(), other.feed.unzip());
-        add(f.0 != g.0, "the feed mode (G93/G94/G95)");
-        add(f.1 != g.1, "the feed (F)");
+        let (f, g) = (self.feed, other.feed);
+        add(
+            f.map(|x| x.0) != g.map(|x| x.0),
+            "the feed mode (G93/G94/G95)",
+        );
+        add(f.map(|x| x.1) != g.map(|x| x.1), "the feed (F)");
+        add(
+            f.map(|x| x.2) != g.map(|x| x.2),
+            "the units of the feed (Sinumerik G70/G71 against G700/G710)",
+        );
         v
     }
 }

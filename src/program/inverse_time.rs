@@ -74,7 +74,7 @@ impl InverseTime {
     ) -> PoseFeed {
         let feed_mm_min = meaning
             .feed
-            .map(|f| f * meaning.units.mm_per_unit())
+            .map(|f| f * meaning.feed_units.mm_per_unit())
             .filter(|f| *f > 0.0 && f.is_finite());
         let length = start.map(|s| (tip - s).norm());
         let convert = meaning.motion == Motion::Linear

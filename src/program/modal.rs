@@ -131,6 +131,11 @@ pub struct BlockMeaning {
     pub feed_mode: FeedMode,
     /// Units in force.
     pub units: Units,
+    /// Units of the feed `F` (per minute or per revolution): those of the
+    /// lengths, except that Sinumerik's `G70`/`G71` switch the lengths
+    /// alone and leave F in the control's basic system, taken as metric
+    /// (`G700`/`G710` switch both).
+    pub feed_units: Units,
     /// Absolute (`G90`) or incremental (`G91`).
     pub absolute: bool,
     /// Feed in force (program units per minute, or 1/min in G93), if any.
@@ -179,6 +184,8 @@ pub struct ModalState {
     pub absolute: bool,
     /// Length units.
     pub units: Units,
+    /// Units of the feed `F` ([`BlockMeaning::feed_units`]).
+    pub feed_units: Units,
     /// Feed mode.
     pub feed_mode: FeedMode,
     /// Modal feed value.
@@ -243,6 +250,7 @@ impl ModalState {
             motion: Motion::Rapid,
             absolute: true,
             units: Units::Mm,
+            feed_units: Units::Mm,
             feed_mode: FeedMode::PerMinute,
             feed: None,
             pose_mode: start == PoseStart::On,
@@ -373,8 +381,12 @@ impl ModalState {
                         400 => self.cutter_comp = false,
                         900 => self.absolute = true,
                         910 => self.absolute = false,
-                        200 | 700 | 7000 => self.units = Units::Inch,
-                        210 | 710 | 7100 => self.units = Units::Mm,
+                        200 | 7000 => (self.units, self.feed_units) = (Units::Inch, Units::Inch),
+                        210 | 7100 => (self.units, self.feed_units) = (Units::Mm, Units::Mm),
+                        // Sinumerik G70/G71: the lengths alone; F in the
+                        // basic system, taken as metric.
+                        700 => (self.units, self.feed_units) = (Units::Inch, Units::Mm),
+                        710 => (self.units, self.feed_units) = (Units::Mm, Units::Mm),
                         930 => self.feed_mode = FeedMode::InverseTime,
                         940 => self.feed_mode = FeedMode::PerMinute,
                         950 => self.feed_mode = FeedMode::PerRevolution,
@@ -616,6 +628,7 @@ impl ModalState {
             motion: self.motion,
             feed_mode: self.feed_mode,
             units: self.units,
+            feed_units: self.feed_units,
             absolute: self.absolute,
             feed: self.feed,
             feed_item,

@@ -1,6 +1,6 @@
 //! Rewriting a line: the pose words replaced by the machine's axis words,
-//! TCP codes by their machine-coordinate equivalent, everything else kept
-//! byte for byte.
+//! TCP codes by their machine-coordinate equivalent, a RepRap checksum
+//! computed again, everything else kept byte for byte.
 
 use super::TcpCode;
 use crate::gcode::{ItemKind, Line};
@@ -8,7 +8,10 @@ use crate::gcode::{ItemKind, Line};
 /// Rewrites `line` into `out`: the items in `replace` (sorted) are removed and
 /// `words` is written where the first of them stood; TCP-on codes become
 /// their machine-coordinate equivalent (`G49`, `TRAFOOF`) and the tool length
-/// offset words that went with them are dropped. All other bytes are kept.
+/// offset words that went with them are dropped. A RepRap checksum (`*n`,
+/// the XOR of the line's bytes before it) is computed again over the new
+/// bytes, off by as much as it was (a right one stays right; a wrong one,
+/// which the firmware refuses, stays as wrong). All other bytes are kept.
 pub fn rewrite(
     line: &Line,
     replace: &[usize],
@@ -71,6 +74,18 @@ pub fn rewrite(
         }
         if let Some(p) = pending_space.take() {
             run.keep(line, p, out);
+        }
+        if let ItemKind::Checksum(given) = item.kind {
+            run.flush(line, out);
+            let xor = |bytes: &[u8]| bytes.iter().fold(0u32, |x, &b| x ^ u32::from(b));
+            let off = xor(&line.bytes[..item.start]) ^ given;
+            out.push(b'*');
+            out.extend_from_slice(
+                (xor(&out[line_start..out.len() - 1]) ^ off)
+                    .to_string()
+                    .as_bytes(),
+            );
+            continue;
         }
         match tcp
             .iter()

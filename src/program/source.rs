@@ -909,7 +909,7 @@ pub fn machine_axis_blocks<R: BufRead>(
             via,
             restart,
             line: line.number,
-            feed_mm_min: spindle.feed_mm_min(m.feed_mode, m.feed, m.units),
+            feed_mm_min: spindle.feed_mm_min(m.feed_mode, m.feed, m.feed_units),
             inverse_time: match m.feed_mode {
                 super::FeedMode::InverseTime => m.feed,
                 _ => None,

@@ -85,6 +85,7 @@ mod robustness_parse;
 mod scenarios;
 mod seed000;
 mod seed003;
+mod seventeenth_hunt;
 mod simulate_arcs;
 mod simulate_stream;
 mod sixteenth_hunt;

@@ -348,9 +348,10 @@ fn inch_program_is_converted() {
     std::fs::write(&inch, "G20\nG1 X1 Y0 Z0.5 I0 J0 K1\n").unwrap();
     let (_, a, _) = run(&["post", "-q", mm.to_str().unwrap()]);
     let (_, b, _) = run(&["post", "-q", inch.to_str().unwrap()]);
-    // The same pose; linear axes written in the program's units.
+    // The same pose; linear axes written in the program's units, in inch
+    // with one decimal more (32.7 mm = 1.287402 in).
     assert!(a.contains("X25.4000 Z32.7000"), "{a}");
-    assert!(b.contains("X1.0000 Z1.2874"), "{b}");
+    assert!(b.contains("X1.00000 Z1.28740"), "{b}");
 }
 
 #[test]

@@ -188,7 +188,7 @@ fn an_incremental_pose_after_a_unit_change_is_in_the_new_unit() {
     );
     let line = out.lines().nth(5).unwrap();
     assert_eq!(
-        line, "G91 G1 X1.0000 Y0.0000 Z0.0000 B0.0000 C0.0000",
+        line, "G91 G1 X1.00000 Y0.00000 Z0.00000 B0.0000 C0.0000",
         "{out}"
     );
 }
