@@ -20,6 +20,7 @@ pub mod choose_in_order;
 mod cl;
 mod cl_motion;
 mod gcode;
+mod position;
 pub use cl::{convert_cl, post_cl};
 pub use gcode::{BlockReader, BlockWriter, Converted, GcodeConverter, PendingPose, Start};
 
@@ -144,6 +145,35 @@ impl PoseSolver for IkSolver {
     fn split(&self) -> Option<&dyn SplitSolver> {
         Some(self)
     }
+}
+
+/// Why a move of APT CL data under cutter compensation `on` cannot run as
+/// the `G41`/`G42` `post` writes, as `post` refuses it (the tool not along
+/// the machine's Z axis, or a rotary axis turned since `reference`, the
+/// joint values when it went on), or `None` when it can: for the commands
+/// that read CL without rewriting it (`analyze`, `simulate`). `q`: the
+/// joint values of `pose` (chain order, mm / rad), programmed at `line`.
+#[allow(clippy::too_many_arguments)]
+pub fn cl_cutter_comp_refusal(
+    machine: &Machine,
+    ik: &mut IkSolver,
+    axis_tolerance_rad: f64,
+    q: &[f64],
+    pose: &Pose,
+    reference: &[f64],
+    on: crate::program::source::CutterComp,
+    line: usize,
+) -> Option<String> {
+    let opts = PostOptions {
+        axis_tolerance_rad,
+        ..PostOptions::default()
+    };
+    let on = cl_motion::CutcomOn {
+        seq: 0,
+        line: on.line,
+        left: on.left,
+    };
+    cl_motion::cutcom_refusal(machine, ik, &opts, q, pose, reference, on, line)
 }
 
 /// Options of the post-processor.

@@ -104,8 +104,11 @@ pub fn joint_trajectory<R: BufRead>(
         ..
     } = opts;
     if crate::cl::looks_like_cl(head) {
-        let ik = IkSolver::new(machine);
+        let mut ik = IkSolver::new(machine);
         let mut previous: Option<JointValues> = None;
+        // Under cutter compensation: the line of its `CUTCOM` and the joint
+        // values when it went on (those of the pose before its first move).
+        let mut comp_reference: Option<(usize, Vec<f64>)> = None;
         cl_poses(input, file, |ev| {
             let q = reachable(
                 &ik,
@@ -115,6 +118,28 @@ pub fn joint_trajectory<R: BufRead>(
                 axis_tolerance_rad,
             )
             .map_err(|m| Error::input(Location::new(file, ev.line, 1), m))?;
+            // A move `post` refuses under cutter compensation is refused
+            // here too: the controller's offset would not be the one the
+            // CL asks for, and the path analysed would not be run.
+            if let Some(on) = ev.cutter_comp {
+                if comp_reference.as_ref().is_none_or(|(l, _)| *l != on.line) {
+                    let r = previous.as_deref().unwrap_or(&q).to_vec();
+                    comp_reference = Some((on.line, r));
+                }
+                let reference = comp_reference.as_ref().map_or(&[][..], |(_, r)| r);
+                if let Some(m) = crate::post::cl_cutter_comp_refusal(
+                    machine,
+                    &mut ik,
+                    axis_tolerance_rad,
+                    &q,
+                    &ev.pose,
+                    reference,
+                    on,
+                    ev.line,
+                ) {
+                    return Err(Error::input(Location::new(file, ev.line, 1), m));
+                }
+            }
             let block = TrajectoryBlock {
                 line: ev.line,
                 q: q.to_vec(),

@@ -5,6 +5,7 @@
 //! The driver of `compensate` runs the two on different chunks at the same
 //! time, so nothing the reader reads depends on what is written.
 
+use super::position::{Lost, goes_where_not_known, loses_position};
 use super::{AxisWriter, PoseSolver, PostOptions, PostStats, SolvedPose, unreachable_axis};
 use crate::error::{Error, Location, Result};
 use crate::gcode::{ItemKind, Line};
@@ -72,6 +73,11 @@ pub struct BlockReader<'a> {
     /// `machine_ext` is that of `previous` (a pose block came since it was
     /// last followed) and is recomputed before use.
     machine_ext_stale: bool,
+    /// The axes of `machine_ext` whose position is known (bit k: axis k):
+    /// none at the start, all after a pose, each absolute word followed
+    /// adds its axis, and whatever moves the machine where the program's
+    /// coordinates do not say clears them ([`loses_position`]).
+    known_axes: u64,
     /// The allocation of the vector of a block's words, kept from block to
     /// block (empty between blocks).
     words: Vec<WordRef<'static>>,
@@ -148,6 +154,7 @@ impl<'a> GcodeConverter<'a> {
                 unfollowed: None,
                 machine_ext: vec![0.0; machine.axes.len()],
                 machine_ext_stale: false,
+                known_axes: 0,
                 words: Vec::with_capacity(16),
                 start: Start::AtPose,
                 lines: 0,
@@ -291,6 +298,17 @@ impl BlockReader<'_> {
         {
             return Err(opaque_error(i));
         }
+        if (self.modal.pose_mode || meaning.pose.is_some())
+            && let Some((at, what)) = crate::program::flow::flow_statement(line)
+        {
+            return Err(Error::input_with(
+                Location::new(&opts.file_name, line.number, at + 1),
+                format!(
+                    "program flow (`{what}`: a jump, branch, loop or label) in pose mode: kinpost does not evaluate it, so it cannot know which pose blocks run, how often, or from where; have the CAM system write the moves without flow control, or keep it outside G43.4 / TRAORI"
+                ),
+                String::from_utf8_lossy(&line.bytes),
+            ));
+        }
         let Some((tip, axis)) = meaning.pose else {
             let text = String::from_utf8_lossy(&line.bytes);
             let unended = !line.bytes.ends_with(b"\n")
@@ -306,11 +324,13 @@ impl BlockReader<'_> {
             if !self.modal.pose_mode {
                 self.follow_machine_words(line, &meaning)?;
                 self.unfollowed = meaning.unfollowed.take();
-            } else if meaning.non_modal && goes_where_not_known(line) {
-                // `G28`, `G53 G0 Z0` between poses: the next pose starts
-                // where the program does not say, and must give X Y Z.
-                self.modal.tip = [None; 3];
-                self.start = Start::Unknown;
+            } else if (meaning.non_modal && goes_where_not_known(line))
+                || loses_position(line).is_some()
+            {
+                // `G28`, `G53 G0 Z0`, a tool change between poses: the next
+                // pose starts where the program does not say, and must give
+                // X Y Z.
+                self.lose_position();
             }
             // It may move the machine (a pass-through move, G28, a tool
             // change) or change the controlled point (G43).
@@ -601,6 +621,7 @@ impl BlockReader<'_> {
         self.previous = Continuation::At(q.iter().copied().collect());
         // `machine_ext` follows from `previous` when next needed.
         self.machine_ext_stale = true;
+        self.known_axes = u64::MAX;
         self.start = Start::AtPose;
     }
 
@@ -612,6 +633,7 @@ impl BlockReader<'_> {
     pub fn deferred(&mut self) {
         self.previous = Continuation::LastPose;
         self.machine_ext_stale = true;
+        self.known_axes = u64::MAX;
         self.start = Start::AtPose;
     }
 
@@ -650,6 +672,23 @@ impl BlockReader<'_> {
         line: &Line,
         meaning: &crate::program::BlockMeaning,
     ) -> Result<()> {
+        match loses_position(line) {
+            // A call: its words are its arguments (`G65 P9000 A5. B20.`),
+            // and it moves the machine where this file does not say.
+            Some(Lost::Call) => {
+                self.moved_since_pose = true;
+                self.lose_position();
+                return Ok(());
+            }
+            // A tool change, a new work offset: the block's own absolute
+            // words are where the machine then is, the other axes are not
+            // known.
+            Some(Lost::Before) => {
+                self.moved_since_pose = true;
+                self.lose_position();
+            }
+            None => {}
+        }
         if meaning.non_modal {
             let g = |v: f64| {
                 line.words()
@@ -660,11 +699,11 @@ impl BlockReader<'_> {
                 // Home, machine coordinates, offsets reset: where the tool
                 // is in program coordinates is no longer known, so the
                 // next pose must give X, Y and Z.
-                self.modal.tip = [None; 3];
-                self.start = Start::Unknown;
+                self.lose_position();
             }
             if g(92.0) {
                 // A new origin: the machine stays, its words change.
+                self.known_axes = 0;
                 self.start = Start::Unknown;
             } else {
                 // `G10 L2 P1 X100`, `G52 X5`, `G68 X10 Y10 R30`, `G111 X0
@@ -698,6 +737,9 @@ impl BlockReader<'_> {
         }) {
             if let Some(k) = self.machine.axes.iter().position(|a| a.name == w.address) {
                 given |= 1 << k;
+                if meaning.absolute {
+                    self.known_axes |= 1 << k;
+                }
                 self.machine_ext[k] = crate::machine::rotary::follow_word(
                     &self.machine.axes[k],
                     w.value,
@@ -722,26 +764,83 @@ impl BlockReader<'_> {
                 .iter()
                 .position(|i| matches!(i.kind, ItemKind::BlockDelete));
             let whole = meaning.absolute && given.count_ones() as usize == self.machine.axes.len();
+            // Under plain tool length compensation the controller puts the
+            // tool's tip, not the gauge line, where the words say: the
+            // machine's axes are then not where kinpost follows them.
+            let rotaries: u64 = (self.machine.axes.iter().enumerate())
+                .filter(|(_, a)| a.kind == crate::machine::JointKind::Revolute)
+                .fold(0, |m, (k, _)| m | 1 << k.min(63));
+            if self.length_comp.plain_on() {
+                self.known_axes &= rotaries;
+            }
             // A move (not a new origin) to a position of every axis, or from
-            // a known one, is known.
+            // a known one, is followed (where an axis the program never
+            // moved stands does not change a segment's shape).
             if !meaning.non_modal && (whole || self.start != Start::Unknown) {
                 self.start = Start::Followed;
             }
+            // But the tool tip's coordinates that an axis not known moves
+            // (never programmed, or lost since) are not known: a pose must
+            // give them (an axis never programmed is not at 0).
+            let all = u64::MAX >> (64 - self.machine.axes.len().clamp(1, 64));
+            let known = self.known_axes & all == all;
+            let rotaries_known = self.known_axes & rotaries == rotaries;
             self.switch.followed_move(&self.modal, line, slash, whole);
             let q = self.machine.to_internal(&self.machine_ext);
-            let pose = machine_at(self.machine, self.opts, line.number)
-                .chain
-                .pose(&q, &crate::machine::NoErrors);
+            let chain = &machine_at(self.machine, self.opts, line.number).chain;
+            let pose = chain.pose(&q, &crate::machine::NoErrors);
             self.modal.seed_from_machine(pose.tip, pose.axis);
+            if !known {
+                self.modal.tip = if rotaries_known {
+                    self.tip_known(chain, &q, pose.tip)
+                } else {
+                    [None; 3]
+                };
+            }
             self.previous = Continuation::At(q);
             // A move under a frame (G68, TRANS, …) goes where its words do
             // not say: the position is not known after it.
             if self.modal.frame_seen || self.modal.shift_seen {
-                self.modal.tip = [None; 3];
-                self.start = Start::Unknown;
+                self.lose_position();
             }
         }
         Ok(())
+    }
+
+    /// The coordinates of the tool tip `tip` (at joint values `q` of
+    /// `chain`, the rotary axes known) that no linear axis whose position
+    /// is not known moves: the others are `None`.
+    fn tip_known(
+        &self,
+        chain: &crate::machine::chain::Chain,
+        q: &[f64],
+        tip: Vector3<f64>,
+    ) -> [Option<f64>; 3] {
+        let mut out = [Some(tip.x), Some(tip.y), Some(tip.z)];
+        for (k, axis) in self.machine.axes.iter().enumerate() {
+            if self.known_axes & (1 << k.min(63)) != 0 {
+                continue;
+            }
+            let mut moved = q.to_vec();
+            if let Some(v) = moved.get_mut(axis.joint) {
+                *v += 1.0;
+            }
+            let d = chain.pose(&moved, &crate::machine::NoErrors).tip - tip;
+            for i in 0..3 {
+                if d[i].abs() > 1e-9 {
+                    out[i] = None;
+                }
+            }
+        }
+        out
+    }
+
+    /// Where the machine is in program coordinates is no longer known:
+    /// the next pose must give X, Y and Z.
+    fn lose_position(&mut self) {
+        self.known_axes = 0;
+        self.modal.tip = [None; 3];
+        self.start = Start::Unknown;
     }
 }
 
@@ -752,26 +851,6 @@ fn machine_at<'m>(machine: &'m Machine, opts: &'m PostOptions, line: usize) -> &
         Some(k) => &tools[k].1,
         None => tools.first().map_or(machine, |t| &t.1),
     }
-}
-
-/// Whether `line` sends the machine somewhere its program coordinates do
-/// not say: home (`G28`, `G30`), machine coordinates (`G53`, Sinumerik
-/// `G153`, `SUPA`), the offsets reset (`G92.1`–`G92.3`), Fanuc's tool
-/// axis direction control (`G53.1`: the rotaries turn), Sinumerik's
-/// reference and fixed point approaches (`G74`, `G75` with `X1=`…).
-fn goes_where_not_known(line: &Line) -> bool {
-    let indexed = || {
-        line.words()
-            .any(|w| crate::program::modal::point_approach_word(&w.address))
-    };
-    line.keywords().any(|k| k == "SUPA")
-        || line.words().any(|w| {
-            w.address == "G"
-                && ([28.0, 30.0, 53.0, 153.0, 92.1, 92.2, 92.3, 53.1]
-                    .iter()
-                    .any(|v| (w.value - v).abs() < 1e-9)
-                    || ((w.value == 74.0 || w.value == 75.0) && indexed()))
-        })
 }
 
 /// A pose block between [`BlockReader::begin`] and

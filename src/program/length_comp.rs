@@ -1,5 +1,5 @@
 //! Tool length compensation a program switches on by itself (`G43 Hn`,
-//! `G43.1`, `G44`): where the machine's chain already ends at the tool's
+//! `G43.1`, `G43.2`, `G44`): where the machine's chain already ends at the tool's
 //! tip (`--tool-length`, `--tool-table`, a machine file's `tool_length`),
 //! the axis words of a converted pose include the tool, and the controller
 //! would add its length a second time. `G43.4`/`G43.5` are tool centre
@@ -47,11 +47,13 @@ impl LengthCompensation {
         let d0 = words.iter().any(|w| w.address == "D" && w.value == 0.0);
         for w in words {
             match w.address {
-                "G" if w.value == 43.0 || w.value == 43.1 || w.value == 44.0 => {
+                // LinuxCNC's G43.2 adds another tool's length on top.
+                "G" if [43.0, 43.1, 43.2, 44.0].contains(&w.value) => {
                     self.on = Some(place(w));
                 }
                 "G" if w.value == 49.0 => self.on = None,
-                "G" if w.value == 43.4 || w.value == 43.5 => {
+                // Tool centre point control (Haas G234 in G43's group too).
+                "G" if w.value == 43.4 || w.value == 43.5 || w.value == 234.0 => {
                     self.on = None;
                     self.traori = false;
                 }
@@ -65,12 +67,19 @@ impl LengthCompensation {
         }
     }
 
+    /// Whether plain tool length compensation (`G43`, `G43.1`, `G43.2`,
+    /// `G44`) is on: the controller then moves the tool's tip, not the
+    /// gauge line, to a block's machine axis words.
+    pub fn plain_on(&self) -> bool {
+        self.on.is_some()
+    }
+
     /// The word that switched tool length compensation on, while it is on,
     /// and what it is: plain `G43`/`G43.1`/`G44`, or under `TRAORI` a
     /// Sinumerik tool offset `D` (or a tool change, which selects `D1`).
     pub fn on(&self) -> Option<(&Place, &'static str)> {
         match (&self.on, &self.sinumerik_d) {
-            (Some(p), _) => Some((p, "tool length compensation (G43/G43.1/G44) is on")),
+            (Some(p), _) => Some((p, "tool length compensation (G43/G43.1/G43.2/G44) is on")),
             (None, Some(p)) if self.traori => Some((
                 p,
                 "a Sinumerik tool offset (D other than 0, or D1 selected by a tool change) is on, and TRAFOOF (which kinpost writes for TRAORI) leaves it on",

@@ -5,6 +5,7 @@ mod block_delete;
 pub mod block_delete_switch;
 pub mod block_words;
 pub mod fagor;
+pub mod flow;
 pub mod format;
 pub mod frames;
 pub mod heidenhain;

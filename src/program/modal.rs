@@ -856,7 +856,7 @@ impl ModalState {
                     return Err(BlockError {
                         item: meaning.pose_items.first().copied(),
                         message: format!(
-                            "the tool tip {} is not known yet: the first pose block must give X, Y and Z",
+                            "the tool tip {} is not known yet: the first pose block must give X, Y and Z (and so must a pose after a move that leaves the machine where the program's coordinates do not say: home, machine coordinates, a new work offset, a tool change, a call, a move under G43, or axes never programmed)",
                             names[i]
                         ),
                     });

@@ -27,6 +27,19 @@ pub struct PoseEvent {
     pub feed_mm_min: Option<f64>,
     /// Rapid move (G0 / RAPID).
     pub rapid: bool,
+    /// Cutter compensation in force (`CUTCOM/LEFT|RIGHT`, APT CL only).
+    pub cutter_comp: Option<CutterComp>,
+}
+
+/// Cutter compensation of APT CL that is on: the controller offsets the
+/// moves by the tool radius in its X Y plane (`G41`/`G42`, as `post`
+/// writes it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CutterComp {
+    /// The line of the `CUTCOM/LEFT|RIGHT` statement.
+    pub line: usize,
+    /// To the left of the path (`G41`), else to the right (`G42`).
+    pub left: bool,
 }
 
 /// Reads the poses of APT CL data, lowered as `post` lowers them
@@ -48,6 +61,7 @@ pub fn cl_poses<R: BufRead>(
     // a feed per minute.
     let (mut rev_feed, mut spindle) = (None, super::spindle::Spindle::default());
     let mut rapid = false;
+    let mut cutter_comp = None;
     let mut records = crate::cl::lower(
         ClReader::new(input, file),
         file,
@@ -108,10 +122,17 @@ pub fn cl_poses<R: BufRead>(
                         feed
                     },
                     rapid,
+                    cutter_comp,
                 })?;
                 rapid = false;
             }
             ClStatement::TlAxis(a) => axis = Vector3::from(a),
+            ClStatement::CutterCompensation { ref block, on } => {
+                cutter_comp = on.then(|| CutterComp {
+                    line: record.line,
+                    left: block.starts_with("G41"),
+                })
+            }
             ClStatement::Rapid => rapid = true,
             ClStatement::Units(u) => {
                 units = match u {

@@ -92,7 +92,17 @@ fn pose_lines(machine: &Machine, n: usize) -> Vec<String> {
 fn program(machine: &Machine, n: usize, breaks: &[usize]) -> String {
     let lines = pose_lines(machine, n);
     let axis = |k: usize| machine.axes[k % machine.axes.len()].name.clone();
-    let mut text = String::from("G21 G90 G94\nG1 F500.\n");
+    // Every axis at a known position first: a pose giving only Z before
+    // any other continues from there.
+    let home: Vec<String> = machine
+        .axes
+        .iter()
+        .map(|a| format!("{}0", a.name))
+        .collect();
+    let mut text = format!(
+        "G21 G90 G94\nG49\nG0 {}\nG43.4 H1\nG1 F500.\n",
+        home.join(" ")
+    );
     for (i, l) in lines.iter().enumerate() {
         if breaks.contains(&i) {
             text.push_str("G49\n");
@@ -166,14 +176,14 @@ fn branches_found_in_parallel_give_the_in_order_solution() {
         "xyzbc-nutating",
     ] {
         let machine = Machine::embedded(name).unwrap();
-        // Machine blocks (5 lines, after the 2 of the header) before
+        // Machine blocks (5 lines, after the 5 of the header) before
         // poses 0, 100, at the start of the driver's third chunk of 512
         // lines, a run of them close together, and two more. The first
-        // pass waits at 100, 1007, 2200 and 2999 (at 0 no pose came
+        // pass waits at 100, 1004, 2200 and 2999 (at 0 no pose came
         // before); after each wait it solves the next 512 poses itself
         // (`IN_ORDER_AFTER_WAIT`), so that the blocks at 1500–1503 are
         // read with their joint values known.
-        let breaks = [0, 100, 1024 - 2 - 15, 1500, 1501, 1503, 2200, 2999];
+        let breaks = [0, 100, 1024 - 5 - 15, 1500, 1501, 1503, 2200, 2999];
         let (out, _, poses) = compare(&machine, &program(&machine, 3000, &breaks));
         assert_eq!(poses, 3000 + breaks.len(), "{name}");
         assert!(out.is_ok(), "{name}: {out:?}");

@@ -497,7 +497,13 @@ fn non_modal_blocks_are_not_followed_as_moves() {
             String::from_utf8_lossy(&out.stderr).into_owned(),
         )
     };
-    let (code, out, err) = run("g10.ngc", "G10 L2 P1 X100", "G1 Z40 I0 J0 K1 F100");
+    // `G10 L2 P1 X100` changes the active work offset (G54): the machine
+    // stays, its program coordinates change, so since session 33 they are
+    // not known (before, the pose continued from X0 of the old offset).
+    let (code, _, err) = run("g10.ngc", "G10 L2 P1 X100", "G1 Z40 I0 J0 K1 F100");
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("the tool tip X is not known yet"), "{err}");
+    let (code, out, err) = run("g10.ngc", "G10 L2 P1 X100", "G1 X0 Y0 Z40 I0 J0 K1 F100");
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("G1 X0.000 Y0.000 Z40.000"), "{out}");
     // A shift (G52, G92) before TCP: since session 29 pose mode may not
@@ -571,7 +577,7 @@ fn secondary_linear_axes_in_pose_mode_are_refused() {
     assert_eq!(out, plain);
     let (code, _, err) = post(
         "ok.ngc",
-        format!("{fanuc}T1 M6 S1000 M3 D1\nG1 X12 F200\nG4 P1\nG49\nG1 W5\nM30\n").as_bytes(),
+        format!("{fanuc}T1 M6 S1000 M3 D1\nG1 X12 Y0 Z5 F200\nG4 P1\nG49\nG1 W5\nM30\n").as_bytes(),
     );
     assert_eq!(code, 0, "{err}");
 }

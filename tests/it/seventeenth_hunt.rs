@@ -204,3 +204,134 @@ fn a_rewritten_line_gets_its_checksum_again() {
         }
     }
 }
+
+/// `analyze` and `simulate` read a CL's moves under `CUTCOM/LEFT|RIGHT`
+/// as the contour, also where `post` refuses them (here on zhao2022-xzbc,
+/// which has no Y axis to offset in): they gave an analysis and a
+/// recording of a program that cannot run, exit 0. They now refuse such a
+/// move as `post` does, at its line; where `post` converts the
+/// compensation (xyzac-trt, the tool along Z, the rotaries still) they
+/// read the program as before.
+#[test]
+fn moves_post_refuses_under_cutter_compensation_are_refused_by_every_command() {
+    let program = "UNITS/MM\nLOAD/TOOL,1\nGOTO/0,0,10,0,0,1\nCUTCOM/LEFT\nGOTO/10,0,0\nGOTO/10,10,0\nCUTCOM/OFF\nGOTO/0,0,10\nFINI\n";
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("rec.csv");
+    let rec = rec.to_str().unwrap();
+    for (machine, runs) in [("zhao2022-xzbc", false), ("xyzac-trt", true)] {
+        let commands: [Vec<&str>; 3] = [
+            vec!["post", "--machine", machine],
+            vec!["analyze", "--nonlinear", "--machine", machine],
+            vec!["simulate", "--machine", machine, "-o", rec, "-p"],
+        ];
+        for args in commands {
+            let (code, out, err) = run_on(&args, "comp.cls", program);
+            if runs {
+                assert_eq!(code, 0, "{machine} {}: {err}", args[0]);
+            } else {
+                assert_eq!(code, 1, "{machine} {}: {out}{err}", args[0]);
+                assert!(
+                    err.contains("comp.cls:5:") && err.contains("cutter compensation is on"),
+                    "{machine} {}: {err}",
+                    args[0]
+                );
+            }
+        }
+    }
+}
+
+/// The first pose continues from where blocks in machine axes left the
+/// machine, for the coordinates it does not give. Where the program does
+/// not say where that is, kinpost took a position anyway, exit 0: an axis
+/// never programmed at 0 (`G0 X5`, then `G1 Y5`: Z0, a plunge from
+/// wherever Z stood); after `G28 Z0` and `G0 X5`, Z where it was before
+/// `G28`; under `G43 H1` the programmed Z as the gauge line's (the tip 50
+/// mm lower with a 50 mm tool); after `G55`, `G10 L20`, a tool change
+/// (`M6`) the position of before. Each is now refused at the pose, which
+/// must give X, Y and Z; the same poses giving them convert.
+#[test]
+fn a_pose_does_not_continue_from_a_position_the_program_does_not_give() {
+    let cases = [
+        ("never programmed", "G0 X5\n"),
+        ("home", "G0 X0 Y0 Z100 B0 C0\nG28 G91 Z0\nG90 G0 X5\n"),
+        ("G43", "T1 M6\nG0 G54 X0 Y0 B0 C0\nG43 H1 Z100\n"),
+        ("G55", "G54 G0 X0 Y0 Z100 B0 C0\nG55\n"),
+        ("G10 L20", "G54 G0 X0 Y0 Z100 B0 C0\nG10 L20 P1 X50\n"),
+        ("M6", "G0 X0 Y0 Z100 B0 C0\nT2 M6\n"),
+        ("M98", "G0 X0 Y0 Z100 B0 C0\nM98 P1000\n"),
+    ];
+    let args = ["post", "--machine", "xyzbc-trt"];
+    for (name, before) in cases {
+        let partial = format!("G21 G90 G94\n{before}G43.4 H1\nG1 X10 F500\nG49\nM30\n");
+        let (code, out, err) = run_on(&args, "p.nc", &partial);
+        assert_eq!(code, 1, "{name}: {out}{err}");
+        assert!(err.contains("is not known yet"), "{name}: {err}");
+        let whole =
+            format!("G21 G90 G94\n{before}G43.4 H1\nG1 X10 Y0 Z50 I0 J0 K1 F500\nG49\nM30\n");
+        let (code, _, err) = run_on(&args, "p.nc", &whole);
+        assert_eq!(code, 0, "{name}: {err}");
+    }
+    // A whole position after a new work offset or a tool change is known.
+    let program = "G21 G90 G94\nT1 M6\nG0 G55 X0 Y0 Z100 B0 C0\nG43.4 H1\nG1 X10 F500\nG49\nM30\n";
+    let (code, out, err) = run_on(&args, "p.nc", program);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("G1 X10.0000 Y0.0000 Z100.0000"), "{out}");
+}
+
+/// A macro call's words are its arguments (Fanuc `G65 P9000 A5. B20.
+/// C3.`: the variables #1, #2, #3), not a move: they were followed as B20
+/// C3, and the next pose, without a tool vector, was tilted by them.
+#[test]
+fn a_macro_calls_arguments_are_not_a_move() {
+    let program = "G21 G90 G94\nG0 X0 Y0 Z100 B0 C0\nG65 P9000 A5. B20. C3.\nG43.4 H1\nG1 X10 Y0 Z100 F500\nG49\nM30\n";
+    let (code, out, err) = run_on(&["post", "--machine", "xyzbc-trt"], "m.nc", program);
+    assert_eq!(code, 0, "{err}");
+    let pose = out.lines().find(|l| l.starts_with("G1 ")).expect(&out);
+    assert_eq!(word(pose, "B"), Some(0.0), "{pose}");
+    assert_eq!(word(pose, "C"), Some(0.0), "{pose}");
+}
+
+/// Fanuc and Sinumerik jumps, branches and loops in pose mode passed, as
+/// LinuxCNC's o-word flow does not: `GOTOF LBL1` skips a pose on the
+/// controller, and kinpost carried that pose's Y into the next one.
+/// LinuxCNC's `G43.2` (a second tool length on top) in pose mode passed
+/// where `G43` is refused. Haas's `G234` after `G43` (it cancels it, one
+/// group) was refused. Now the first two are refused at their column, the
+/// third converts.
+#[test]
+fn flow_and_a_second_tool_length_in_pose_mode_are_refused() {
+    let args = ["post", "--machine", "xyzbc-trt"];
+    for (name, program, at) in [
+        (
+            "g.mpf",
+            "N10 G90 G71\nN20 TRAORI\nN30 G1 X10 Y20 Z30 A3=0 B3=0 C3=1 F500\nN40 GOTOF LBL1\nN50 Y50\nLBL1:\nN60 X11\nN70 TRAFOOF\nN80 M30\n",
+            "g.mpf:4:5:",
+        ),
+        (
+            "g.nc",
+            "G21 G90 G94\nG43.4 H1\nG1 X10 Y20 Z30 I0 J0 K1 F500\nIF [#1 GT 2] GOTO 100\nG1 Y50\nN100 G1 X11\nG49\nM30\n",
+            "g.nc:4:1:",
+        ),
+        (
+            "w.nc",
+            "G21 G90 G94\nG43.4 H1\nG1 X10 Y20 Z30 I0 J0 K1 F500\nWHILE [#1 LT 3] DO1\nG1 X11\nEND1\nG49\nM30\n",
+            "w.nc:4:1:",
+        ),
+    ] {
+        let (code, out, err) = run_on(&args, name, program);
+        assert_eq!(code, 1, "{name}: {out}{err}");
+        assert!(
+            err.contains(at) && err.contains("program flow"),
+            "{name}: {err}"
+        );
+    }
+    let program =
+        "G21 G90 G94\nG43.4 H1\nG1 X10 Y20 Z30 I0 J0 K1 F500\nG43.2 H2\nG1 X11\nG49\nM2\n";
+    let with_tool = ["post", "--machine", "xyzbc-trt", "--tool-length", "100"];
+    let (code, out, err) = run_on(&with_tool, "l.ngc", program);
+    assert_eq!(code, 1, "{out}{err}");
+    assert!(err.contains("l.ngc:4:1:") && err.contains("G43.2"), "{err}");
+    let haas = "G21 G90 G94\nT2 M6\nG0 G54 X0 Y0 B0 C0\nG43 H2 Z100.\nG234\nG1 X10. Y0 Z50. I0 J0 K1 F500.\nG49\nM30\n";
+    let (code, out, err) = run_on(&with_tool, "h.nc", haas);
+    assert_eq!(code, 0, "{out}{err}");
+}

@@ -1,0 +1,92 @@
+//! Where the machine is in program coordinates, as far as a program's
+//! blocks in machine axes say: the codes and statements after which the
+//! [`super::BlockReader`] no longer knows it, so that the next pose must
+//! give X, Y and Z.
+
+use crate::gcode::{ItemKind, Line};
+
+/// How a line loses the machine's position ([`loses_position`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Lost {
+    /// Before its own words: a tool change (`M6`), a new work offset
+    /// (`G54`–`G59.3`, `G54.1`, Sinumerik `G500`, `G505`–`G599`), offsets
+    /// set (`G10 L2`, `L20`).
+    Before,
+    /// A subprogram or macro call (`M98`, `M97`, `M198`, `G65`, `G66`,
+    /// `o100 call`, Sinumerik `L100`, `CALL`, `PCALL`, `EXTCALL`, a cycle):
+    /// its words are arguments, not a move.
+    Call,
+}
+
+/// Whether `line` moves the machine, or changes the program's coordinates,
+/// in a way its axis words do not say (besides [`goes_where_not_known`]).
+pub(super) fn loses_position(line: &Line) -> Option<Lost> {
+    let g = |v: f64| {
+        line.words()
+            .any(|w| w.address == "G" && (w.value - v).abs() < 1e-9)
+    };
+    let m = |v: f64| line.words().any(|w| w.address == "M" && w.value == v);
+    let calls_keyword = line.keywords().any(|k| {
+        ["CALL", "PCALL", "EXTCALL", "MCALL"]
+            .iter()
+            .any(|c| k.eq_ignore_ascii_case(c))
+    });
+    let calls_opaque = line.items.iter().any(|it| {
+        matches!(it.kind, ItemKind::Opaque) && {
+            let text = String::from_utf8_lossy(line.item_bytes(it));
+            crate::program::opaque::call_name(&text).is_some()
+                && !crate::program::opaque::harmless_call(&text)
+                && crate::program::opaque::known_call(&text).is_none()
+        }
+    });
+    // Sinumerik `L100`: a subprogram call when the block has no other word
+    // (`G10 L2`, a cycle's repeat count `L` go with other words).
+    let sinumerik_l = line.words().any(|w| w.address == "L")
+        && line
+            .words()
+            .all(|w| matches!(w.address.as_ref(), "L" | "N" | "P"));
+    if m(98.0)
+        || m(97.0)
+        || m(198.0)
+        || g(65.0)
+        || g(66.0)
+        || calls_keyword
+        || calls_opaque
+        || sinumerik_l
+    {
+        return Some(Lost::Call);
+    }
+    let offset = [
+        54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 54.1, 59.1, 59.2, 59.3, 500.0,
+    ]
+    .iter()
+    .any(|&v| g(v))
+        || line
+            .words()
+            .any(|w| w.address == "G" && (505.0..=599.0).contains(&w.value));
+    let set_offsets = g(10.0)
+        && line
+            .words()
+            .any(|w| w.address == "L" && (w.value == 2.0 || w.value == 20.0));
+    (m(6.0) || offset || set_offsets).then_some(Lost::Before)
+}
+
+/// Whether `line` sends the machine somewhere its program coordinates do
+/// not say: home (`G28`, `G30`), machine coordinates (`G53`, Sinumerik
+/// `G153`, `SUPA`), the offsets reset (`G92.1`–`G92.3`), Fanuc's tool
+/// axis direction control (`G53.1`: the rotaries turn), Sinumerik's
+/// reference and fixed point approaches (`G74`, `G75` with `X1=`…).
+pub(super) fn goes_where_not_known(line: &Line) -> bool {
+    let indexed = || {
+        line.words()
+            .any(|w| crate::program::modal::point_approach_word(&w.address))
+    };
+    line.keywords().any(|k| k == "SUPA")
+        || line.words().any(|w| {
+            w.address == "G"
+                && ([28.0, 30.0, 53.0, 153.0, 92.1, 92.2, 92.3, 53.1]
+                    .iter()
+                    .any(|v| (w.value - v).abs() < 1e-9)
+                    || ((w.value == 74.0 || w.value == 75.0) && indexed()))
+        })
+}
