@@ -15,10 +15,11 @@ const FLOW_WORDS: &[&str] = &[
     "END2", "END3",
 ];
 
-/// The byte offset in `line` and the text of a flow statement: one of
-/// [`FLOW_WORDS`] outside comments, a Sinumerik label (`LBL1:` first on
-/// the line, after its block number), or Fanuc's `M99 P` (a return or a
-/// jump to a block number). `None` when the line has none.
+/// The byte offset in `line` and the text of a flow statement: a flow
+/// word (`GOTOF`, `IF`, `WHILE`, `DO1`, …) outside comments, a Sinumerik
+/// label (`LBL1:` first on the line, after its block number), or Fanuc's
+/// `M99 P` (a return or a jump to a block number). `None` when the line
+/// has none.
 pub fn flow_statement(line: &Line) -> Option<(usize, String)> {
     // A plain block of words (every pose block) holds none: only a keyword,
     // text the parser does not read, a label's colon or an M word can.
