@@ -78,6 +78,10 @@ pub struct BlockReader<'a> {
     /// adds its axis, and whatever moves the machine where the program's
     /// coordinates do not say clears them ([`loses_position`]).
     known_axes: u64,
+    /// The axes the program has given a position or a move (bit k: axis
+    /// k): one it never moved stands where it stood, and a segment's shape
+    /// does not depend on where that is.
+    programmed_axes: u64,
     /// The allocation of the vector of a block's words, kept from block to
     /// block (empty between blocks).
     words: Vec<WordRef<'static>>,
@@ -155,6 +159,7 @@ impl<'a> GcodeConverter<'a> {
                 machine_ext: vec![0.0; machine.axes.len()],
                 machine_ext_stale: false,
                 known_axes: 0,
+                programmed_axes: 0,
                 words: Vec::with_capacity(16),
                 start: Start::AtPose,
                 lines: 0,
@@ -622,6 +627,7 @@ impl BlockReader<'_> {
         // `machine_ext` follows from `previous` when next needed.
         self.machine_ext_stale = true;
         self.known_axes = u64::MAX;
+        self.programmed_axes = u64::MAX;
         self.start = Start::AtPose;
     }
 
@@ -634,6 +640,7 @@ impl BlockReader<'_> {
         self.previous = Continuation::LastPose;
         self.machine_ext_stale = true;
         self.known_axes = u64::MAX;
+        self.programmed_axes = u64::MAX;
         self.start = Start::AtPose;
     }
 
@@ -677,7 +684,7 @@ impl BlockReader<'_> {
             // and it moves the machine where this file does not say.
             Some(Lost::Call) => {
                 self.moved_since_pose = true;
-                self.lose_position();
+                self.lose_position_since_start();
                 return Ok(());
             }
             // A tool change, a new work offset: the block's own absolute
@@ -685,7 +692,7 @@ impl BlockReader<'_> {
             // known.
             Some(Lost::Before) => {
                 self.moved_since_pose = true;
-                self.lose_position();
+                self.lose_position_since_start();
             }
             None => {}
         }
@@ -737,6 +744,7 @@ impl BlockReader<'_> {
         }) {
             if let Some(k) = self.machine.axes.iter().position(|a| a.name == w.address) {
                 given |= 1 << k;
+                self.programmed_axes |= 1 << k.min(63);
                 if meaning.absolute {
                     self.known_axes |= 1 << k;
                 }
@@ -776,13 +784,14 @@ impl BlockReader<'_> {
             // A move (not a new origin) to a position of every axis, or from
             // a known one, is followed (where an axis the program never
             // moved stands does not change a segment's shape).
-            if !meaning.non_modal && (whole || self.start != Start::Unknown) {
+            let all = u64::MAX >> (64 - self.machine.axes.len().clamp(1, 64));
+            let settled = (self.known_axes | !self.programmed_axes) & all == all;
+            if !meaning.non_modal && (whole || settled || self.start != Start::Unknown) {
                 self.start = Start::Followed;
             }
             // But the tool tip's coordinates that an axis not known moves
             // (never programmed, or lost since) are not known: a pose must
             // give them (an axis never programmed is not at 0).
-            let all = u64::MAX >> (64 - self.machine.axes.len().clamp(1, 64));
             let known = self.known_axes & all == all;
             let rotaries_known = self.known_axes & rotaries == rotaries;
             self.switch.followed_move(&self.modal, line, slash, whole);
@@ -833,6 +842,19 @@ impl BlockReader<'_> {
             }
         }
         out
+    }
+
+    /// As [`BlockReader::lose_position`], but before the first move or pose
+    /// (a program's header: `G54`, `T1 M6`) the start stays as it is: no
+    /// segment starts there, and the blocks after it are followed as
+    /// before.
+    fn lose_position_since_start(&mut self) {
+        if self.previous == Continuation::Nowhere {
+            self.known_axes = 0;
+            self.modal.tip = [None; 3];
+        } else {
+            self.lose_position();
+        }
     }
 
     /// Where the machine is in program coordinates is no longer known:
