@@ -737,16 +737,20 @@ impl BlockReader<'_> {
             }
         }
         let mut moved = false;
-        let mut given = 0usize;
+        // Axes given a word (a machine of more than 64 axes counts the
+        // first 64: its blocks are never whole, as its positions never
+        // known, which only asks more of its poses).
+        let mut given = 0u64;
         for (item, w) in line.items.iter().filter_map(|i| match &i.kind {
             ItemKind::Word(w) => Some((i, w)),
             _ => None,
         }) {
             if let Some(k) = self.machine.axes.iter().position(|a| a.name == w.address) {
-                given |= 1 << k;
-                self.programmed_axes |= 1 << k.min(63);
+                let bit = if k < 64 { 1u64 << k } else { 0 };
+                given |= bit;
+                self.programmed_axes |= bit;
                 if meaning.absolute {
-                    self.known_axes |= 1 << k;
+                    self.known_axes |= bit;
                 }
                 self.machine_ext[k] = crate::machine::rotary::follow_word(
                     &self.machine.axes[k],
@@ -777,7 +781,7 @@ impl BlockReader<'_> {
             // machine's axes are then not where kinpost follows them.
             let rotaries: u64 = (self.machine.axes.iter().enumerate())
                 .filter(|(_, a)| a.kind == crate::machine::JointKind::Revolute)
-                .fold(0, |m, (k, _)| m | 1 << k.min(63));
+                .fold(0, |m, (k, _)| m | if k < 64 { 1 << k } else { 0 });
             if self.length_comp.plain_on() {
                 self.known_axes &= rotaries;
             }
@@ -827,7 +831,7 @@ impl BlockReader<'_> {
     ) -> [Option<f64>; 3] {
         let mut out = [Some(tip.x), Some(tip.y), Some(tip.z)];
         for (k, axis) in self.machine.axes.iter().enumerate() {
-            if self.known_axes & (1 << k.min(63)) != 0 {
+            if k < 64 && self.known_axes & (1 << k) != 0 {
                 continue;
             }
             let mut moved = q.to_vec();
