@@ -5,7 +5,7 @@
 //! The driver of `compensate` runs the two on different chunks at the same
 //! time, so nothing the reader reads depends on what is written.
 
-use super::position::{Lost, goes_where_not_known, loses_position};
+use super::position::{Lost, goes_where_not_known, loses_position, tip_known};
 use super::{AxisWriter, PoseSolver, PostOptions, PostStats, SolvedPose, unreachable_axis};
 use crate::error::{Error, Location, Result};
 use crate::gcode::{ItemKind, Line};
@@ -805,7 +805,7 @@ impl BlockReader<'_> {
             self.modal.seed_from_machine(pose.tip, pose.axis);
             if !known {
                 self.modal.tip = if rotaries_known {
-                    self.tip_known(chain, &q, pose.tip)
+                    tip_known(self.machine, self.known_axes, chain, &q, pose.tip)
                 } else {
                     [None; 3]
                 };
@@ -818,34 +818,6 @@ impl BlockReader<'_> {
             }
         }
         Ok(())
-    }
-
-    /// The coordinates of the tool tip `tip` (at joint values `q` of
-    /// `chain`, the rotary axes known) that no linear axis whose position
-    /// is not known moves: the others are `None`.
-    fn tip_known(
-        &self,
-        chain: &crate::machine::chain::Chain,
-        q: &[f64],
-        tip: Vector3<f64>,
-    ) -> [Option<f64>; 3] {
-        let mut out = [Some(tip.x), Some(tip.y), Some(tip.z)];
-        for (k, axis) in self.machine.axes.iter().enumerate() {
-            if k < 64 && self.known_axes & (1 << k) != 0 {
-                continue;
-            }
-            let mut moved = q.to_vec();
-            if let Some(v) = moved.get_mut(axis.joint) {
-                *v += 1.0;
-            }
-            let d = chain.pose(&moved, &crate::machine::NoErrors).tip - tip;
-            for i in 0..3 {
-                if d[i].abs() > 1e-9 {
-                    out[i] = None;
-                }
-            }
-        }
-        out
     }
 
     /// As [`BlockReader::lose_position`], but before the first move or pose

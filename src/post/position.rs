@@ -4,6 +4,8 @@
 //! give X, Y and Z.
 
 use crate::gcode::{ItemKind, Line};
+use crate::machine::Machine;
+use nalgebra::Vector3;
 
 /// How a line loses the machine's position ([`loses_position`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -89,4 +91,33 @@ pub(super) fn goes_where_not_known(line: &Line) -> bool {
                     .any(|v| (w.value - v).abs() < 1e-9)
                     || ((w.value == 74.0 || w.value == 75.0) && indexed()))
         })
+}
+
+/// The coordinates of the tool tip `tip` (at joint values `q` of `chain`,
+/// `machine`'s rotary axes known) that no linear axis outside `known_axes`
+/// (bit k: axis k) moves; the others are `None`.
+pub(super) fn tip_known(
+    machine: &Machine,
+    known_axes: u64,
+    chain: &crate::machine::chain::Chain,
+    q: &[f64],
+    tip: Vector3<f64>,
+) -> [Option<f64>; 3] {
+    let mut out = [Some(tip.x), Some(tip.y), Some(tip.z)];
+    for (k, axis) in machine.axes.iter().enumerate() {
+        if k < 64 && known_axes & (1 << k) != 0 {
+            continue;
+        }
+        let mut moved = q.to_vec();
+        if let Some(v) = moved.get_mut(axis.joint) {
+            *v += 1.0;
+        }
+        let d = chain.pose(&moved, &crate::machine::NoErrors).tip - tip;
+        for i in 0..3 {
+            if d[i].abs() > 1e-9 {
+                out[i] = None;
+            }
+        }
+    }
+    out
 }
