@@ -15,7 +15,7 @@ pub(super) enum Lost {
     /// set (`G10 L2`, `L20`).
     Before,
     /// A subprogram or macro call (`M98`, `M97`, `M198`, `G65`, `G66`,
-    /// `o100 call`, Sinumerik `L100`, `CALL`, `PCALL`, `EXTCALL`, a cycle):
+    /// `G66.1`, `o100 call`, Sinumerik `L100`, `CALL`, `PCALL`, `EXTCALL`, a cycle):
     /// its words are arguments, not a move.
     Call,
 }
@@ -28,11 +28,9 @@ pub(super) fn loses_position(line: &Line) -> Option<Lost> {
             .any(|w| w.address == "G" && (w.value - v).abs() < 1e-9)
     };
     let m = |v: f64| line.words().any(|w| w.address == "M" && w.value == v);
-    let calls_keyword = line.keywords().any(|k| {
-        ["CALL", "PCALL", "EXTCALL", "MCALL"]
-            .iter()
-            .any(|c| k.eq_ignore_ascii_case(c))
-    });
+    use crate::program::unfollowed::{CALL_KEYWORDS, call_word};
+    let calls_word = line.words().any(|w| call_word(&w.address, w.value));
+    let calls_keyword = line.keywords().any(|k| CALL_KEYWORDS.contains(&k));
     let calls_opaque = line.items.iter().any(|it| {
         matches!(it.kind, ItemKind::Opaque) && {
             let text = String::from_utf8_lossy(line.item_bytes(it));
@@ -47,15 +45,7 @@ pub(super) fn loses_position(line: &Line) -> Option<Lost> {
         && line
             .words()
             .all(|w| matches!(w.address.as_ref(), "L" | "N" | "P"));
-    if m(98.0)
-        || m(97.0)
-        || m(198.0)
-        || g(65.0)
-        || g(66.0)
-        || calls_keyword
-        || calls_opaque
-        || sinumerik_l
-    {
+    if calls_word || calls_keyword || calls_opaque || sinumerik_l {
         return Some(Lost::Call);
     }
     let offset = [
