@@ -20,7 +20,9 @@ pub mod choose_in_order;
 mod cl;
 mod cl_motion;
 mod gcode;
+mod pending;
 mod position;
+mod rotary_pose;
 pub use cl::{convert_cl, post_cl};
 pub use gcode::{BlockReader, BlockWriter, Converted, GcodeConverter, PendingPose, Start};
 
@@ -628,6 +630,9 @@ impl<'a> Format for GcodeFormat<'a> {
     }
     fn pose(pending: &PendingPose) -> &Pose {
         &pending.pose
+    }
+    fn solve_from(pending: &PendingPose) -> Option<&[f64]> {
+        pending.pinned.as_deref()
     }
     fn previous<'r>(reader: &'r BlockReader<'a>) -> Option<&'r [f64]> {
         reader.previous()

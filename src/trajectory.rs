@@ -288,9 +288,10 @@ fn gcode_trajectory<R: BufRead>(
             &ik,
             machine,
             &pending.pose,
-            reader.previous(),
+            pending.solve_from(reader.previous()),
             axis_tolerance_rad,
         )
+        .and_then(|q| pending.check_pinned(machine, &q).map(|()| q))
         .map_err(|m| reader.solve_error(&line, &pending, m))?;
         reader.begun(&q);
         // A modulo axis turns the short way, as the controller turns it

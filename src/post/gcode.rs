@@ -5,7 +5,9 @@
 //! The driver of `compensate` runs the two on different chunks at the same
 //! time, so nothing the reader reads depends on what is written.
 
+pub use super::pending::{Continuation, PendingPose};
 use super::position::{Lost, goes_where_not_known, loses_position, tip_known};
+use super::rotary_pose::RotaryPositions;
 use super::{AxisWriter, PoseSolver, PostOptions, PostStats, SolvedPose, unreachable_axis};
 use crate::error::{Error, Location, Result};
 use crate::gcode::{ItemKind, Line};
@@ -82,6 +84,8 @@ pub struct BlockReader<'a> {
     /// k): one it never moved stands where it stood, and a segment's shape
     /// does not depend on where that is.
     programmed_axes: u64,
+    /// The rotary positions that orient poses given by `A B C` words.
+    rotaries: RotaryPositions,
     /// The allocation of the vector of a block's words, kept from block to
     /// block (empty between blocks).
     words: Vec<WordRef<'static>>,
@@ -160,6 +164,7 @@ impl<'a> GcodeConverter<'a> {
                 machine_ext_stale: false,
                 known_axes: 0,
                 programmed_axes: 0,
+                rotaries: RotaryPositions::new(machine),
                 words: Vec::with_capacity(16),
                 start: Start::AtPose,
                 lines: 0,
@@ -193,7 +198,11 @@ impl<'a> GcodeConverter<'a> {
             return Ok(None);
         };
         let solved = solver
-            .solve(&pending.pose, self.reader.previous(), line.number)
+            .solve(
+                &pending.pose,
+                pending.solve_from(self.reader.previous()),
+                line.number,
+            )
             .map_err(|m| self.reader.solve_error(line, &pending, m))?;
         self.reader.begun(&solved.q);
         self.writer.finish(line, &pending, &solved, out)?;
@@ -412,6 +421,14 @@ impl BlockReader<'_> {
                 at.text.clone(),
             ));
         }
+        // The orientation by rotary positions: the tool axis from the chain,
+        // the solution pinned to them.
+        let (axis, pinned) =
+            self.rotary_orientation(line, &meaning, axis)
+                .map_err(|(item, m)| {
+                    let item = item.or(meaning.pose_items.first().copied());
+                    Error::input_with(loc(item), m, String::from_utf8_lossy(&line.bytes))
+                })?;
         // After a block-delete pose the controller may stand where the
         // block before left it.
         let block_delete = line.bytes.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'/');
@@ -420,6 +437,7 @@ impl BlockReader<'_> {
             after_other,
             moved: std::mem::take(&mut self.moved_since_pose),
             pose: Pose::new(tip, axis),
+            pinned,
             continues: self.previous.clone(),
             start_known: self.start != Start::Unknown,
             start_tip: match start_tip {
@@ -444,6 +462,28 @@ impl BlockReader<'_> {
     /// The joint values the program continues from.
     pub fn previous(&self) -> Option<&[f64]> {
         self.previous.resolve(None)
+    }
+
+    /// The tool axis of the pose of `meaning` (`axis`: the programmed
+    /// vector's) and, for a pose oriented by rotary positions, the joint
+    /// values to solve it from ([`super::rotary_pose::orientation`]).
+    fn rotary_orientation(
+        &mut self,
+        line: &Line,
+        meaning: &crate::program::BlockMeaning,
+        axis: Vector3<f64>,
+    ) -> std::result::Result<(Vector3<f64>, Option<JointValues>), super::rotary_pose::Refusal> {
+        let chain = &machine_at(self.machine, self.opts, line.number).chain;
+        let previous = self.previous.resolve(None);
+        super::rotary_pose::orientation(
+            &mut self.rotaries,
+            self.machine,
+            chain,
+            line,
+            meaning,
+            axis,
+            previous,
+        )
     }
 
     /// Whether `line` holds a word of one of the machine's axes.
@@ -513,6 +553,13 @@ impl BlockWriter<'_> {
         };
         let last = self.last.take();
         let from = pending.from(last.as_deref());
+        if let Err(m) = pending.check_pinned(self.machine, solved.theoretical_q()) {
+            return Err(Error::input_with(
+                loc(meaning.pose_items.first().copied()),
+                m,
+                String::from_utf8_lossy(&line.bytes),
+            ));
+        }
         if solved.axis_miss_rad > opts.axis_tolerance_rad {
             return Err(Error::input_with(
                 loc(meaning.pose_items.first().copied()),
@@ -811,6 +858,9 @@ impl BlockReader<'_> {
                 };
             }
             self.previous = Continuation::At(q);
+            let known = self.known_axes;
+            self.rotaries
+                .followed(self.machine, &self.machine_ext, known);
             // A move under a frame (G68, TRANS, …) goes where its words do
             // not say: the position is not known after it.
             if self.modal.frame_seen || self.modal.shift_seen {
@@ -828,6 +878,7 @@ impl BlockReader<'_> {
         if self.previous == Continuation::Nowhere {
             self.known_axes = 0;
             self.modal.tip = [None; 3];
+            self.rotaries.forget();
         } else {
             self.lose_position();
         }
@@ -836,6 +887,7 @@ impl BlockReader<'_> {
     /// Where the machine is in program coordinates is no longer known:
     /// the next pose must give X, Y and Z.
     fn lose_position(&mut self) {
+        self.rotaries.forget();
         self.known_axes = 0;
         self.modal.tip = [None; 3];
         self.start = Start::Unknown;
@@ -848,67 +900,6 @@ fn machine_at<'m>(machine: &'m Machine, opts: &'m PostOptions, line: usize) -> &
     match tools.iter().rposition(|(from, _)| *from <= line) {
         Some(k) => &tools[k].1,
         None => tools.first().map_or(machine, |t| &t.1),
-    }
-}
-
-/// A pose block between [`BlockReader::begin`] and
-/// [`BlockWriter::finish`].
-#[derive(Debug, Clone)]
-pub struct PendingPose {
-    /// Lines with words passed through since the pose before, or that pose
-    /// was a block-delete one: with `--modal-axes` every axis word is
-    /// written (the machine may not stand where kinpost's last words put it).
-    pub after_other: bool,
-    /// Blocks passed through since the pose before moved the machine (to
-    /// `from`): the base of this block's increments (G91).
-    pub moved: bool,
-    /// The tool pose to solve.
-    pub pose: Pose,
-    /// The joint values the block continues from: the pose before's or
-    /// the machine position followed since (what a solver continues from).
-    pub continues: Continuation,
-    /// Where the machine stands before the block is known: not after
-    /// `G28`, `G53`, … ([`PendingPose::from`]).
-    pub start_known: bool,
-    /// The tool tip before the block, mm, when known.
-    pub start_tip: Option<Vector3<f64>>,
-    /// What the block means.
-    pub meaning: crate::program::BlockMeaning,
-}
-
-impl PendingPose {
-    /// The joint values the block starts from, where that is known (not
-    /// after `G28`, `G53`, …); `last`: the joint values of the pose before
-    /// as written, for a pose begun before it was solved.
-    pub fn from<'a>(&'a self, last: Option<&'a [f64]>) -> Option<&'a [f64]> {
-        if self.start_known {
-            self.continues.resolve(last)
-        } else {
-            None
-        }
-    }
-}
-
-/// The joint values a block continues from.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Continuation {
-    /// None: no pose or machine position came yet.
-    Nowhere,
-    /// These (chain order, mm / rad).
-    At(JointValues),
-    /// The last pose's, solved after the block was read
-    /// ([`BlockReader::deferred`]).
-    LastPose,
-}
-
-impl Continuation {
-    /// The joint values, `last` standing for the last pose's.
-    pub fn resolve<'a>(&'a self, last: Option<&'a [f64]>) -> Option<&'a [f64]> {
-        match self {
-            Continuation::Nowhere => None,
-            Continuation::At(q) => Some(q),
-            Continuation::LastPose => last,
-        }
     }
 }
 

@@ -117,6 +117,13 @@ pub trait Format: Send {
     }
     /// The pose to solve.
     fn pose(pending: &Self::Pending) -> &Pose;
+    /// The joint values to solve the pose from instead of what the program
+    /// continues from ([`Format::previous`], [`Format::continues_from`]):
+    /// a G-code pose oriented by rotary positions is solved from them.
+    fn solve_from(pending: &Self::Pending) -> Option<&[f64]> {
+        let _ = pending;
+        None
+    }
     /// The joint values the program continues from: the last pose's as
     /// [`Format::begun`] gave them, or the machine position followed since
     /// (what a solver continues from).
@@ -716,7 +723,8 @@ fn first_of<F: Format, S: Stage>(
         return Ok(());
     };
     let unit = &c.units[i];
-    match S::first(stage, F::pose(&pending), F::previous(front), F::line(unit)) {
+    let from = F::solve_from(&pending).or(F::previous(front));
+    match S::first(stage, F::pose(&pending), from, F::line(unit)) {
         Err(m) => Err(F::front_error(front, unit, &pending, m)),
         Ok(Step::Done(solved)) => {
             F::begun(front, &solved.q);
@@ -767,7 +775,8 @@ fn write<F: Format, S: Stage>(
                 }
                 let unit = &c.units[job.unit];
                 let before = buf.len();
-                let previous = F::continues_from(back, &job.pending);
+                let previous =
+                    F::solve_from(&job.pending).or(F::continues_from(back, &job.pending));
                 let converted = S::commit(
                     stage,
                     F::pose(&job.pending),

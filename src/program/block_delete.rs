@@ -11,6 +11,10 @@ pub type TipAndAxis = ([Option<f64>; 3], Vector3<f64>);
 /// Why a block-delete pose block under `G91` is refused.
 pub const UNDER_G91: &str = "a block-delete (`/`) pose block under G91 (incremental) is not converted: with the block delete switch on the controller skips it, and the machine-axis increments kinpost writes for the blocks after it (computed from this pose, its rotary axes turned) would no longer add up to the programmed poses; program the poses in G90 (absolute), or without `/`";
 
+/// Why a block-delete pose block that gives a rotary axis position (the
+/// orientation under `G43.4`, `G234`, `TRAORI`) is refused.
+pub const TURNS_A_ROTARY: &str = "a block-delete (`/`) pose block that turns a rotary axis (A B C under G43.4 / G234 / TRAORI): whether the controller skips it decides the orientation of every pose after it; not converted (give the rotary positions in the blocks after it too, without `/`)";
+
 /// What one pose block gives: each of X, Y, Z, any and all three
 /// components of the tool vector.
 #[derive(Debug, Clone, Copy)]

@@ -16,11 +16,14 @@ pub mod length_comp;
 pub mod modal;
 pub mod opaque;
 pub mod pose_program;
+pub mod repeated_words;
 pub mod rewrite;
+pub mod rotary_words;
 pub mod source;
 pub mod spindle;
 pub mod unfollowed;
 
 pub use modal::{
-    BlockError, BlockMeaning, FeedMode, ModalState, Motion, PoseStart, TcpCode, Units, WordRef,
+    BlockError, BlockMeaning, FeedMode, ModalState, Motion, PoseStart, RotaryWord, RotaryWords,
+    TcpCode, Units, WordRef,
 };

@@ -16,7 +16,9 @@
 //!   With [`PoseStart::On`] (the default of `kinpost post`) pose mode is on
 //!   from the first block, for CAM programs that carry poses without a TCP code.
 //! - In pose mode a `G0`/`G1` block with any of `X Y Z I J K A3 B3 C3` is a
-//!   pose; missing coordinates keep their modal values. An arc or a canned
+//!   pose; missing coordinates keep their modal values. Under `G43.4`,
+//!   `G234` and `TRAORI` so is one with `A B C`: the orientation as rotary
+//!   axis positions ([`BlockMeaning::rotaries`]). An arc or a canned
 //!   cycle with coordinates in pose mode is an error.
 //! - In pose mode these are refused too: `U V W E` axis words, cutter radius
 //!   compensation (`G41`, `G42`, `G41.1`–`G42.2`; modal until `G40`, and
@@ -26,6 +28,7 @@
 
 use super::frames;
 use super::ijk;
+pub use super::rotary_words::{RotaryWord, RotaryWords};
 use super::unfollowed;
 use nalgebra::Vector3;
 
@@ -121,6 +124,12 @@ pub struct BlockMeaning {
     /// Items of the words that describe the pose (X Y Z I J K A3 B3 C3), to
     /// be replaced, in order (inline up to [`POSE_ITEMS_INLINE`]).
     pub pose_items: PoseItems,
+    /// `Some` when the pose's tool orientation is given by rotary axis
+    /// positions rather than a tool vector: the block's rotary words (the
+    /// other rotary axes keep their positions). The pose's axis is then
+    /// not the tool axis: the machine's chain gives it at those positions
+    /// (`post`). Their items are in [`BlockMeaning::pose_items`].
+    pub rotaries: Option<RotaryWords>,
     /// TCP-on codes to be rewritten to their machine-coordinate equivalent.
     pub tcp_codes: Vec<TcpCode>,
     /// Item of the `H` (or `D`) word that goes with a Fanuc TCP code, dropped with it.
@@ -223,6 +232,16 @@ pub struct ModalState {
     /// Whether the program has set the tool axis (else it is (0, 0, 1) or
     /// seeded from the machine position).
     pub axis_set: bool,
+    /// The TCP code in force orients the tool by rotary axis positions
+    /// (Fanuc `G43.4` type 1, Haas `G234`, Sinumerik `TRAORI`): `A B C`
+    /// words in pose mode are the rotary axes' positions. Not under
+    /// `G43.5` (type 2: I J K only), nor in a pose mode started by a tool
+    /// vector or `--pose-start on`.
+    pub tcp_rotaries: bool,
+    /// The orientation of the poses is given by rotary axis positions
+    /// (the last pose block that gave one gave rotary words, not a tool
+    /// vector).
+    pub rotary_orientation: bool,
     /// What block-delete (`/`) pose blocks gave that later blocks may not
     /// take over.
     pub skippable: super::block_delete::SkippableCarry,
@@ -263,6 +282,8 @@ impl ModalState {
             tip: [None; 3],
             axis: Vector3::z(),
             axis_set: false,
+            tcp_rotaries: false,
+            rotary_orientation: false,
             skippable: Default::default(),
         }
     }
@@ -394,6 +415,7 @@ impl ModalState {
                         434 | 435 | 2340 => {
                             self.pose_mode = true;
                             self.fanuc_tcp = true;
+                            self.tcp_rotaries = code != 435;
                             fanuc_tcp_here = true;
                             tcp_codes.push(TcpCode::FanucOn(w.item));
                         }
@@ -492,6 +514,7 @@ impl ModalState {
             match *k {
                 "TRAORI" => {
                     self.pose_mode = true;
+                    self.tcp_rotaries = true;
                     tcp_codes.push(TcpCode::SiemensOn(*item));
                 }
                 "TRAFOOF" => self.pose_mode = false,
@@ -546,10 +569,18 @@ impl ModalState {
             }
         }
 
+        if !self.pose_mode {
+            (self.tcp_rotaries, self.rotary_orientation) = (false, false);
+        }
         let is_tip = |a: &str| matches!(a, "X" | "Y" | "Z");
         let is_axis = |a: &str| matches!(a, "I" | "J" | "K" | "A3" | "B3" | "C3");
+        // Rotary axis positions orienting the tool (under G43.4, G234,
+        // TRAORI; elsewhere refused below as an orientation word).
+        let tcp_rotaries = self.tcp_rotaries;
+        let is_rotary = |a: &str| tcp_rotaries && matches!(a, "A" | "B" | "C");
         let has_tip = words.iter().any(|w| is_tip(w.address));
         let has_axis = words.iter().any(|w| is_axis(w.address));
+        let has_rotary = words.iter().any(|w| is_rotary(w.address));
         let straight = matches!(self.motion, Motion::Rapid | Motion::Linear);
         if let Some((item, what)) = setup
             && self.pose_mode
@@ -623,6 +654,7 @@ impl ModalState {
         let mut meaning = BlockMeaning {
             pose: None,
             pose_items: PoseItems::new(),
+            rotaries: None,
             tcp_codes,
             tcp_offset_items,
             motion: self.motion,
@@ -637,8 +669,8 @@ impl ModalState {
             non_modal,
             unfollowed: None,
         };
-        // The orientation given another way than by a tool vector: rotary
-        // axis positions (Fanuc G43.4 type 1, Sinumerik ORIAXES), Euler or
+        // The orientation given another way than by a tool vector or (under
+        // G43.4, G234, TRAORI) rotary axis positions: Euler or
         // RPY angles (A2 B2 C2), lead and tilt angles, the tool's rotation
         // about itself, surface normals for 3-D tool compensation (A4 B4
         // C4, A5 B5 C5). kinpost would keep the previous tool vector and
@@ -679,6 +711,7 @@ impl ModalState {
             && !non_modal
             && let Some((w, message)) = words
                 .iter()
+                .filter(|w| !is_rotary(w.address))
                 .find_map(|w| unfollowed::pose_word(w.address).map(|m| (w, m)))
         {
             return Err(BlockError {
@@ -708,11 +741,14 @@ impl ModalState {
             });
         }
 
-        if !self.pose_mode || non_modal || !(has_tip || has_axis) {
+        if !self.pose_mode || non_modal || !(has_tip || has_axis || has_rotary) {
             return Ok(meaning);
         }
         if !straight {
-            let item = words.iter().find(|w| is_tip(w.address)).map(|w| w.item);
+            let item = words
+                .iter()
+                .find(|w| is_tip(w.address) || is_rotary(w.address))
+                .map(|w| w.item);
             let what = match self.motion {
                 Motion::Arc => "circular interpolation (G2/G3; Sinumerik CIP, CT)",
                 _ => {
@@ -727,46 +763,34 @@ impl ModalState {
             });
         }
 
-        // A word given twice (X1 … X5, or I with A3 for the same component)
-        // is refused, as LinuxCNC and Fanuc refuse it: which one a
-        // controller would take is not for kinpost to guess.
-        let slot_of = |a: &str| match a {
-            "X" => Some(0),
-            "Y" => Some(1),
-            "Z" => Some(2),
-            "I" | "A3" => Some(3),
-            "J" | "B3" => Some(4),
-            "K" | "C3" => Some(5),
-            "F" => Some(6),
-            _ => None,
-        };
-        let mut seen: [Option<&WordRef<'_>>; 7] = [None; 7];
-        for w in words {
-            if let Some(k) = slot_of(w.address) {
-                if let Some(first) = seen[k] {
-                    return Err(BlockError {
-                        item: Some(w.item),
-                        message: format!(
-                            "{} is given twice in this block ({}{} and {}{}): the block is ambiguous (LinuxCNC and Fanuc refuse it too)",
-                            if first.address == w.address {
-                                format!("word {}", w.address)
-                            } else {
-                                format!(
-                                    "the same tool-axis component ({} and {})",
-                                    first.address, w.address
-                                )
-                            },
-                            first.address,
-                            first.value,
-                            w.address,
-                            w.value
-                        ),
-                    });
-                }
-                seen[k] = Some(w);
-            }
+        let repeated = words.iter().map(|w| (w.address, w.value, w.item));
+        if let Some((item, message)) = super::repeated_words::second(repeated) {
+            return Err(BlockError {
+                item: Some(item),
+                message,
+            });
         }
-
+        // The orientation given twice: by a tool vector and by rotary
+        // positions.
+        if has_axis && let Some(w) = words.iter().find(|w| is_rotary(w.address)) {
+            return Err(BlockError {
+                item: Some(w.item),
+                message: format!(
+                    "`{}{}` gives the tool orientation as a rotary axis position, and this block gives it as a tool vector (I J K or A3 B3 C3) too: the block is ambiguous; give one of them",
+                    w.address, w.value
+                ),
+            });
+        }
+        // A rotary position in a block the controller may skip would be
+        // taken over by the blocks after it, as kinpost cannot know.
+        if let Some(item) = block_delete
+            && has_rotary
+        {
+            return Err(BlockError {
+                item: Some(item),
+                message: super::block_delete::TURNS_A_ROTARY.into(),
+            });
+        }
         // Under G91 the controller adds each block's increments to where the
         // last block left the machine; kinpost's machine-axis increments
         // come from its own chain of poses. A block the controller may skip
@@ -820,6 +844,19 @@ impl ModalState {
                 "K" | "C3" => Some(2),
                 _ => None,
             };
+            if is_rotary(w.address) {
+                let address = match w.address {
+                    "A" => "A",
+                    "B" => "B",
+                    _ => "C",
+                };
+                meaning.rotaries.get_or_insert_default().push(RotaryWord {
+                    address,
+                    value: w.value,
+                    item: w.item,
+                });
+                meaning.pose_items.push(w.item);
+            }
             if let Some(i) = comp {
                 if !axis_given.iter().any(|g| *g) {
                     // A block's first component starts a fresh vector: the
@@ -834,6 +871,13 @@ impl ModalState {
             }
         }
         meaning.pose_items.sort_unstable();
+        if has_rotary {
+            self.rotary_orientation = true;
+        } else if has_axis {
+            self.rotary_orientation = false;
+        } else if self.rotary_orientation {
+            meaning.rotaries = Some(RotaryWords::new());
+        }
         let gave = super::block_delete::Given {
             tip: tip_given,
             axis_any: axis_given.iter().any(|g| *g),

@@ -109,11 +109,14 @@ pub fn secondary_axis_message(address: &str) -> String {
 
 /// Why `address` (one of [`ORIENTATION_WORDS`]) is refused in pose mode.
 pub fn orientation_message(address: &str) -> String {
+    if matches!(address, "A" | "B" | "C") {
+        return format!(
+            "`{address}` gives the tool orientation as a rotary axis position, which kinpost reads only under the TCP codes that take it (Fanuc G43.4, type 1; Haas G234; Sinumerik TRAORI): not converted here, in a pose mode started by G43.5 (type 2: I J K), by a tool vector or by --pose-start on; switch TCP on with G43.4 / TRAORI, or give the tool vector as I J K"
+        );
+    }
     format!(
         "`{address}` gives the tool orientation another way than by a tool vector ({}): not converted; give the tool vector as I J K (G43.5 / LinuxCNC) or A3 B3 C3 (Sinumerik ORIVECT) in the CAM post",
         match address {
-            "A" | "B" | "C" =>
-                "a rotary axis position, as in Fanuc G43.4 type 1 or Sinumerik ORIAXES",
             "A2" | "B2" | "C2" => "Euler or RPY angles",
             "A6" | "B6" | "C6" | "A7" | "B7" | "C7" => {
                 "a rotation or cone axis, or an intermediate orientation (Sinumerik ORICONxx, ORIPLANE)"

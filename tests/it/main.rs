@@ -82,6 +82,7 @@ mod parse_throughput;
 mod post;
 mod post_parallel_ik;
 mod robustness_parse;
+mod rotary_orientation;
 mod scenarios;
 mod seed000;
 mod seed003;
