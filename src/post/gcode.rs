@@ -86,6 +86,9 @@ pub struct BlockReader<'a> {
     programmed_axes: u64,
     /// The rotary positions that orient poses given by `A B C` words.
     rotaries: RotaryPositions,
+    /// The line last begun selects a work offset other than the one in
+    /// force.
+    new_offset: bool,
     /// The allocation of the vector of a block's words, kept from block to
     /// block (empty between blocks).
     words: Vec<WordRef<'static>>,
@@ -165,6 +168,7 @@ impl<'a> GcodeConverter<'a> {
                 known_axes: 0,
                 programmed_axes: 0,
                 rotaries: RotaryPositions::new(machine),
+                new_offset: false,
                 words: Vec::with_capacity(16),
                 start: Start::AtPose,
                 lines: 0,
@@ -268,7 +272,9 @@ impl BlockReader<'_> {
         });
         let has_words = !words.is_empty() || !keywords.is_empty();
         let start_tip = self.modal.tip;
+        let offset_before = self.modal.work_offset;
         let applied = self.switch.apply(&mut self.modal, &words, &keywords, line);
+        self.new_offset = self.modal.work_offset != offset_before;
         let traori = keywords.iter().any(|(_, k)| k.starts_with("TRAORI"));
         self.length_comp.block(&words, line, traori);
         self.words = recycle(words);
@@ -339,7 +345,7 @@ impl BlockReader<'_> {
                 self.follow_machine_words(line, &meaning)?;
                 self.unfollowed = meaning.unfollowed.take();
             } else if (meaning.non_modal && goes_where_not_known(line))
-                || loses_position(line).is_some()
+                || loses_position(line, self.new_offset).is_some()
             {
                 // `G28`, `G53 G0 Z0`, a tool change between poses: the next
                 // pose starts where the program does not say, and must give
@@ -726,7 +732,7 @@ impl BlockReader<'_> {
         line: &Line,
         meaning: &crate::program::BlockMeaning,
     ) -> Result<()> {
-        match loses_position(line) {
+        match loses_position(line, self.new_offset) {
             // A call: its words are its arguments (`G65 P9000 A5. B20.`),
             // and it moves the machine where this file does not say.
             Some(Lost::Call) => {

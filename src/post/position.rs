@@ -22,7 +22,9 @@ pub(super) enum Lost {
 
 /// Whether `line` moves the machine, or changes the program's coordinates,
 /// in a way its axis words do not say (besides [`goes_where_not_known`]).
-pub(super) fn loses_position(line: &Line) -> Option<Lost> {
+/// `new_offset`: the line selects a work offset other than the one in
+/// force (selecting that one again changes nothing).
+pub(super) fn loses_position(line: &Line, new_offset: bool) -> Option<Lost> {
     let g = |v: f64| {
         line.words()
             .any(|w| w.address == "G" && (w.value - v).abs() < 1e-9)
@@ -48,11 +50,12 @@ pub(super) fn loses_position(line: &Line) -> Option<Lost> {
     if calls_word || calls_keyword || calls_opaque || sinumerik_l {
         return Some(Lost::Call);
     }
-    let offset = [
-        54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 54.1, 59.1, 59.2, 59.3, 500.0,
-    ]
-    .iter()
-    .any(|&v| g(v))
+    let offset = new_offset
+        && [
+            54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 54.1, 59.1, 59.2, 59.3, 500.0,
+        ]
+        .iter()
+        .any(|&v| g(v))
         || line
             .words()
             .any(|w| w.address == "G" && (505.0..=599.0).contains(&w.value));
@@ -73,12 +76,23 @@ pub(super) fn goes_where_not_known(line: &Line) -> bool {
         line.words()
             .any(|w| crate::program::modal::point_approach_word(&w.address))
     };
-    line.keywords().any(|k| k == "SUPA")
+    // `G53`, `G153`, `SUPA` apply to their block's axis words: alone
+    // (the line an NX post starts each operation with) they move nothing.
+    let moves = || {
+        line.words().any(|w| {
+            matches!(
+                w.address.as_ref(),
+                "X" | "Y" | "Z" | "A" | "B" | "C" | "U" | "V" | "W"
+            )
+        })
+    };
+    (line.keywords().any(|k| k == "SUPA") && moves())
         || line.words().any(|w| {
             w.address == "G"
-                && ([28.0, 30.0, 53.0, 153.0, 92.1, 92.2, 92.3, 53.1]
+                && ([28.0, 30.0, 92.1, 92.2, 92.3, 53.1]
                     .iter()
                     .any(|v| (w.value - v).abs() < 1e-9)
+                    || ((w.value == 53.0 || w.value == 153.0) && moves())
                     || ((w.value == 74.0 || w.value == 75.0) && indexed()))
         })
 }

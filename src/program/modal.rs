@@ -29,6 +29,7 @@
 use super::frames;
 use super::ijk;
 pub use super::rotary_words::{RotaryWord, RotaryWords};
+pub use super::tool_vector::{QUIET_NORMALISATION, TOOL_VECTOR_TOLERANCE};
 use super::unfollowed;
 use nalgebra::Vector3;
 
@@ -175,15 +176,6 @@ pub struct BlockError {
     pub message: String,
 }
 
-/// Largest deviation of a tool vector's length from 1 that is normalised
-/// without a warning per block (CAM output printed to 6–9 decimals is off
-/// by up to about 1e-6); the run's summary reports the largest.
-pub const QUIET_NORMALISATION: f64 = 1e-5;
-
-/// Tolerance on the length of a programmed tool vector: within it the vector
-/// is normalised with a warning; beyond it the block is an error.
-pub const TOOL_VECTOR_TOLERANCE: f64 = 1e-3;
-
 /// The modal state of a program.
 #[derive(Debug, Clone)]
 pub struct ModalState {
@@ -242,6 +234,11 @@ pub struct ModalState {
     /// (the last pose block that gave one gave rotary words, not a tool
     /// vector).
     pub rotary_orientation: bool,
+    /// The work offset selected last (`G54` … as ten times its code, with
+    /// the `P` of `G54.1` / `G154`), if the program selected one.
+    pub work_offset: Option<(i64, Option<u64>)>,
+    /// A pose came since pose mode was last switched on.
+    pub posed: bool,
     /// What block-delete (`/`) pose blocks gave that later blocks may not
     /// take over.
     pub skippable: super::block_delete::SkippableCarry,
@@ -284,6 +281,8 @@ impl ModalState {
             axis_set: false,
             tcp_rotaries: false,
             rotary_orientation: false,
+            work_offset: None,
+            posed: false,
             skippable: Default::default(),
         }
     }
@@ -319,6 +318,9 @@ impl ModalState {
         // A block that changes the coordinate system, or goes home, in pose
         // mode: its item and what it does.
         let mut setup: Option<(usize, &str)> = None;
+        // A work offset other than the one in force: its item.
+        let mut offset_change = None;
+        let was_pose_mode = self.pose_mode;
         // A cutter radius compensation code (G41, G42, G41.1–G42.2): its item.
         let mut cutter_comp = None;
         // Sinumerik `ORIMKS` (tool vectors in machine coordinates): its item.
@@ -454,17 +456,26 @@ impl ModalState {
                         }
                         // G54.1 P (Fanuc), G154 P (Haas): more work offsets.
                         540..=590 | 591..=593 | 1540 | 5000..=5990 => {
-                            setup = setup.or(Some((
-                                w.item,
-                                "changes the work offset (G54–G59.3, G54.1 P, Haas G154 P, Sinumerik G500–G599)",
-                            )));
+                            let p = (code == 541 || code == 1540)
+                                .then(|| words.iter().find(|o| o.address == "P"))
+                                .flatten()
+                                .map(|o| o.value.to_bits());
+                            // The offset in force selected again (an NX
+                            // post does at every operation) changes nothing.
+                            if self.work_offset != Some((code, p)) {
+                                self.work_offset = Some((code, p));
+                                offset_change = Some(w.item);
+                            }
                         }
                         280 | 300 => {
                             non_modal = true;
-                            if words
-                                .iter()
-                                .any(|o| matches!(o.address, "X" | "Y" | "Z" | "A" | "B" | "C"))
-                            {
+                            // `G91 G28 Z0`: increments of 0, no intermediate point.
+                            let g = |v: f64| words.iter().any(|o| o.address == "G" && o.value == v);
+                            let incremental = g(91.0) || (!self.absolute && !g(90.0));
+                            if words.iter().any(|o| {
+                                matches!(o.address, "X" | "Y" | "Z" | "A" | "B" | "C")
+                                    && !(incremental && o.value == 0.0)
+                            }) {
                                 setup = setup.or(Some((w.item, "moves home through an intermediate point (G28/G30 with axis words) that kinpost would have to convert")));
                             }
                         }
@@ -571,6 +582,20 @@ impl ModalState {
 
         if !self.pose_mode {
             (self.tcp_rotaries, self.rotary_orientation) = (false, false);
+        }
+        if !self.pose_mode || !was_pose_mode {
+            self.posed = false;
+        }
+        // A new work offset in pose mode before its first pose is as one
+        // set before TCP was switched on; after a pose it would move the
+        // later ones.
+        if let Some(item) = offset_change
+            && self.posed
+        {
+            setup = setup.or(Some((
+                item,
+                "changes the work offset (G54–G59.3, G54.1 P, Haas G154 P, Sinumerik G500–G599) after a pose",
+            )));
         }
         let is_tip = |a: &str| matches!(a, "X" | "Y" | "Z");
         let is_axis = |a: &str| matches!(a, "I" | "J" | "K" | "A3" | "B3" | "C3");
@@ -728,11 +753,12 @@ impl ModalState {
         if self.pose_mode
             && !non_modal
             && let Some(w) = words.iter().find(|w| {
-                matches!(w.address, "U" | "V" | "W" | "E")
-                    && !(w.address == "E"
-                        && words.iter().any(|p| {
-                            p.item + 1 == w.item && (is_tip(p.address) || is_axis(p.address))
-                        }))
+                unfollowed::numbered_axis(w.address)
+                    || matches!(w.address, "U" | "V" | "W" | "E")
+                        && !(w.address == "E"
+                            && words.iter().any(|p| {
+                                p.item + 1 == w.item && (is_tip(p.address) || is_axis(p.address))
+                            }))
             })
         {
             return Err(BlockError {
@@ -932,39 +958,21 @@ impl ModalState {
                 });
             }
         }
-        let norm = self.axis.norm();
         let axis_item = words.iter().find(|w| is_axis(w.address)).map(|w| w.item);
-        if norm.is_infinite() {
-            return Err(BlockError {
+        let (unit, deviation) =
+            super::tool_vector::normalised(self.axis).map_err(|message| BlockError {
                 item: axis_item,
-                message: format!(
-                    "the tool vector ({}, {}, {}) is out of range: expected a unit vector",
-                    self.axis.x, self.axis.y, self.axis.z
-                ),
-            });
-        }
-        if !norm.is_finite() || norm < 1e-12 {
-            return Err(BlockError {
-                item: axis_item,
-                message: "the tool vector (I, J, K) is zero: expected a unit vector pointing from the tool tip towards the spindle".into(),
-            });
-        }
-        if (norm - 1.0).abs() > TOOL_VECTOR_TOLERANCE {
-            return Err(BlockError {
-                item: axis_item,
-                message: format!(
-                    "the tool vector ({}, {}, {}) has length {norm:.6}, not 1 (tolerance {TOOL_VECTOR_TOLERANCE}): expected a unit vector",
-                    self.axis.x, self.axis.y, self.axis.z
-                ),
-            });
-        }
-        meaning.vector_deviation = (norm - 1.0).abs();
-        if meaning.vector_deviation > QUIET_NORMALISATION {
+                message,
+            })?;
+        meaning.vector_deviation = deviation;
+        if deviation > QUIET_NORMALISATION {
             meaning.warnings.push(format!(
-                "tool vector of length {norm:.9} normalised to unit length"
+                "tool vector of length {:.9} normalised to unit length",
+                self.axis.norm()
             ));
         }
-        meaning.pose = Some((tip, self.axis / norm));
+        meaning.pose = Some((tip, unit));
+        self.posed = true;
         Ok(meaning)
     }
 }

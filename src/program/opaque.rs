@@ -487,6 +487,47 @@ fn holds_tool_vector(bytes: &[u8]) -> bool {
     (0..up.len()).any(|i| (ijk(i) || abc3(i)) && starts_word(i))
 }
 
+/// Whether the unreadable text `text` of a block may hold where an axis
+/// goes: a motion address followed by what is not a plain number (`Y#1`,
+/// `Y [2]`, `Y sqrt[2]`, `X=R1`: a parameter, an expression or a
+/// function), or digits that continue a number cut by a blank (`Y50 0`,
+/// which LinuxCNC reads as Y500) or a malformed one (`after_word`: the
+/// text follows a word of the block; Heidenhain's block numbers start
+/// their lines).
+pub fn unreadable_motion(text: &str, after_word: bool) -> bool {
+    let mut chars = text.chars();
+    let Some(first) = chars.next() else {
+        return false;
+    };
+    // A number cut by a blank or malformed; a letter alone (`Y5O`).
+    if after_word
+        && (first.is_ascii_digit()
+            || "+-.".contains(first)
+            || (first.is_ascii_alphabetic() && chars.as_str().is_empty()))
+    {
+        return true;
+    }
+    if !"XYZABCUVWIJKF".contains(first.to_ascii_uppercase()) {
+        return false;
+    }
+    let after = chars.as_str();
+    let rest = after.trim_start();
+    let blank = rest.len() < after.len();
+    let name_len = rest.bytes().take_while(u8::is_ascii_alphabetic).count();
+    let applied = rest[name_len..].trim_start();
+    match rest.chars().next() {
+        None => false,
+        // Letters after the axis letter: a function applied to it
+        // (LinuxCNC `Y sqrt[2]`, `Ysqrt[2]`, `Y sin (…)` after a blank);
+        // else a keyword or a call that starts with an axis letter
+        // (`CYCLE81(…)`, `XOR`).
+        Some(c) if c.is_ascii_alphabetic() => {
+            applied.starts_with('[') || (blank && applied.starts_with('('))
+        }
+        Some(_) => true,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::describe_opaque as d;

@@ -46,7 +46,11 @@ pub fn looks_like_poses(head: &[u8]) -> bool {
             if vector {
                 return true;
             }
-            if w.address == "G" && ((w.value - 43.4).abs() < 1e-9 || (w.value - 43.5).abs() < 1e-9)
+            // Fanuc G43.4 / G43.5, Haas G234.
+            if w.address == "G"
+                && [43.4, 43.5, 234.0]
+                    .iter()
+                    .any(|c| (w.value - c).abs() < 1e-9)
             {
                 return true;
             }
@@ -92,5 +96,6 @@ mod tests {
         ));
         assert!(looks_like_poses(b"G1 X1 Y2 Z3 A3=0 B3=0 C3=1\n"));
         assert!(looks_like_poses(b"G43.4 H1\n"));
+        assert!(looks_like_poses(b"G234 H1\n"));
     }
 }

@@ -296,47 +296,6 @@ pub struct MachineBlock {
     pub measurable: bool,
 }
 
-/// Whether the unreadable text `text` of a block may hold where an axis
-/// goes: a motion address followed by what is not a plain number (`Y#1`,
-/// `Y [2]`, `Y sqrt[2]`, `X=R1`: a parameter, an expression or a
-/// function), or digits that continue a number cut by a blank (`Y50 0`,
-/// which LinuxCNC reads as Y500) or a malformed one (`after_word`: the
-/// text follows a word of the block; Heidenhain's block numbers start
-/// their lines).
-fn unreadable_motion(text: &str, after_word: bool) -> bool {
-    let mut chars = text.chars();
-    let Some(first) = chars.next() else {
-        return false;
-    };
-    // A number cut by a blank or malformed; a letter alone (`Y5O`).
-    if after_word
-        && (first.is_ascii_digit()
-            || "+-.".contains(first)
-            || (first.is_ascii_alphabetic() && chars.as_str().is_empty()))
-    {
-        return true;
-    }
-    if !"XYZABCUVWIJKF".contains(first.to_ascii_uppercase()) {
-        return false;
-    }
-    let after = chars.as_str();
-    let rest = after.trim_start();
-    let blank = rest.len() < after.len();
-    let name_len = rest.bytes().take_while(u8::is_ascii_alphabetic).count();
-    let applied = rest[name_len..].trim_start();
-    match rest.chars().next() {
-        None => false,
-        // Letters after the axis letter: a function applied to it
-        // (LinuxCNC `Y sqrt[2]`, `Ysqrt[2]`, `Y sin (…)` after a blank);
-        // else a keyword or a call that starts with an axis letter
-        // (`CYCLE81(…)`, `XOR`).
-        Some(c) if c.is_ascii_alphabetic() => {
-            applied.starts_with('[') || (blank && applied.starts_with('('))
-        }
-        Some(_) => true,
-    }
-}
-
 /// Whether `words` hold the G code `code`.
 fn g_word(words: &[WordRef<'_>], code: f64) -> bool {
     words
@@ -434,6 +393,28 @@ impl MachineAxisTracker {
                         ),
                     );
                 }
+                // A machine axis named by its number (`Z1=5`, `AX4=30`),
+                // outside a reference or fixed point approach (`G74 Z1=0`).
+                ItemKind::Word(w)
+                    if super::unfollowed::numbered_axis(&w.address)
+                        && !line
+                            .words()
+                            .any(|g| g.is("G") && [74.0, 75.0].contains(&g.value)) =>
+                {
+                    return refuse(
+                        item,
+                        format!(
+                            "`{}=` names a machine axis by its number (Sinumerik X1, Z1, AX4): this command follows the axes by their names ({}) and would not follow it; write the axis by its name",
+                            w.address,
+                            machine
+                                .axes
+                                .iter()
+                                .map(|a| a.name.as_str())
+                                .collect::<Vec<_>>()
+                                .join(" ")
+                        ),
+                    );
+                }
                 // (`CR=`, an arc's radius, and `AR=` are `program::arc`'s.)
                 ItemKind::Word(w)
                     if super::unfollowed::PATH_WORDS.contains(&w.address.as_str())
@@ -468,7 +449,7 @@ impl MachineAxisTracker {
                         .rev()
                         .find(|it| it.kind != ItemKind::Space)
                         .is_some_and(|it| matches!(it.kind, ItemKind::Word(_)));
-                    if unreadable_motion(text, after_word) {
+                    if super::opaque::unreadable_motion(text, after_word) {
                         return refuse(
                             item,
                             format!(

@@ -95,8 +95,28 @@ pub const ORIMKS: &str = "Sinumerik ORIMKS in pose mode: the tool vectors (A3 B3
 /// Why cutter radius compensation is refused in pose mode.
 pub const CUTTER_COMP: &str = "cutter radius compensation (G41, G42, G41.1, G42.1, G41.2, G42.2) in pose mode is not converted: the controller would offset kinpost's machine axis words by the tool radius; give the poses of the tool tip with the radius applied in the CAM system (G40 cancels it)";
 
-/// Why a secondary axis word (`U`, `V`, `W`, `E`) is refused in pose mode.
+/// Whether `address` names a machine axis by a number (Sinumerik `X1=`,
+/// `Z1=`, `C1=`, `AX4=`: a channel's or machine's axis identifier), not
+/// one of the pose and orientation words (`A3`, `A2`, …, [`ORIENTATION_WORDS`]).
+pub fn numbered_axis(address: &str) -> bool {
+    let b = address.as_bytes();
+    let digits = |from: usize| b.len() > from && b[from..].iter().all(u8::is_ascii_digit);
+    let lettered = matches!(
+        b.first(),
+        Some(b'X' | b'Y' | b'Z' | b'A' | b'B' | b'C' | b'U' | b'V' | b'W')
+    ) && digits(1);
+    (lettered && !matches!(address, "A3" | "B3" | "C3") && !ORIENTATION_WORDS.contains(&address))
+        || (address.starts_with("AX") && digits(2))
+}
+
+/// Why a secondary axis word (`U`, `V`, `W`, `E`), or an axis named by a
+/// number ([`numbered_axis`]), is refused in pose mode.
 pub fn secondary_axis_message(address: &str) -> String {
+    if numbered_axis(address) {
+        return format!(
+            "`{address}=` names a machine axis by its number (Sinumerik X1, Z1, AX4): it would move that axis beside kinpost's machine axis words, off the converted pose; not converted; leave it out of the blocks between TRAORI / G43.4 and TRAFOOF / G49"
+        );
+    }
     format!(
         "`{address}` in pose mode: {} would move the tool off the converted pose; not converted; leave it out of the blocks between G43.4 / TRAORI and G49 / TRAFOOF",
         if address == "E" {
@@ -414,6 +434,18 @@ pub fn message(what: &str, pose_mode: bool) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn numbered_axes_are_told_from_pose_and_orientation_words() {
+        for a in ["X1", "Z1", "C1", "A1", "U10", "AX4", "AX12"] {
+            assert!(numbered_axis(a), "{a}");
+        }
+        for a in [
+            "X", "A3", "B3", "C3", "A2", "C5", "AX", "AXA", "R1", "I1", "XH", "A",
+        ] {
+            assert!(!numbered_axis(a), "{a}");
+        }
+    }
 
     #[test]
     fn known_codes_pass_and_others_are_named() {

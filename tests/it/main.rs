@@ -46,6 +46,7 @@ mod diagnose_thermal;
 mod diagnose_untidy;
 mod diagnose_vibration;
 mod diagnose_wander;
+mod eighteenth_hunt;
 mod fifteenth_hunt;
 mod fifth_hunt;
 mod filter_corpus;
