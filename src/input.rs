@@ -42,10 +42,19 @@ fn stdin() -> Input {
     }
 }
 
-/// Reads the first bytes of a buffered input without consuming them.
+/// Reads the first bytes (up to 4 KiB) of a buffered input without
+/// consuming them.
 pub fn peek(reader: &mut dyn BufRead) -> Result<Vec<u8>> {
     let buf = reader.fill_buf().map_err(|e| Error::io("<input>", e))?;
     Ok(buf[..buf.len().min(4096)].to_vec())
+}
+
+/// Reads as much of the start of a buffered input as its buffer holds (64
+/// KiB for a file [`open`] opened) without consuming it: enough for a CAM
+/// program's header of comments and tool list before its TCP code.
+pub fn peek_far(reader: &mut dyn BufRead) -> Result<Vec<u8>> {
+    let buf = reader.fill_buf().map_err(|e| Error::io("<input>", e))?;
+    Ok(buf.to_vec())
 }
 
 /// Progress on standard error in LinuxCNC's filter protocol

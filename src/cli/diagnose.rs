@@ -116,7 +116,9 @@ pub fn program_waypoints(
     mut each: impl FnMut(&Waypoint) -> Result<()>,
 ) -> Result<usize> {
     let mut inp = input::open(Some(path))?;
-    let head = input::peek(&mut *inp.reader)?;
+    // A pose program whose TCP code comes after a long header is still
+    // one (the recording reads its blocks in machine axes before it too).
+    let head = input::peek_far(&mut *inp.reader)?;
     let name = inp.name.clone();
     let ext = |q: &[f64]| -> Vec<f64> {
         q.iter()

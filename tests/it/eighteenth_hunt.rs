@@ -122,3 +122,25 @@ fn axes_named_by_their_number_are_refused_where_motion_is_followed() {
     );
     assert_eq!(code, 0, "{err}");
 }
+
+/// A CAM program's header (comments, a tool list) can run past 4 KiB
+/// before its TCP code, as in every real file of the hunt. `simulate`
+/// looked for signs of a pose program in the first 4 KiB only, read such
+/// a program as machine axes and refused it at its `G43.4`; it now looks
+/// as far as its read buffer (64 KiB).
+#[test]
+fn simulate_finds_tcp_after_a_long_header() {
+    let mut program = String::new();
+    for i in 0..300 {
+        program.push_str(&format!("(header comment line {i} of a long CAM header)\n"));
+    }
+    program.push_str("G0 X0 Y0 Z100 A0 C0\nG43.4 H1\nG1 X10 Y0 Z20 A10 C20 F500\nG1 X12 Y2 Z20 A12 C25\nG49\nM30\n");
+    assert!(program.len() > 4096);
+    let (code, out, err) = run_on(
+        &["simulate", "--machine", "xyzac-trt", "--program"],
+        "late.nc",
+        &program,
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(out.lines().count() > 3, "{out}");
+}
