@@ -245,10 +245,12 @@ pub fn orientation(
             Ok((pinned.axis, Some(pinned.reference)))
         }
         None => {
-            let gives_vector = meaning.pose_items.iter().any(|&i| {
-                matches!(&line.items[i].kind, crate::gcode::ItemKind::Word(w)
+            let known = rotaries.at.iter().any(Option::is_some);
+            let gives_vector = known
+                && meaning.pose_items.iter().any(|&i| {
+                    matches!(&line.items[i].kind, crate::gcode::ItemKind::Word(w)
                     if matches!(w.address.as_str(), "I" | "J" | "K" | "A3" | "B3" | "C3"))
-            });
+                });
             if gives_vector {
                 rotaries.forget();
             }
