@@ -32,9 +32,10 @@ pub struct Cli {
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Convert a program of tool poses (G-code X Y Z + I J K / A3= B3= C3=, or
-    /// APT CL GOTO/) into machine axis words. Works as a stdin→stdout filter
-    /// and as a LinuxCNC `[FILTER]` program.
+    /// Convert a program of tool poses (G-code X Y Z + I J K / A3= B3= C3=,
+    /// or + A B C under G43.4 / G234 / TRAORI; APT CL GOTO/) into machine
+    /// axis words. Works as a stdin→stdout filter and as a LinuxCNC
+    /// `[FILTER]` program.
     Post(PostArgs),
     /// Parse a program and summarise its blocks, words and opaque lines, or
     /// re-emit it from the parse tree (--echo; byte-identical).
