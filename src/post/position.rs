@@ -51,14 +51,14 @@ pub(super) fn loses_position(line: &Line, new_offset: bool) -> Option<Lost> {
         return Some(Lost::Call);
     }
     let offset = new_offset
-        && [
+        && ([
             54.0, 55.0, 56.0, 57.0, 58.0, 59.0, 54.1, 59.1, 59.2, 59.3, 500.0,
         ]
         .iter()
         .any(|&v| g(v))
-        || line
-            .words()
-            .any(|w| w.address == "G" && (505.0..=599.0).contains(&w.value));
+            || line
+                .words()
+                .any(|w| w.address == "G" && (505.0..=599.0).contains(&w.value)));
     let set_offsets = g(10.0)
         && line
             .words()
@@ -79,12 +79,8 @@ pub(super) fn goes_where_not_known(line: &Line) -> bool {
     // `G53`, `G153`, `SUPA` apply to their block's axis words: alone
     // (the line an NX post starts each operation with) they move nothing.
     let moves = || {
-        line.words().any(|w| {
-            matches!(
-                w.address.as_ref(),
-                "X" | "Y" | "Z" | "A" | "B" | "C" | "U" | "V" | "W"
-            )
-        })
+        line.words()
+            .any(|w| crate::program::modal::is_axis_address(&w.address))
     };
     (line.keywords().any(|k| k == "SUPA") && moves())
         || line.words().any(|w| {

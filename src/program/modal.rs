@@ -248,14 +248,11 @@ pub struct ModalState {
 /// approaches (`G74 Z1=0`, `G75 FP=2 X1=0`): an axis with its channel
 /// index, or the fixed point's number.
 pub fn point_approach_word(address: &str) -> bool {
-    address == "FP"
-        || (address.len() > 1
-            && is_axis_address(&address[..1])
-            && address[1..].bytes().all(|b| b.is_ascii_digit()))
+    address == "FP" || unfollowed::indexed_axis(address)
 }
 
 /// Whether `address` is an axis word of G-code (`X Y Z A B C U V W`).
-fn is_axis_address(address: &str) -> bool {
+pub fn is_axis_address(address: &str) -> bool {
     matches!(address, "X" | "Y" | "Z" | "A" | "B" | "C" | "U" | "V" | "W")
 }
 
@@ -959,16 +956,15 @@ impl ModalState {
             }
         }
         let axis_item = words.iter().find(|w| is_axis(w.address)).map(|w| w.item);
-        let (unit, deviation) =
+        let (unit, norm) =
             super::tool_vector::normalised(self.axis).map_err(|message| BlockError {
                 item: axis_item,
                 message,
             })?;
-        meaning.vector_deviation = deviation;
-        if deviation > QUIET_NORMALISATION {
+        meaning.vector_deviation = (norm - 1.0).abs();
+        if meaning.vector_deviation > QUIET_NORMALISATION {
             meaning.warnings.push(format!(
-                "tool vector of length {:.9} normalised to unit length",
-                self.axis.norm()
+                "tool vector of length {norm:.9} normalised to unit length"
             ));
         }
         meaning.pose = Some((tip, unit));

@@ -12,8 +12,8 @@ pub const QUIET_NORMALISATION: f64 = 1e-5;
 /// is normalised with a warning; beyond it the block is an error.
 pub const TOOL_VECTOR_TOLERANCE: f64 = 1e-3;
 
-/// `axis` (as programmed) as a unit vector, with how far its length was
-/// from 1; `Err` with the message when it cannot be one.
+/// `axis` (as programmed) as a unit vector, with its length; `Err` with
+/// the message when it cannot be one.
 pub fn normalised(axis: Vector3<f64>) -> Result<(Vector3<f64>, f64), String> {
     let norm = axis.norm();
     if norm.is_infinite() {
@@ -31,5 +31,5 @@ pub fn normalised(axis: Vector3<f64>) -> Result<(Vector3<f64>, f64), String> {
             axis.x, axis.y, axis.z
         ));
     }
-    Ok((axis / norm, (norm - 1.0).abs()))
+    Ok((axis / norm, norm))
 }

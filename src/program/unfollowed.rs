@@ -99,14 +99,26 @@ pub const CUTTER_COMP: &str = "cutter radius compensation (G41, G42, G41.1, G42.
 /// `Z1=`, `C1=`, `AX4=`: a channel's or machine's axis identifier), not
 /// one of the pose and orientation words (`A3`, `A2`, …, [`ORIENTATION_WORDS`]).
 pub fn numbered_axis(address: &str) -> bool {
+    let ax = address.len() > 2
+        && address.starts_with("AX")
+        && address[2..].bytes().all(|b| b.is_ascii_digit());
+    (indexed_axis(address)
+        && !matches!(address, "A3" | "B3" | "C3")
+        && !ORIENTATION_WORDS.contains(&address))
+        || ax
+}
+
+/// Whether `address` is an axis letter (`X Y Z A B C U V W`) with a
+/// number after it (`Z1`, `X2`; also the pose words `A3`, `A2`, …), as
+/// Sinumerik names an axis by its channel index.
+pub fn indexed_axis(address: &str) -> bool {
     let b = address.as_bytes();
-    let digits = |from: usize| b.len() > from && b[from..].iter().all(u8::is_ascii_digit);
-    let lettered = matches!(
-        b.first(),
-        Some(b'X' | b'Y' | b'Z' | b'A' | b'B' | b'C' | b'U' | b'V' | b'W')
-    ) && digits(1);
-    (lettered && !matches!(address, "A3" | "B3" | "C3") && !ORIENTATION_WORDS.contains(&address))
-        || (address.starts_with("AX") && digits(2))
+    b.len() > 1
+        && matches!(
+            b[0],
+            b'X' | b'Y' | b'Z' | b'A' | b'B' | b'C' | b'U' | b'V' | b'W'
+        )
+        && b[1..].iter().all(u8::is_ascii_digit)
 }
 
 /// Why a secondary axis word (`U`, `V`, `W`, `E`), or an axis named by a

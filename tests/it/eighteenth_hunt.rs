@@ -39,6 +39,16 @@ fn the_work_offset_in_force_selected_again_in_pose_mode_passes() {
         out.contains("\nG54\nG1 X27.5863 Y0.0000 Z1.7116 B10.0000 C0.0000\n"),
         "{out}"
     );
+    // Sinumerik's settable offsets G505–G599 alike (until the review of
+    // the session, G505 selected again still lost the position).
+    let sinumerik =
+        "G505\nG0 X0 Y0 Z100 B0 C0\nTRAORI\nG1 X10 Y0 Z50 B0 C0 F100\nG505\nG1 X20\nTRAFOOF\nM30\n";
+    let (code, out, err) = run_on(&post, "again.mpf", sinumerik);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("\nG505\nG1 X20.0000 Y0.0000 Z50.0000 B0.0000 C0.0000\n"),
+        "{out}"
+    );
     let before_pose = "G0 X0 Y0 Z100 B0 C0\nTRAORI\nG54\nG1 X10 Y0 Z50 B0 C0 F100\nTRAFOOF\nM30\n";
     let (code, _, err) = run_on(&post, "set.mpf", before_pose);
     assert_eq!(code, 0, "{err}");
