@@ -561,9 +561,10 @@ pub fn convert_gcode<S: Stage, R: BufRead, W: Write + ?Sized>(
     opts: &PostOptions,
     progress: impl FnMut(u64),
 ) -> Result<PostStats> {
-    let format = GcodeFormat {
+    let mut format = GcodeFormat {
         conv: GcodeConverter::new(machine, opts),
     };
+    format.conv.reader.read_arcs();
     let mut number = 0;
     let read = |unit: &mut GcodeUnit| -> Result<Option<usize>> {
         unit.raw.clear();
@@ -627,6 +628,9 @@ impl<'a> Format for GcodeFormat<'a> {
         _: Option<&mut dyn PoseSolver>,
     ) -> Result<Option<PendingPose>> {
         reader.begin(writer, &unit.line, out)
+    }
+    fn unit_done(reader: &BlockReader<'a>) -> bool {
+        reader.line_done()
     }
     fn pose(pending: &PendingPose) -> &Pose {
         &pending.pose

@@ -204,6 +204,7 @@ fn gcode_trajectory<R: BufRead>(
     };
     let mut conv = GcodeConverter::new(machine, &opts);
     let reader = &mut conv.reader;
+    reader.read_arcs();
     let ik = IkSolver::new(machine);
     // The joint values of the last block given to `f`.
     let mut last: Option<Vec<f64>> = None;
@@ -221,9 +222,9 @@ fn gcode_trajectory<R: BufRead>(
         scratch.clear();
         arcs.apply(&line);
         spindle.line(&line);
-        let begun = reader.begin(None, &line, &mut scratch)?;
+        let mut begun = reader.begin(None, &line, &mut scratch)?;
         crate::program::unfollowed::check_line(&line, file, reader.take_unfollowed())?;
-        let Some(pending) = begun else {
+        if begun.is_none() {
             match reader.start() {
                 Start::Followed => {
                     // Only a line that moved the machine is a block (a
@@ -278,46 +279,52 @@ fn gcode_trajectory<R: BufRead>(
                 Start::AtPose => {}
             }
             continue;
-        };
-        // Where the block starts is not known (after G28, G53 between
-        // poses): the path goes on afresh from its end.
-        if pending.from(None).is_none() && last.is_some() {
-            restart = true;
         }
-        let q = reachable(
-            &ik,
-            machine,
-            &pending.pose,
-            pending.solve_from(reader.previous()),
-            axis_tolerance_rad,
-        )
-        .and_then(|q| pending.check_pinned(machine, &q).map(|()| q))
-        .map_err(|m| reader.solve_error(&line, &pending, m))?;
-        reader.begun(&q);
-        // A modulo axis turns the short way, as the controller turns it
-        // (the solution is in [0, 2π): 359° to 0° is a turn of 1°).
-        let mut q = q.to_vec();
-        if let Some(before) = &last {
-            for axis in &machine.axes {
-                if axis.rotary == crate::machine::RotaryMode::Modulo {
-                    let j = axis.joint;
-                    q[j] = crate::machine::rotary::unwind_near(q[j], before[j]);
+        // A pose, or the points of an arc in pose mode one by one.
+        while let Some(pending) = begun.take() {
+            // Where the block starts is not known (after G28, G53 between
+            // poses): the path goes on afresh from its end.
+            if pending.from(None).is_none() && last.is_some() {
+                restart = true;
+            }
+            let q = reachable(
+                &ik,
+                machine,
+                &pending.pose,
+                pending.solve_from(reader.previous()),
+                axis_tolerance_rad,
+            )
+            .and_then(|q| pending.check_pinned(machine, &q).map(|()| q))
+            .map_err(|m| reader.solve_error(&line, &pending, m))?;
+            reader.begun(&q);
+            // A modulo axis turns the short way, as the controller turns it
+            // (the solution is in [0, 2π): 359° to 0° is a turn of 1°).
+            let mut q = q.to_vec();
+            if let Some(before) = &last {
+                for axis in &machine.axes {
+                    if axis.rotary == crate::machine::RotaryMode::Modulo {
+                        let j = axis.joint;
+                        q[j] = crate::machine::rotary::unwind_near(q[j], before[j]);
+                    }
                 }
             }
+            last = Some(q.clone());
+            let modal = reader.modal();
+            f(TrajectoryBlock {
+                line: line.number,
+                q,
+                pose: Some(pending.pose),
+                feed_mm_min: spindle.feed_mm_min(modal.feed_mode, modal.feed, modal.feed_units),
+                inverse_time: inverse_of(modal),
+                rapid: pending.meaning.motion == Motion::Rapid,
+                restart: std::mem::take(&mut restart),
+                arc: false,
+                via: Vec::new(),
+            })?;
+            if !reader.line_done() {
+                begun = reader.begin(None, &line, &mut scratch)?;
+            }
         }
-        last = Some(q.clone());
-        let modal = reader.modal();
-        f(TrajectoryBlock {
-            line: line.number,
-            q,
-            pose: Some(pending.pose),
-            feed_mm_min: spindle.feed_mm_min(modal.feed_mode, modal.feed, modal.feed_units),
-            inverse_time: inverse_of(modal),
-            rapid: pending.meaning.motion == Motion::Rapid,
-            restart: std::mem::take(&mut restart),
-            arc: false,
-            via: Vec::new(),
-        })?;
     }
     Ok(())
 }

@@ -157,6 +157,10 @@ pub struct CompensateArgs {
     /// What to do with a block that does not converge or breaks a limit.
     #[arg(long, value_enum, default_value = "error")]
     pub on_fail: OnFailArg,
+    /// Largest chord error of an arc turned into straight moves (APT CL
+    /// `CIRCLE`; G-code `G2`/`G3` under TCP), in mm (0.001 = 1 µm).
+    #[arg(long = "arc-tolerance", value_name = "MM", default_value_t = 0.001)]
+    pub arc_tolerance_mm: f64,
     /// Write a JSON report (per block: iterations, residuals, compensation).
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<PathBuf>,
@@ -193,6 +197,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     if a.tip_tolerance_mm.is_nan() || a.tip_tolerance_mm <= 0.0 {
         return Err(Error::Usage("--tip-tolerance-mm must be > 0".into()));
     }
+    super::check_arc_tolerance(a.arc_tolerance_mm)?;
     super::check_outputs(
         &[
             ("-o", a.output.as_deref()),
@@ -265,6 +270,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         axis_tolerance_rad: f64::INFINITY,
         modal_axes: false,
         file_name: inp.name.clone(),
+        arc_tolerance_mm: a.arc_tolerance_mm,
         ..PostOptions::default()
     };
     let mut progress = RunProgress::new(inp.size, a.quiet, "compensate");

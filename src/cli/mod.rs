@@ -426,8 +426,8 @@ pub struct PostArgs {
     /// Print no summary on standard error.
     #[arg(long, short = 'q')]
     pub quiet: bool,
-    /// APT CL: largest chord error of a `CIRCLE` arc turned into straight
-    /// moves, in mm (0.001 = 1 µm).
+    /// Largest chord error of an arc turned into straight moves (APT CL
+    /// `CIRCLE`; G-code `G2`/`G3` under TCP), in mm (0.001 = 1 µm).
     #[arg(long = "arc-tolerance", value_name = "MM", default_value_t = 0.001)]
     pub arc_tolerance_mm: f64,
     /// APT CL: units of a program without `UNITS` (default: mm, with a
@@ -551,12 +551,19 @@ fn completions(a: CompletionsArgs) -> Result<()> {
         .map_err(|e| Error::io("<stdout>", e))
 }
 
-fn post(a: PostArgs) -> Result<()> {
-    if !(a.arc_tolerance_mm.is_finite() && a.arc_tolerance_mm >= 1e-6) {
-        return Err(Error::Usage(
+/// `Err` unless `mm` is a usable `--arc-tolerance`.
+fn check_arc_tolerance(mm: f64) -> Result<()> {
+    if mm.is_finite() && mm >= 1e-6 {
+        Ok(())
+    } else {
+        Err(Error::Usage(
             "--arc-tolerance must be a number in mm, at least 0.000001".into(),
-        ));
+        ))
     }
+}
+
+fn post(a: PostArgs) -> Result<()> {
+    check_arc_tolerance(a.arc_tolerance_mm)?;
     if a.axis_tolerance_urad.is_nan() || a.axis_tolerance_urad < 0.0 {
         return Err(Error::Usage(
             "--axis-tolerance-urad must be a number ≥ 0".into(),

@@ -5,10 +5,13 @@
 //! The driver of `compensate` runs the two on different chunks at the same
 //! time, so nothing the reader reads depends on what is written.
 
-pub use super::pending::{Continuation, PendingPose};
+mod arc;
+mod finish;
+
+pub use super::pending::{ArcPart, Continuation, PendingPose};
 use super::position::{Lost, goes_where_not_known, loses_position, tip_known};
 use super::rotary_pose::RotaryPositions;
-use super::{AxisWriter, PoseSolver, PostOptions, PostStats, SolvedPose, unreachable_axis};
+use super::{AxisWriter, PoseSolver, PostOptions, PostStats};
 use crate::error::{Error, Location, Result};
 use crate::gcode::{ItemKind, Line};
 use crate::machine::chain::JointValues;
@@ -86,6 +89,14 @@ pub struct BlockReader<'a> {
     programmed_axes: u64,
     /// The rotary positions that orient poses given by `A B C` words.
     rotaries: RotaryPositions,
+    /// The arc modes in force (plane, centre mode, direction), and as they
+    /// stand with the block delete switch on, when arcs are read as poses.
+    arcs: [crate::program::arc::ArcModes; 2],
+    /// The points of the arc begun last not given out yet.
+    arc_rest: Option<arc::ArcRest>,
+    /// The line of the last arc written as `G1` moves while the program's
+    /// motion mode is still its `G2`/`G3`.
+    arc_written: Option<usize>,
     /// The line last begun selects a work offset other than the one in
     /// force.
     new_offset: bool,
@@ -136,6 +147,8 @@ pub struct BlockWriter<'a> {
     max_axis_miss_rad: f64,
     /// The joint values of the last pose written.
     last: Option<JointValues>,
+    /// The rotary axes' values at the first point of the arc written last.
+    arc_rotaries: Vec<f64>,
     warnings: Warnings,
 }
 
@@ -168,6 +181,9 @@ impl<'a> GcodeConverter<'a> {
                 known_axes: 0,
                 programmed_axes: 0,
                 rotaries: RotaryPositions::new(machine),
+                arcs: Default::default(),
+                arc_rest: None,
+                arc_written: None,
                 new_offset: false,
                 words: Vec::with_capacity(16),
                 start: Start::AtPose,
@@ -185,6 +201,7 @@ impl<'a> GcodeConverter<'a> {
                 poses: 0,
                 max_axis_miss_rad: 0.0,
                 last: None,
+                arc_rotaries: Vec::new(),
                 warnings: Vec::new(),
             },
         }
@@ -244,6 +261,9 @@ impl BlockReader<'_> {
         line: &Line,
         out: &mut Vec<u8>,
     ) -> Result<Option<PendingPose>> {
+        if self.arc_rest.is_some() {
+            return Ok(self.next_arc_point());
+        }
         let opts = self.opts;
         self.lines += 1;
         let loc = |item: Option<usize>| {
@@ -251,6 +271,7 @@ impl BlockReader<'_> {
             Location::new(&opts.file_name, line.number, col)
         };
         crate::program::integrity::check_line(line, &opts.file_name, self.modal.pose_mode)?;
+        self.follow_arc_modes(line);
         let mut words = recycle(std::mem::take(&mut self.words));
         let mut keywords = Vec::new();
         crate::program::block_words::block_words(line, &mut words, &mut keywords);
@@ -341,6 +362,7 @@ impl BlockReader<'_> {
                     crate::error::visible(text.trim())
                 )));
             }
+            self.inherited_arc(line)?;
             if !self.modal.pose_mode {
                 self.follow_machine_words(line, &meaning)?;
                 self.unfollowed = meaning.unfollowed.take();
@@ -439,7 +461,7 @@ impl BlockReader<'_> {
         // block before left it.
         let block_delete = line.bytes.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'/');
         let after_other = std::mem::replace(&mut self.other_since_pose, block_delete);
-        Ok(Some(PendingPose {
+        let mut pending = PendingPose {
             after_other,
             moved: std::mem::take(&mut self.moved_since_pose),
             pose: Pose::new(tip, axis),
@@ -451,7 +473,19 @@ impl BlockReader<'_> {
                 _ => None,
             },
             meaning,
-        }))
+            arc: ArcPart::None,
+        };
+        if pending.meaning.motion == Motion::Arc {
+            self.begin_arc(line, &mut pending)?;
+        }
+        Ok(Some(pending))
+    }
+
+    /// Reads circular moves (`G2`/`G3`) in pose mode as poses, whose
+    /// points [`BlockReader::begin`] gives one by one
+    /// ([`BlockReader::line_done`]); without this they are refused.
+    pub fn read_arcs(&mut self) {
+        self.modal.arcs_as_poses = true;
     }
 
     /// Whether the feed is converted to inverse time (`--feed
@@ -534,138 +568,6 @@ fn solve_error(file: &str, line: &Line, pending: &PendingPose, message: String) 
         message,
         String::from_utf8_lossy(&line.bytes),
     )
-}
-
-impl BlockWriter<'_> {
-    /// The error of a failed solve of `pending` (programmed at `line`).
-    pub fn solve_error(&self, line: &Line, pending: &PendingPose, message: String) -> Error {
-        solve_error(&self.opts.file_name, line, pending, message)
-    }
-
-    /// Writes the pose block `pending` of `line` with the machine axes of
-    /// `solved`.
-    pub fn finish(
-        &mut self,
-        line: &Line,
-        pending: &PendingPose,
-        solved: &SolvedPose,
-        out: &mut Vec<u8>,
-    ) -> Result<()> {
-        let opts = self.opts;
-        let meaning = &pending.meaning;
-        let loc = |item: Option<usize>| {
-            let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);
-            Location::new(&opts.file_name, line.number, col)
-        };
-        let last = self.last.take();
-        let from = pending.from(last.as_deref());
-        if let Err(m) = pending.check_pinned(self.machine, solved.theoretical_q()) {
-            return Err(Error::input_with(
-                loc(meaning.pose_items.first().copied()),
-                m,
-                String::from_utf8_lossy(&line.bytes),
-            ));
-        }
-        if solved.axis_miss_rad > opts.axis_tolerance_rad {
-            return Err(Error::input_with(
-                loc(meaning.pose_items.first().copied()),
-                unreachable_axis(
-                    &self.machine.name,
-                    solved.axis_miss_rad,
-                    opts.axis_tolerance_rad,
-                ),
-                String::from_utf8_lossy(&line.bytes),
-            ));
-        }
-        self.max_axis_miss_rad = self.max_axis_miss_rad.max(solved.axis_miss_rad);
-        self.poses += 1;
-        let sep = separator(line, &meaning.pose_items);
-        if pending.after_other {
-            self.axes.write_all_next();
-        }
-        if pending.moved && !meaning.absolute {
-            self.axes.moved_to(from);
-        }
-        let words_text = self
-            .axes
-            .words(
-                &solved.q,
-                meaning.units,
-                meaning.absolute,
-                opts.modal_axes,
-                sep,
-            )
-            .map_err(|m| Error::input(loc(meaning.pose_items.first().copied()), m))?;
-        let feed = opts.inverse_time.then(|| {
-            let moved = from.is_some_and(|p| {
-                self.machine
-                    .chain
-                    .joints()
-                    .iter()
-                    .zip(p.iter().zip(&solved.q))
-                    .any(|(j, (a, b))| {
-                        j.kind == crate::machine::JointKind::Revolute && (a - b).abs() > 1e-12
-                    })
-            });
-            let tip = pending.pose.tip;
-            self.feed.pose_block(meaning, pending.start_tip, tip, moved)
-        });
-        if let Some(crate::program::inverse_time::PoseFeed::Append(extra)) = feed {
-            let mut drop = meaning.tcp_offset_items.clone();
-            drop.extend(
-                line.items
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(i, it)| match &it.kind {
-                        ItemKind::Word(w) if w.address == "F" => Some(i),
-                        ItemKind::Word(w)
-                            if w.address == "G" && [93.0, 94.0].contains(&w.value) =>
-                        {
-                            Some(i)
-                        }
-                        _ => None,
-                    }),
-            );
-            let mut words = words_text.to_vec();
-            words.extend_from_slice(extra.as_bytes());
-            rewrite(
-                line,
-                &meaning.pose_items,
-                &words,
-                &meaning.tcp_codes,
-                &drop,
-                out,
-            );
-        } else {
-            rewrite(
-                line,
-                &meaning.pose_items,
-                words_text,
-                &meaning.tcp_codes,
-                &meaning.tcp_offset_items,
-                out,
-            );
-        }
-        if matches!(meaning.motion, Motion::Linear | Motion::Rapid)
-            && let Some(prev) = from
-            && let Some(w) = crate::machine::midblock::branch_change_warning(
-                machine_at(self.machine, self.opts, line.number),
-                prev,
-                &solved.q,
-                &pending.pose,
-            )
-        {
-            let at = loc(meaning.pose_items.first().copied());
-            self.warnings.push(((line.number, 1), format!("{at}: {w}")));
-        }
-        self.last = Some(solved.q.clone());
-        Ok(())
-    }
-
-    /// The joint values of the last pose written.
-    pub fn last_joints(&self) -> Option<&[f64]> {
-        self.last.as_deref()
-    }
 }
 
 impl BlockReader<'_> {

@@ -33,6 +33,23 @@ pub struct PendingPose {
     pub start_tip: Option<Vector3<f64>>,
     /// What the block means.
     pub meaning: crate::program::BlockMeaning,
+    /// Which point of a circular move the pose is, if one.
+    pub arc: ArcPart,
+}
+
+/// Which point of a circular move (`G2`/`G3` in pose mode) a pose is:
+/// `post` and `compensate` write an arc as straight moves through its
+/// points, the tool axis held.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ArcPart {
+    /// Not an arc's: the block's own pose.
+    #[default]
+    None,
+    /// The first point after the arc's start: written in the arc's block,
+    /// whose `G2`/`G3` becomes `G1` and whose centre or radius words go.
+    First,
+    /// A later point: a block of its own, `G1` and the axis words.
+    Later,
 }
 
 impl PendingPose {

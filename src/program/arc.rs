@@ -205,6 +205,17 @@ impl ArcModes {
                 ));
             }
         };
+        // Fanuc takes R, LinuxCNC refuses the block: which one counts is the
+        // control's.
+        if radius.is_some() && (offset(a).is_some() || offset(b).is_some()) {
+            return Err((
+                radius_col(),
+                format!(
+                    "the arc gives both its centre ({} {}) and its radius (R, CR=): controls differ on which counts; give one",
+                    letters[a], letters[b]
+                ),
+            ));
+        }
         let (s, e) = ([start[a], start[b]], [end[a], end[b]]);
         let (centre, radius_given) = match (offset(a), offset(b), radius) {
             (None, None, Some(r)) => (
@@ -348,6 +359,59 @@ fn centre_from_radius(
         s[0] + half * dx / d + side * h * left[0],
         s[1] + half * dy / d + side * h * left[1],
     ])
+}
+
+/// Why a block that moves other than straight cannot be a pose in pose
+/// mode, with the item to blame: always, unless it is an arc (`G2`/`G3`)
+/// read as one (`arc`, [`super::ModalState::arcs_as_poses`]). Such an arc
+/// holds the tool axis: rotary words or a tool vector in its block
+/// (`is_rotary`) would turn it along the way, and a block the controller
+/// may skip (`block_delete`) would take all its moves with it. `circular`:
+/// the motion is a circular one (else a cycle, a thread or a spline);
+/// `words`: the block's (address, value, item).
+pub fn refusal_in_pose_mode<'a>(
+    circular: bool,
+    arc: bool,
+    words: impl Iterator<Item = (&'a str, f64, usize)> + Clone,
+    is_rotary: impl Fn(&str) -> bool,
+    block_delete: Option<usize>,
+) -> Option<(Option<usize>, String)> {
+    let turns = |a: &str| is_rotary(a) || matches!(a, "A3" | "B3" | "C3");
+    if arc {
+        if let Some((address, value, item)) = words.clone().find(|w| turns(w.0)) {
+            // `A3=0`, not `A30`.
+            let eq = if address.len() > 1 { "=" } else { "" };
+            return Some((
+                Some(item),
+                format!(
+                    "`{}{eq}{}` gives the tool orientation in a circular move (G2/G3, CIP, CT) in pose mode: kinpost converts an arc with the tool axis held (that of the pose before) and takes no orientation in it; give the orientation in a straight move (G1) before the arc, or have the CAM system linearise it",
+                    address, value
+                ),
+            ));
+        }
+        return block_delete.map(|item| {
+            (
+                Some(item),
+                "a circular move (G2/G3) in pose mode in a block the controller may skip (`/`): kinpost writes it as several straight moves, which the block delete switch would not skip together; take the `/` off, or have the CAM system linearise the arc".into(),
+            )
+        });
+    }
+    let item = words
+        .clone()
+        .find(|w| matches!(w.0, "X" | "Y" | "Z") || is_rotary(w.0))
+        .or(words.clone().find(|w| w.0 != "N"))
+        .map(|w| w.2);
+    let what = if circular {
+        "circular interpolation (G2/G3; Sinumerik CIP, CT)"
+    } else {
+        "a canned cycle, a thread or a spline (G81–G89, G33, G5, Sinumerik ASPLINE, BSPLINE, CSPLINE, POLY)"
+    };
+    Some((
+        item,
+        format!(
+            "{what} cannot be converted in pose mode here: tool poses must be straight G0/G1 moves (post, compensate, analyze and simulate convert G2/G3 arcs: run `kinpost post` first and this command on its output, or linearise the arcs in the CAM system)"
+        ),
+    ))
 }
 
 #[cfg(test)]

@@ -242,6 +242,10 @@ pub struct ModalState {
     /// What block-delete (`/`) pose blocks gave that later blocks may not
     /// take over.
     pub skippable: super::block_delete::SkippableCarry,
+    /// Circular moves (`G2`/`G3`) in pose mode are poses at their end
+    /// point, the tool axis held, for a reader that follows the arc
+    /// (`post`, `compensate`); else they are refused.
+    pub arcs_as_poses: bool,
 }
 
 /// Whether `address` is a word of Sinumerik's reference and fixed point
@@ -281,6 +285,7 @@ impl ModalState {
             work_offset: None,
             posed: false,
             skippable: Default::default(),
+            arcs_as_poses: false,
         }
     }
 
@@ -734,6 +739,10 @@ impl ModalState {
             && let Some((w, message)) = words
                 .iter()
                 .filter(|w| !is_rotary(w.address))
+                // A followed arc's radius.
+                .filter(|w| {
+                    !(w.address == "CR" && self.motion == Motion::Arc && self.arcs_as_poses)
+                })
                 .find_map(|w| unfollowed::pose_word(w.address).map(|m| (w, m)))
         {
             return Err(BlockError {
@@ -767,24 +776,20 @@ impl ModalState {
         if !self.pose_mode || non_modal || !(has_tip || has_axis || has_rotary) {
             return Ok(meaning);
         }
-        if !straight {
-            let item = words
-                .iter()
-                .find(|w| is_tip(w.address) || is_rotary(w.address))
-                .map(|w| w.item);
-            let what = match self.motion {
-                Motion::Arc => "circular interpolation (G2/G3; Sinumerik CIP, CT)",
-                _ => {
-                    "a canned cycle, a thread or a spline (G81–G89, G33, G5, Sinumerik ASPLINE, BSPLINE, CSPLINE, POLY)"
-                }
-            };
-            return Err(BlockError {
-                item,
-                message: format!(
-                    "{what} cannot be converted in pose mode: tool poses must be straight G0/G1 moves (linearise arcs in the CAM system)"
-                ),
-            });
+        let arc = self.motion == Motion::Arc && self.arcs_as_poses;
+        if !straight
+            && let Some((item, message)) = super::arc::refusal_in_pose_mode(
+                self.motion == Motion::Arc,
+                arc,
+                words.iter().map(|w| (w.address, w.value, w.item)),
+                is_rotary,
+                block_delete,
+            )
+        {
+            return Err(BlockError { item, message });
         }
+        // An arc's I J K are its centre.
+        let has_axis = has_axis && !arc;
 
         let repeated = words.iter().map(|w| (w.address, w.value, w.item));
         if let Some((item, message)) = super::repeated_words::second(repeated) {
@@ -862,6 +867,7 @@ impl ModalState {
                 meaning.pose_items.push(w.item);
             }
             let comp = match w.address {
+                _ if arc => None,
                 "I" | "A3" => Some(0),
                 "J" | "B3" => Some(1),
                 "K" | "C3" => Some(2),

@@ -362,12 +362,21 @@ fn empty_program() {
 
 #[test]
 fn arc_in_pose_mode() {
+    // The lens machine's C follows the tip: an arc in X Y would turn it.
     let r = post("p.nc", b"G1 X0 Y0 Z0 I0 J0 K1\nG2 X1 Y1 R1\n", &[]);
     expect(
         &r,
         1,
         &[
-            "p.nc:2:4: circular interpolation (G2/G3; Sinumerik CIP, CT) cannot be converted in pose mode",
+            "p.nc:2:1: the machine reaches a point of this circular move only with its rotary axes turned by 2.500000°",
+        ],
+    );
+    let r = post("p.nc", b"G1 X0 Y0 Z0 I0 J0 K1\nG81 X1 Y1 Z-1 R1\n", &[]);
+    expect(
+        &r,
+        1,
+        &[
+            "p.nc:2:5: a canned cycle, a thread or a spline (G81–G89, G33, G5, Sinumerik ASPLINE, BSPLINE, CSPLINE, POLY) cannot be converted in pose mode",
         ],
     );
 }

@@ -92,6 +92,7 @@ mod simulate_arcs;
 mod simulate_stream;
 mod sixteenth_hunt;
 mod sixth_hunt;
+mod tcp_arcs;
 mod thirteenth_hunt;
 mod twelfth_hunt;
 mod valid_jobs;

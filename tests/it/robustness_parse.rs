@@ -125,9 +125,9 @@ fn sinumerik_circles_and_splines_in_pose_mode_are_refused() {
         (
             "cip.mpf",
             "CIP X20 Y10 Z5 I1=15 J1=5 K1=5\nTRAFOOF\nM30\n",
-            "cip.mpf:3:5:",
+            "cip.mpf:3:1:",
         ),
-        ("ct.mpf", "CT X30 Y0 Z5\nTRAFOOF\nM30\n", "ct.mpf:3:4:"),
+        ("ct.mpf", "CT X30 Y0 Z5\nTRAFOOF\nM30\n", "ct.mpf:3:1:"),
         (
             "spline.mpf",
             "BSPLINE\nX20 Y10 Z5\nTRAFOOF\nM30\n",
@@ -147,7 +147,7 @@ fn sinumerik_circles_and_splines_in_pose_mode_are_refused() {
     );
     assert_eq!(code, 1, "{err}");
     assert!(
-        err.contains("modal.mpf:4:1:") && err.contains("CIP"),
+        err.contains("modal.mpf:4:") && err.contains("circular move (G2/G3, CIP, CT)"),
         "{err}"
     );
     let plain = b"G1 X10 Y0 Z5 F500\nCIP X20 Y10 Z5 I1=15 J1=5 K1=5\nCT X30 Y0 Z5\nM30\n";
