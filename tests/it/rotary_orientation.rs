@@ -3,22 +3,8 @@
 //! and `A B C` words, the most common five-axis TCP form. Before session
 //! 34 every such block was refused at its first rotary word.
 
-use crate::util::{BIN, repo_file, run_on};
+use crate::util::{BIN, letter_words as words, repo_file, run_on};
 use kinpost::machine::{Machine, NoErrors};
-
-/// The numbers of the words of `line` with one-letter addresses, by
-/// letter (comments left out).
-fn words(line: &str) -> Vec<(char, f64)> {
-    let line = line.split('(').next().unwrap_or("");
-    line.split_whitespace()
-        .filter_map(|w| {
-            let mut c = w.chars();
-            let a = c.next()?;
-            let v: f64 = c.as_str().parse().ok()?;
-            a.is_ascii_alphabetic().then_some((a, v))
-        })
-        .collect()
-}
 
 /// Runs `kinpost args… program`: (exit code, stdout, stderr).
 fn kinpost(args: &[&str], program: &std::path::Path) -> (i32, String, String) {

@@ -5,25 +5,11 @@
 //! refused. Each written point is checked by the forward chain against
 //! the arc as this test computes it from the program's words.
 
-use crate::util::run_on;
+use crate::util::{letter_words as words, run_on};
 use kinpost::geometric::model::ErrorModel;
 use kinpost::machine::{Machine, NoErrors};
 use nalgebra::Vector3;
 use std::path::Path;
-
-/// The numbers of the words of `line` with one-letter addresses (comments
-/// left out).
-fn words(line: &str) -> Vec<(char, f64)> {
-    let line = line.split('(').next().unwrap_or("");
-    line.split_whitespace()
-        .filter_map(|w| {
-            let mut c = w.chars();
-            let a = c.next()?;
-            let v: f64 = c.as_str().parse().ok()?;
-            a.is_ascii_alphabetic().then_some((a, v))
-        })
-        .collect()
-}
 
 /// The machine positions (X Y Z A C, mm and degrees) of the moves of
 /// `out` between the comments `(arc N)` and `(end N)`, for each N in

@@ -127,3 +127,17 @@ pub fn pose_block(pose: &kinpost::machine::Pose) -> String {
         pose.tip.x, pose.tip.y, pose.tip.z, pose.axis.x, pose.axis.y, pose.axis.z
     )
 }
+
+/// The numbers of the words of an output `line` with one-letter
+/// addresses, by letter, in order (comments left out).
+pub fn letter_words(line: &str) -> Vec<(char, f64)> {
+    let line = line.split('(').next().unwrap_or("");
+    line.split_whitespace()
+        .filter_map(|w| {
+            let mut c = w.chars();
+            let a = c.next()?;
+            let v: f64 = c.as_str().parse().ok()?;
+            a.is_ascii_alphabetic().then_some((a, v))
+        })
+        .collect()
+}
