@@ -110,7 +110,8 @@ pub fn analyze(a: AnalyzeArgs) -> Result<()> {
         Some(m) => Some(m.bind(&machine.chain)?),
         None => None,
     };
-    let head = input::peek(&mut *inp.reader)?;
+    // A CAM header can run past 4 KiB before the TCP code (as `simulate`).
+    let head = input::peek_far(&mut *inp.reader)?;
     let poses = looks_like_poses(&head);
     let name = inp.name.clone();
     let start = match a.pose_start {

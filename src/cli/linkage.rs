@@ -113,7 +113,8 @@ pub fn linkage(a: LinkageArgs) -> Result<()> {
     super::require_program(&mut inp)?;
     // The job's machine has the same joints as `base`.
     let machine = a.job.machine(&base, Some(&mut inp))?;
-    let poses = looks_like_poses(&input::peek(&mut *inp.reader)?);
+    // A CAM header can run past 4 KiB before the TCP code.
+    let poses = looks_like_poses(&input::peek_far(&mut *inp.reader)?);
     if poses && crate::cl::looks_like_cl(&input::peek(&mut *inp.reader)?) {
         return Err(Error::Usage(
             "linkage reads G-code; convert APT CL with `kinpost post` first and pass its output"

@@ -20,6 +20,17 @@ fn simulate_reads_a_haas_tcpc_program_as_poses() {
     );
     assert_eq!(code, 0, "{err}");
     assert!(out.lines().count() > 3, "{out}");
+    for args in [
+        &["linkage", "--machine", "xyzac-trt"][..],
+        &["analyze", "--nonlinear", "--machine", "xyzac-trt"][..],
+    ] {
+        let (code, out, err) = run_on(args, "late.nc", &program);
+        assert_eq!(code, 0, "{args:?}: {err}");
+        assert!(
+            out.contains("A10") || out.contains("blocks"),
+            "{args:?}: {out}"
+        );
+    }
 }
 
 /// NX posts select the work offset in force again at every operation
@@ -137,7 +148,8 @@ fn axes_named_by_their_number_are_refused_where_motion_is_followed() {
 /// before its TCP code, as in every real file of the hunt. `simulate`
 /// looked for signs of a pose program in the first 4 KiB only, read such
 /// a program as machine axes and refused it at its `G43.4`; it now looks
-/// as far as its read buffer (64 KiB).
+/// as far as its read buffer (64 KiB). So do `linkage` and `analyze`
+/// since session 35.
 #[test]
 fn simulate_finds_tcp_after_a_long_header() {
     let mut program = String::new();

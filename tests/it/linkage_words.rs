@@ -277,17 +277,28 @@ fn blocks_that_are_not_moves_are_not_followed() {
 
 #[test]
 fn tool_centre_point_control_past_the_start_is_refused() {
-    // A program taken for one in machine axes (nothing in its first 4 kB
-    // asks for TCP) that switches G43.4 on later, as an NX post's
-    // Mori Seiki NMV sample does at line 350: from there X Y Z are tool-tip
-    // positions. Before, linkage divided those blocks as machine axes and
-    // analyze --nonlinear measured them, exit 0.
-    let mut program = String::from("G90 G21 G94\n");
-    for i in 0..300 {
-        program.push_str(&format!("G1 X{} Y0 Z5 B0 C0 F500\n", i % 7));
-    }
-    program.push_str("G43.4 H1\nG1 X10 Y0 Z5 B30 C10\nG1 X20 Y10 Z5 B40 C60\nG49\nM30\n");
-    assert!(program.len() > 4096);
+    // A program taken for one in machine axes (nothing in its first 64 KiB
+    // asks for TCP; before session 35, 4 KiB) that switches G43.4 on
+    // later, as an NX post's Mori Seiki NMV sample does at line 350: from
+    // there X Y Z are tool-tip positions. Before, linkage divided those
+    // blocks as machine axes and analyze --nonlinear measured them, exit 0.
+    let tcp = "G43.4 H1\nG1 X10 Y0 Z5 B30 C10\nG1 X20 Y10 Z5 B40 C60\nG49\nM30\n";
+    let approach = |lines: usize| {
+        let mut program = String::from("G90 G21 G94\n");
+        for i in 0..lines {
+            program.push_str(&format!("G1 X{} Y0 Z5 B0 C0 F500\n", i % 7));
+        }
+        program.push_str(tcp);
+        program
+    };
+    // Within 64 KiB the TCP code is seen: the program is read as poses,
+    // its moves in machine axes before TCP followed.
+    let near = approach(300);
+    assert!(near.len() > 4096);
+    assert_eq!(linkage("near.nc", &near).0, 0);
+    assert_eq!(nonlinear("near.nc", &near).0, 0);
+    let program = approach(3000);
+    assert!(program.len() > 65536);
     let line = program.lines().position(|l| l == "G43.4 H1").unwrap() + 1;
     for (code, err) in [
         {
