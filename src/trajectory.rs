@@ -11,7 +11,6 @@ use crate::error::{Error, Location, Result};
 use crate::machine::chain::JointValues;
 use crate::machine::{IkSolver, Machine, Pose};
 use crate::program::PoseStart;
-use crate::program::arc::ArcModes;
 use crate::program::source::{arc_joint_path, cl_poses, looks_like_poses, machine_axis_blocks};
 
 /// One motion block of a program as joint values.
@@ -26,6 +25,10 @@ pub struct TrajectoryBlock {
     pub pose: Option<Pose>,
     /// Feed in force, mm/min (None in G93/G95 or when none was given).
     pub feed_mm_min: Option<f64>,
+    /// Millimetres per unit of the feed's length (25.4 when F is in
+    /// inches a minute): a move of rotaries alone runs at F as programmed,
+    /// deg/min, which is `feed_mm_min / feed_unit_mm`.
+    pub feed_unit_mm: f64,
     /// Inverse-time feed in force (G93), 1/min: the block takes 1/F
     /// minutes, whatever its length.
     pub inverse_time: Option<f64>,
@@ -84,6 +87,9 @@ pub struct TrajectoryOptions {
     /// whose TCP code comes after its first 4 KB). Its blocks before pose
     /// mode are then followed as `post` follows them.
     pub as_poses: bool,
+    /// APT CL: the units of a program without `UNITS` (`--units`; `None`:
+    /// mm, with a warning).
+    pub cl_units: Option<crate::cl::ClUnits>,
 }
 
 /// Calls `f` with every motion block of the program read from `input`
@@ -101,6 +107,7 @@ pub fn joint_trajectory<R: BufRead>(
         axis_tolerance_rad,
         arc_points,
         as_poses,
+        cl_units,
         ..
     } = opts;
     if crate::cl::looks_like_cl(head) {
@@ -109,7 +116,7 @@ pub fn joint_trajectory<R: BufRead>(
         // Under cutter compensation: the line of its `CUTCOM` and the joint
         // values when it went on (those of the pose before its first move).
         let mut comp_reference: Option<(usize, Vec<f64>)> = None;
-        cl_poses(input, file, |ev| {
+        cl_poses(input, file, cl_units, |ev| {
             let q = reachable(
                 &ik,
                 machine,
@@ -145,6 +152,8 @@ pub fn joint_trajectory<R: BufRead>(
                 q: q.to_vec(),
                 pose: Some(ev.pose),
                 feed_mm_min: ev.feed_mm_min,
+                // `post` writes a CL program's feeds in mm a minute.
+                feed_unit_mm: 1.0,
                 inverse_time: None,
                 rapid: ev.rapid,
                 restart: false,
@@ -163,6 +172,7 @@ pub fn joint_trajectory<R: BufRead>(
                 q: ev.q,
                 pose: None,
                 feed_mm_min: ev.feed_mm_min,
+                feed_unit_mm: ev.feed_unit_mm,
                 inverse_time: ev.inverse_time,
                 rapid: ev.rapid,
                 restart: ev.restart,
@@ -209,7 +219,6 @@ fn gcode_trajectory<R: BufRead>(
     // The joint values of the last block given to `f`.
     let mut last: Option<Vec<f64>> = None;
     let mut restart = false;
-    let mut arcs = ArcModes::default();
     let mut scratch = Vec::new();
     // The spindle's speed, for feeds per revolution.
     let mut spindle = crate::program::spindle::Spindle::default();
@@ -220,7 +229,6 @@ fn gcode_trajectory<R: BufRead>(
     for line in crate::gcode::LineReader::new(input) {
         let line = line.map_err(|e| Error::io(file, e))?;
         scratch.clear();
-        arcs.apply(&line);
         spindle.line(&line);
         let mut begun = reader.begin(None, &line, &mut scratch)?;
         crate::program::unfollowed::check_line(&line, file, reader.take_unfollowed())?;
@@ -249,7 +257,15 @@ fn gcode_trajectory<R: BufRead>(
                         (Motion::Arc, Some(_)) if !arc_points && !restart => Vec::new(),
                         (Motion::Arc, Some(from)) if !restart => {
                             let units = modal.units.mm_per_unit();
-                            arc_joint_path(machine, &arcs, &line, file, &from, &q, units)?
+                            arc_joint_path(
+                                machine,
+                                reader.arc_modes(),
+                                &line,
+                                file,
+                                &from,
+                                &q,
+                                units,
+                            )?
                         }
                         _ => {
                             // A cycle, or an arc from where the program
@@ -268,6 +284,7 @@ fn gcode_trajectory<R: BufRead>(
                             modal.feed,
                             modal.feed_units,
                         ),
+                        feed_unit_mm: modal.feed_units.mm_per_unit(),
                         inverse_time: inverse_of(modal),
                         rapid: modal.motion == Motion::Rapid,
                         restart: std::mem::take(&mut restart),
@@ -315,6 +332,7 @@ fn gcode_trajectory<R: BufRead>(
                 q,
                 pose: Some(pending.pose),
                 feed_mm_min: spindle.feed_mm_min(modal.feed_mode, modal.feed, modal.feed_units),
+                feed_unit_mm: modal.feed_units.mm_per_unit(),
                 inverse_time: inverse_of(modal),
                 rapid: pending.meaning.motion == Motion::Rapid,
                 restart: std::mem::take(&mut restart),
@@ -346,6 +364,7 @@ mod tests {
                 axis_tolerance_rad: 1e-4,
                 arc_points: true,
                 as_poses: false,
+                cl_units: None,
             },
             |b| {
                 out.push(b);

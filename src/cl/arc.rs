@@ -34,6 +34,35 @@ pub struct ArcMove {
     pub moves: Vec<ClStatement>,
 }
 
+/// How far two radii of an arc may differ (CL units) when its `points`
+/// are written to a number of decimals: the finest step their coordinates
+/// show, `q` (a coordinate that happens to be whole shows a coarse one,
+/// so the finest is the writer's), rounds each coordinate by up to q/2,
+/// and a difference of two radii from three points (start, end, centre;
+/// three coordinates each) by up to 2·√3·q. At least 1 µm (full-precision
+/// data), at most 10 µm (data in whole units): 4-decimal inch data (q =
+/// 2.54 µm) allows 8.8 µm, 3-decimal mm data 3.5 µm.
+fn rounding_slack(points: &[[f64; 3]], mm_per_unit: f64) -> f64 {
+    let q = points
+        .iter()
+        .flatten()
+        .map(|&x| decimal_step(x))
+        .fold(f64::INFINITY, f64::min);
+    (2.0 * 3f64.sqrt() * q * mm_per_unit).clamp(1e-3, 1e-2) / mm_per_unit
+}
+
+/// The step of the last decimal `x` is written to: 10⁻ᵏ for the least k ≤
+/// 9 with x·10ᵏ whole (to the f64 rounding of the decimal text), 0 if
+/// none.
+fn decimal_step(x: f64) -> f64 {
+    (0..=9)
+        .find(|&k| {
+            let n = x * 10f64.powi(k);
+            (n - n.round()).abs() <= 2.0 * f64::EPSILON * n.abs()
+        })
+        .map_or(0.0, |k| 10f64.powi(-k))
+}
+
 impl<R: BufRead> Lowered<R> {
     /// The arc from the current point to `end`; the tool axis turns from
     /// `from_axis` to the current one in proportion to the angle.
@@ -61,15 +90,31 @@ impl<R: BufRead> Lowered<R> {
         let r0 = norm(sp);
         let r1 = norm(ep);
         let tol = self.tol_mm / self.mm_per_unit;
-        let slack = 1e-3 / self.mm_per_unit;
+        let slack = rounding_slack(&[start, c.center, end], self.mm_per_unit);
         if r0 < tol {
             return Err(self.err(
                 r,
                 "arc (CIRCLE) starts at its centre: expected a start point on the circle",
             ));
         }
+        let units = if self.mm_per_unit == 1.0 { "mm" } else { "in" };
+        let beyond = |d: f64| {
+            format!(
+                "{:.2} µm apart, more than the {:.2} µm its points' decimals allow",
+                d * self.mm_per_unit * 1e3,
+                slack * self.mm_per_unit * 1e3
+            )
+        };
         if (r0 - r1).abs() > slack {
-            return Err(self.err(r, format!("arc (CIRCLE) end point is {} from the centre but the start is {}: not on one circle", num(r1), num(r0))));
+            return Err(self.err(
+                r,
+                format!(
+                    "arc (CIRCLE) end point is {} {units} from the centre but the start is {} {units} ({}): not on one circle",
+                    num(r1),
+                    num(r0),
+                    beyond((r0 - r1).abs())
+                ),
+            ));
         }
         if let Some(rad) = c.radius
             && (rad - r0).abs() > slack
@@ -77,9 +122,10 @@ impl<R: BufRead> Lowered<R> {
             return Err(self.err(
                 r,
                 format!(
-                    "arc (CIRCLE) radius {} but the start point is {} from the centre",
+                    "arc (CIRCLE) radius {} {units} but the start point is {} {units} from the centre ({})",
                     num(rad),
-                    num(r0)
+                    num(r0),
+                    beyond((rad - r0).abs())
                 ),
             ));
         }
@@ -229,7 +275,7 @@ impl<R: BufRead> Lowered<R> {
         let centre = [circle[0], circle[1], circle[2]];
         let radius = circle[3];
         let a = scale(self.axis, 1.0 / norm(self.axis));
-        let slack = 1e-3 / self.mm_per_unit;
+        let slack = rounding_slack(&[start, centre], self.mm_per_unit);
         let s = sub(start, centre);
         let hs = dot(s, a);
         let sp = sub(s, scale(a, hs));
@@ -324,6 +370,42 @@ mod tests {
         assert!(mid[1] > 0.3 && mid[2] > 0.3, "{mid:?}");
         assert!((norm(mid) - 1.0).abs() < 1e-12);
         assert!(near(*axes.last().unwrap(), [0.0, 1.0, 0.0]));
+    }
+
+    /// NX writes inch CL to 4 decimals (2.54 µm): an arc of its (the
+    /// twentieth hunt) has radii 1.4 µm apart, and its radius word differs
+    /// as much; a fixed 1 µm refused it. The slack follows the finest
+    /// decimal of the points, from 1 µm to 10 µm.
+    #[test]
+    fn the_slack_follows_the_decimals_of_the_data() {
+        use super::{decimal_step, rounding_slack};
+        assert!((decimal_step(2.1643) - 1e-4).abs() < 1e-18);
+        assert!((decimal_step(-0.5) - 0.1).abs() < 1e-18);
+        assert_eq!(decimal_step(3.0), 1.0);
+        assert_eq!(decimal_step(std::f64::consts::PI), 0.0);
+        let inch = rounding_slack(&[[2.36, 2.2749, 3.1], [2.0, 0.0, 1.0]], 25.4);
+        assert!(
+            (inch * 25.4e3 - 2.0 * 3f64.sqrt() * 2.54).abs() < 1e-9,
+            "{inch}"
+        );
+        assert_eq!(rounding_slack(&[[1.0, 2.0, 3.0]], 1.0), 1e-2);
+        assert_eq!(
+            rounding_slack(&[[1.0, std::f64::consts::E, 3.0]], 1.0),
+            1e-3
+        );
+        let nx = "UNITS/INCHES\nGOTO/2.3600,2.2749,3.1000\nCIRCLE/2.1643,2.0000,2.9020,0.0000000,0.0000000,-1.0000000,0.3375,0.0060,0.5000,0.7500,0.1200\nGOTO/1.8268,2.0000,2.9020\n";
+        let g = gotos(&run(nx).unwrap());
+        assert!(near(*g.last().unwrap(), [1.8268, 2.0, 2.902]));
+        // An end point 22 µm off the circle is still refused, in µm.
+        let e = run(&nx.replace("GOTO/1.8268", "GOTO/1.8260")).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("(21.74 µm apart, more than the 8.80 µm its points' decimals allow)"),
+            "{e}"
+        );
+        // Points of full precision keep 1 µm: 2 µm apart is refused.
+        let e = run("UNITS/MM\nGOTO/10.0000000001,0,0\nCIRCLE/0,0,0,0,0,1\nGOTO/0,10.002,0\n");
+        assert!(e.unwrap_err().to_string().contains("not on one circle"));
     }
 
     #[test]

@@ -53,6 +53,10 @@ pub struct AnalyzeArgs {
     /// the tool tip from the straight line while the axes interpolate linearly).
     #[arg(long)]
     pub nonlinear: bool,
+    /// APT CL: units of a program without `UNITS` (default: mm, with a
+    /// warning).
+    #[arg(long, value_enum)]
+    pub units: Option<super::UnitsArg>,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -298,6 +302,7 @@ fn run(
         // 4 KB hold none (its TCP code comes later) is read as `post`
         // reads it, its blocks before pose mode followed.
         as_poses: analyzer.is_some(),
+        cl_units: super::cl_units(a.units),
     };
     let mut poses_seen = false;
     let mut report = json.map(PrettyWriter::new);

@@ -39,6 +39,10 @@ pub struct SimulateArgs {
     /// Program to run: tool poses (G-code or APT CL) or machine axes.
     #[arg(long, short = 'p', value_name = "PROGRAM")]
     pub program: PathBuf,
+    /// APT CL: units of a program without `UNITS` (default: mm, with a
+    /// warning).
+    #[arg(long, value_enum)]
+    pub units: Option<super::UnitsArg>,
     /// Effect to inject, e.g. `backlash:X=0.003`, `servo_lag:X=0.02`,
     /// `thermal_drift:Z=0.01,tau=600`, `scale:X=50`, `squareness:XZ=20`,
     /// `cyclic:X=0.002,period=20,phase=0`, `zero_offset:Z=0.005`,
@@ -111,6 +115,7 @@ pub fn program_waypoints(
     machine: &Machine,
     path: &std::path::Path,
     start: PoseStart,
+    cl_units: Option<crate::cl::ClUnits>,
     rapid_feed: f64,
     axis_tolerance_rad: f64,
     mut each: impl FnMut(&Waypoint) -> Result<()>,
@@ -132,6 +137,17 @@ pub fn program_waypoints(
             })
             .collect()
     };
+    // Whether a straight move from `a` to `b` (mm, deg) turns rotaries
+    // alone.
+    let rotaries_alone = |a: &[f64], b: &[f64], path: &WaypointPath| {
+        matches!(path, WaypointPath::Straight)
+            && machine
+                .chain
+                .joints()
+                .iter()
+                .zip(a.iter().zip(b))
+                .all(|(j, (x, y))| j.kind == JointKind::Revolute || x == y)
+    };
     // The last waypoint (a G93 block's feed needs the path from it), and
     // how many there were.
     let mut last: Option<Waypoint> = None;
@@ -143,6 +159,7 @@ pub fn program_waypoints(
         axis_tolerance_rad,
         arc_points: true,
         as_poses: false,
+        cl_units,
     };
     joint_trajectory(machine, &mut inp.reader, &head, &name, opts, |b| {
         // After a move whose path is not known the recording goes on
@@ -172,6 +189,13 @@ pub fn program_waypoints(
                 let (_, at) = path_corners(&machine.chain, &before.q, &path, &q);
                 let length = at[at.len() - 1];
                 if length > 0.0 { length * f } else { rapid_feed }
+            }
+            // A move of rotaries alone runs at F degrees a minute, also
+            // where F is inches a minute for the linear axes.
+            (false, _, Some(before))
+                if b.feed_mm_min.is_some() && rotaries_alone(&before.q, &q, &path) =>
+            {
+                b.feed_mm_min.unwrap_or(rapid_feed) / b.feed_unit_mm
             }
             (false, _, before) => b.feed_mm_min.unwrap_or_else(|| {
                 // No feed per minute (none given, or per revolution
@@ -377,6 +401,7 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
             &machine,
             &a.program,
             start,
+            super::cl_units(a.units),
             a.rapid_feed,
             a.axis_tolerance.rad()?,
             each,

@@ -161,6 +161,10 @@ pub struct CompensateArgs {
     /// `CIRCLE`; G-code `G2`/`G3` under TCP), in mm (0.001 = 1 µm).
     #[arg(long = "arc-tolerance", value_name = "MM", default_value_t = 0.001)]
     pub arc_tolerance_mm: f64,
+    /// APT CL: units of a program without `UNITS` (default: mm, with a
+    /// warning).
+    #[arg(long, value_enum)]
+    pub units: Option<super::UnitsArg>,
     /// Write a JSON report (per block: iterations, residuals, compensation).
     #[arg(long, value_name = "FILE.json")]
     pub report: Option<PathBuf>,
@@ -271,6 +275,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         modal_axes: false,
         file_name: inp.name.clone(),
         arc_tolerance_mm: a.arc_tolerance_mm,
+        cl_units: super::cl_units(a.units),
         ..PostOptions::default()
     };
     let mut progress = RunProgress::new(inp.size, a.quiet, "compensate");

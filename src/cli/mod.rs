@@ -159,6 +159,14 @@ pub struct JobArgs {
     pub work_offset: Option<Vector3Arg>,
 }
 
+/// The units `--units` gives an APT CL program without `UNITS`.
+fn cl_units(units: Option<UnitsArg>) -> Option<crate::cl::ClUnits> {
+    units.map(|u| match u {
+        UnitsArg::Mm => crate::cl::ClUnits::Mm,
+        UnitsArg::Inch => crate::cl::ClUnits::Inches,
+    })
+}
+
 /// The whole program `inp`, for a tool table to select the tool from
 /// (G-code only).
 fn read_program(inp: &mut input::Input) -> Result<Vec<u8>> {
@@ -598,10 +606,7 @@ fn post(a: PostArgs) -> Result<()> {
         modal_axes: a.modal_axes,
         file_name: inp.name.clone(),
         arc_tolerance_mm: a.arc_tolerance_mm,
-        cl_units: a.units.map(|u| match u {
-            UnitsArg::Mm => crate::cl::ClUnits::Mm,
-            UnitsArg::Inch => crate::cl::ClUnits::Inches,
-        }),
+        cl_units: cl_units(a.units),
         inverse_time: a.feed == FeedArg::InverseTime,
         tool_machines: machines,
     };

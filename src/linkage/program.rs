@@ -319,7 +319,10 @@ fn move_minutes(machine: &Machine, qa: &[f64], qb: &[f64], feed: &FeedState) -> 
         FeedMode::InverseTime => feed.value.map(|f| 1.0 / f).unwrap_or(0.0),
         FeedMode::PerRevolution => 0.0,
         FeedMode::PerMinute => match feed.value {
-            Some(f) if f > 0.0 => feed_distance(machine, qa, qb).0 / f,
+            Some(f) if f > 0.0 => match feed_distance(machine, qa, qb) {
+                (mm, true) => mm / (f * feed.mm_per_unit),
+                (deg, false) => deg / f,
+            },
             _ => 0.0,
         },
     }
@@ -356,7 +359,11 @@ fn g94_path(steps: impl Iterator<Item = (JointKind, f64)>, floor: f64) -> (f64, 
 #[derive(Debug, Clone, Copy)]
 struct FeedState {
     mode: FeedMode,
+    /// F as programmed: feed units a minute (deg a minute where only
+    /// rotaries move), or 1/min in G93.
     value: Option<f64>,
+    /// Millimetres per unit of the feed's length (25.4 in G20).
+    mm_per_unit: f64,
 }
 
 /// Lines converted, unwound and measured a batch at a time.
@@ -501,6 +508,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                         feed: FeedState {
                             mode: cv.meaning.feed_mode,
                             value: cv.meaning.feed,
+                            mm_per_unit: cv.meaning.feed_units.mm_per_unit(),
                         },
                         feed_item,
                         axis_items: items,
@@ -539,6 +547,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
                         feed: FeedState {
                             mode: mb.meaning.feed_mode,
                             value: mb.meaning.feed,
+                            mm_per_unit: mb.meaning.feed_units.mm_per_unit(),
                         },
                         feed_item: mb.meaning.feed_item,
                         axis_items: mb.axis_items,

@@ -116,6 +116,8 @@ pub struct BlockReader<'a> {
     /// The line of a LinuxCNC subroutine's definition (`o100 sub`) while
     /// its body is read: the body runs under the modes of each call.
     in_sub: Option<usize>,
+    /// The `%` that ends the program: what follows it is not read.
+    tape: crate::program::tape::TapeEnd,
     warnings: Warnings,
 }
 
@@ -191,6 +193,7 @@ impl<'a> GcodeConverter<'a> {
                 max_vector_deviation: 0.0,
                 ended_at: None,
                 in_sub: None,
+                tape: Default::default(),
                 warnings: Vec::new(),
             },
             writer: BlockWriter {
@@ -266,6 +269,11 @@ impl BlockReader<'_> {
         }
         let opts = self.opts;
         self.lines += 1;
+        // After the program's closing `%` a controller reads nothing.
+        if self.tape.after_end(line) {
+            out.extend_from_slice(&line.bytes);
+            return Ok(None);
+        }
         let loc = |item: Option<usize>| {
             let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);
             Location::new(&opts.file_name, line.number, col)

@@ -26,25 +26,60 @@ pub enum FrameChange {
     /// Sets (or adds to) a frame.
     Set,
     /// Deletes it: `TRANS`, `ROT`, `SCALE` or `MIRROR` without values
-    /// (the whole programmable frame), `TOROTOF`, `PAROTOF` (the rotation
-    /// they set), `CYCLE800()` (the swivelled plane; a pseudo-keyword of
-    /// the call, `opaque::known_call`).
+    /// (the whole programmable frame), `TRANS` or `ROT` whose values are
+    /// all 0 and `SCALE` whose factors are all 1 (a programmable frame
+    /// replaced by the identity: NX writes `TRANS X0 Y0 Z0` inside
+    /// `TRAORI`), `TOROTOF`, `PAROTOF` (the rotation they set),
+    /// `CYCLE800()` (the swivelled plane; a pseudo-keyword of the call,
+    /// `opaque::known_call`).
     Delete,
+    /// Leaves it as it is: `ATRANS` or `AROT` of all 0, `ASCALE` of all 1
+    /// (the identity added to the frame in force). Its X Y Z are still
+    /// values, not a move.
+    Keep,
 }
 
-/// Whether a block with words of `addresses` gives a frame instruction
-/// values: `X`, `Y`, `Z` (offsets, angles, factors) or `RPL` (a rotation
-/// in the plane).
-pub fn has_values<'a>(mut addresses: impl Iterator<Item = &'a str>) -> bool {
-    addresses.any(|a| matches!(a, "X" | "Y" | "Z" | "RPL"))
+/// The values a block gives a frame instruction: the words `X`, `Y`, `Z`
+/// (offsets, angles, factors) and `RPL` (a rotation in the plane).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FrameValues {
+    /// At least one value is given.
+    pub any: bool,
+    /// Every value given is 0: a translation or rotation by nothing.
+    pub all_zero: bool,
+    /// Every value given is 1: a scaling by nothing.
+    pub all_one: bool,
 }
 
-/// What `keyword` does to the frame; `values`: [`has_values`] of the
-/// block. `None` for a keyword that is no
-/// frame instruction.
-pub fn change(keyword: &str, values: bool) -> Option<FrameChange> {
+/// The [`FrameValues`] of a block's words, `(address, value)`.
+pub fn values<'a>(words: impl Iterator<Item = (&'a str, f64)>) -> FrameValues {
+    let mut v = FrameValues {
+        any: false,
+        all_zero: true,
+        all_one: true,
+    };
+    for (_, value) in words.filter(|(a, _)| matches!(*a, "X" | "Y" | "Z" | "RPL")) {
+        v.any = true;
+        v.all_zero &= value == 0.0;
+        v.all_one &= value == 1.0;
+    }
+    v
+}
+
+/// What `keyword` does to the frame, given the block's [`values`]. `None`
+/// for a keyword that is no frame instruction. (`MIRROR X0` mirrors X:
+/// its value says nothing, so a mirror with values always sets one.)
+pub fn change(keyword: &str, values: FrameValues) -> Option<FrameChange> {
+    let identity = values.any
+        && match keyword {
+            "TRANS" | "ROT" | "ATRANS" | "AROT" => values.all_zero,
+            "SCALE" | "ASCALE" => values.all_one,
+            _ => false,
+        };
     match keyword {
-        "TRANS" | "ROT" | "SCALE" | "MIRROR" if !values => Some(FrameChange::Delete),
+        "TRANS" | "ROT" | "SCALE" | "MIRROR" if !values.any => Some(FrameChange::Delete),
+        "TRANS" | "ROT" | "SCALE" if identity => Some(FrameChange::Delete),
+        "ATRANS" | "AROT" | "ASCALE" if identity => Some(FrameChange::Keep),
         "TOROTOF" | "PAROTOF" | "CYCLE800()" => Some(FrameChange::Delete),
         "CYCLE800" | super::fagor::FRAME_ON => Some(FrameChange::Set),
         super::fagor::FRAME_OFF => Some(FrameChange::Delete),
@@ -59,12 +94,39 @@ mod tests {
 
     #[test]
     fn a_rotation_in_the_plane_sets_a_frame() {
+        let of = |words: &[(&'static str, f64)]| values(words.iter().copied());
         // `ROT RPL=90` has no X Y Z, but turns the plane by 90°.
-        assert_eq!(change("ROT", true), Some(FrameChange::Set));
-        assert_eq!(change("ROT", false), Some(FrameChange::Delete));
-        assert_eq!(change("TRANS", true), Some(FrameChange::Set));
-        assert_eq!(change("TOFRAME", false), Some(FrameChange::Set));
-        assert_eq!(change("TOROTOF", false), Some(FrameChange::Delete));
-        assert_eq!(change("TRAORI", false), None);
+        assert_eq!(change("ROT", of(&[("RPL", 90.0)])), Some(FrameChange::Set));
+        assert_eq!(change("ROT", of(&[])), Some(FrameChange::Delete));
+        assert_eq!(change("TRANS", of(&[("X", 10.0)])), Some(FrameChange::Set));
+        assert_eq!(change("TOFRAME", of(&[])), Some(FrameChange::Set));
+        assert_eq!(change("TOROTOF", of(&[])), Some(FrameChange::Delete));
+        assert_eq!(change("TRAORI", of(&[])), None);
+    }
+
+    #[test]
+    fn an_identity_frame_sets_none() {
+        let of = |words: &[(&'static str, f64)]| values(words.iter().copied());
+        let zero = of(&[("X", 0.0), ("Y", 0.0), ("Z", 0.0)]);
+        let one = of(&[("X", 1.0), ("Y", 1.0), ("Z", 1.0)]);
+        // NX inside TRAORI: the programmable frame replaced by nothing.
+        assert_eq!(change("TRANS", zero), Some(FrameChange::Delete));
+        assert_eq!(
+            change("ROT", of(&[("RPL", 0.0)])),
+            Some(FrameChange::Delete)
+        );
+        assert_eq!(change("SCALE", one), Some(FrameChange::Delete));
+        assert_eq!(change("ATRANS", zero), Some(FrameChange::Keep));
+        assert_eq!(change("AROT", zero), Some(FrameChange::Keep));
+        assert_eq!(change("ASCALE", one), Some(FrameChange::Keep));
+        // Not the identity: a factor of 0, a scaling of 0, a shift of 1,
+        // one value off, a mirror (its value says nothing).
+        assert_eq!(change("SCALE", zero), Some(FrameChange::Set));
+        assert_eq!(change("TRANS", one), Some(FrameChange::Set));
+        let mixed = of(&[("X", 0.0), ("Z", 1e-9)]);
+        assert_eq!(change("TRANS", mixed), Some(FrameChange::Set));
+        assert_eq!(change("ATRANS", mixed), Some(FrameChange::Set));
+        assert_eq!(change("MIRROR", zero), Some(FrameChange::Set));
+        assert_eq!(change("ROTS", zero), Some(FrameChange::Set));
     }
 }

@@ -21,6 +21,7 @@ pub mod rewrite;
 pub mod rotary_words;
 pub mod source;
 pub mod spindle;
+pub mod tape;
 pub mod tool_vector;
 pub mod unfollowed;
 

@@ -33,6 +33,9 @@ pub use super::tool_vector::{QUIET_NORMALISATION, TOOL_VECTOR_TOLERANCE};
 use super::unfollowed;
 use nalgebra::Vector3;
 
+mod modes;
+pub use modes::{FeedMode, Motion, PoseStart, Units};
+
 /// One word of a block, as the modal state needs it.
 #[derive(Debug, Clone, Copy)]
 pub struct WordRef<'a> {
@@ -47,58 +50,6 @@ pub struct WordRef<'a> {
 /// The (address, value) pairs of `words`, as `program::ijk` reads them.
 fn pairs<'a>(words: &'a [WordRef<'a>]) -> impl ijk::Words<'a> {
     words.iter().map(|w| (w.address, w.value))
-}
-
-/// Motion mode (G-code group 1).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Motion {
-    /// `G0`.
-    Rapid,
-    /// `G1`.
-    Linear,
-    /// `G2` / `G3`.
-    Arc,
-    /// Canned cycles and anything else that moves but is not a straight line.
-    Other,
-}
-
-/// Units of lengths in the program.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Units {
-    /// `G21` / `G71` / `G710`.
-    Mm,
-    /// `G20` / `G70` / `G700`.
-    Inch,
-}
-
-impl Units {
-    /// Millimetres per program unit.
-    pub fn mm_per_unit(self) -> f64 {
-        match self {
-            Units::Mm => 1.0,
-            Units::Inch => 25.4,
-        }
-    }
-}
-
-/// Feed mode (G-code group 5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum FeedMode {
-    /// `G94`: F in units per minute.
-    PerMinute,
-    /// `G93`: F is the inverse of the block's time in minutes.
-    InverseTime,
-    /// `G95`: F in units per revolution.
-    PerRevolution,
-}
-
-/// Whether pose mode is on before the program says anything.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PoseStart {
-    /// Poses from the first block (CAM pose programs without a TCP code).
-    On,
-    /// Only `G43.4`/`G43.5`/`TRAORI` or a move with a tool axis switch it on.
-    Off,
 }
 
 /// A TCP code in the block that the emitter must rewrite.
@@ -521,8 +472,11 @@ impl ModalState {
                 unfollowed = unfollowed.or(Some((q.item, unfollowed::TCP_INCLINATION.into())));
             }
         }
-        let frame_values =
-            !keywords.is_empty() && frames::has_values(words.iter().map(|w| w.address));
+        let frame_values = if keywords.is_empty() {
+            frames::FrameValues::default()
+        } else {
+            frames::values(words.iter().map(|w| (w.address, w.value)))
+        };
         for (item, k) in keywords {
             match *k {
                 "TRAORI" => {
@@ -573,7 +527,11 @@ impl ModalState {
                 // through outside it.
                 k if let Some(change) = frames::change(k, frame_values) => match change {
                     frames::FrameChange::Set => frame = frame.or(Some(*item)),
-                    frames::FrameChange::Delete => self.frame_seen = false,
+                    // Values that change nothing are still no move.
+                    frames::FrameChange::Delete | frames::FrameChange::Keep => {
+                        self.frame_seen &= change == frames::FrameChange::Keep;
+                        non_modal |= frame_values.any;
+                    }
                 },
                 k if unfollowed.is_none() => {
                     unfollowed = unfollowed::transformation(k).map(|m| (*item, m));
@@ -755,16 +713,20 @@ impl ModalState {
         // or an E axis (the extruder or seventh axis of some dialects) moves
         // the tool too, besides the machine axes kinpost writes: it would
         // move the tool off the converted pose. `X1E5` (an E glued to a pose
-        // word) is refused below, as a number with an exponent.
+        // word) is refused below, as a number with an exponent; Haas
+        // `G187 P1 E0.01` is a smoothing tolerance.
+        let g187 = words.iter().any(|w| w.address == "G" && w.value == 187.0);
         if self.pose_mode
             && !non_modal
             && let Some(w) = words.iter().find(|w| {
                 unfollowed::numbered_axis(w.address)
                     || matches!(w.address, "U" | "V" | "W" | "E")
                         && !(w.address == "E"
-                            && words.iter().any(|p| {
-                                p.item + 1 == w.item && (is_tip(p.address) || is_axis(p.address))
-                            }))
+                            && (g187
+                                || words.iter().any(|p| {
+                                    p.item + 1 == w.item
+                                        && (is_tip(p.address) || is_axis(p.address))
+                                })))
             })
         {
             return Err(BlockError {

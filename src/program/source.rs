@@ -51,6 +51,7 @@ pub struct CutterComp {
 pub fn cl_poses<R: BufRead>(
     input: R,
     file: &str,
+    default_units: Option<crate::cl::ClUnits>,
     mut f: impl FnMut(PoseEvent) -> Result<()>,
 ) -> Result<()> {
     let mut axis = Vector3::z();
@@ -66,7 +67,7 @@ pub fn cl_poses<R: BufRead>(
         ClReader::new(input, file),
         file,
         crate::cl::DEFAULT_ARC_TOLERANCE_MM,
-        None,
+        default_units,
     );
     // Moves an arc or a hole stands for, read before the next record.
     let mut pending: std::collections::VecDeque<crate::cl::ClRecord> = Default::default();
@@ -186,6 +187,9 @@ pub struct AxisEvent {
     pub q: Vec<f64>,
     /// Feed in force, mm/min (G94) or None.
     pub feed_mm_min: Option<f64>,
+    /// Millimetres per unit of the feed's length (25.4 in G20): a move of
+    /// rotaries alone runs at `feed_mm_min / feed_unit_mm` deg/min.
+    pub feed_unit_mm: f64,
     /// Inverse-time feed in force (G93), 1/min, or None.
     pub inverse_time: Option<f64>,
     /// Rapid move (G0).
@@ -329,6 +333,8 @@ pub struct MachineAxisTracker {
     /// The axis a canned cycle drills along: normal to the plane (`G17`
     /// Z, `G18` Y, `G19` X).
     cycle_axis: &'static str,
+    /// The `%` that ends the program: what follows it is not read.
+    tape: super::tape::TapeEnd,
 }
 
 impl MachineAxisTracker {
@@ -342,6 +348,7 @@ impl MachineAxisTracker {
             unknown: vec![false; machine.axes.len()],
             cycle: false,
             cycle_axis: "Z",
+            tape: Default::default(),
         }
     }
 
@@ -482,7 +489,7 @@ impl MachineAxisTracker {
         let rotation = g_word(modal_words, 10.0)
             && matches!(word("L"), Some(l) if l == 2.0 || l == 20.0)
             && word("R").is_some();
-        let values = super::frames::has_values(line.words().map(|w| w.address.as_str()));
+        let values = super::frames::values(line.words().map(|w| (w.address.as_str(), w.value)));
         let mut set = None;
         for &(_, k) in keywords {
             match super::frames::change(k, values) {
@@ -537,6 +544,10 @@ impl MachineAxisTracker {
         line: &crate::gcode::Line,
         file: &str,
     ) -> Result<Option<MachineBlock>> {
+        // After the program's closing `%` a controller reads nothing.
+        if self.tape.after_end(line) {
+            return Ok(None);
+        }
         super::heidenhain::check_machine_block(&line.bytes, file, line.number)?;
         // Keywords, and the calls and instructions read from opaque text
         // (`TRAORI(…)`, `CYCLE800(…)`, Fagor `#RTCP ON`), as the modal state
@@ -912,6 +923,7 @@ pub fn machine_axis_blocks<R: BufRead>(
             restart,
             line: line.number,
             feed_mm_min: spindle.feed_mm_min(m.feed_mode, m.feed, m.feed_units),
+            feed_unit_mm: m.feed_units.mm_per_unit(),
             inverse_time: match m.feed_mode {
                 super::FeedMode::InverseTime => m.feed,
                 _ => None,
@@ -930,7 +942,7 @@ mod tests {
     /// The tool tips of the poses `cl_poses` reads from `text`.
     fn tips(text: &str) -> Vec<[f64; 3]> {
         let mut v = Vec::new();
-        cl_poses(text.as_bytes(), "t.cls", |e| {
+        cl_poses(text.as_bytes(), "t.cls", None, |e| {
             v.push([e.pose.tip.x, e.pose.tip.y, e.pose.tip.z]);
             Ok(())
         })

@@ -436,3 +436,58 @@ fn cl_length_registers_loops_and_inverse_time_words() {
         assert!(err.contains(at) && err.contains(said), "{body}: {err}");
     }
 }
+
+/// NX writes `TRANS X0 Y0 Z0` inside `TRAORI` (the programmable frame
+/// replaced by the identity). It was refused as a frame, although it moves
+/// nothing. Now `TRANS`/`ROT` of all 0 and `SCALE` of all 1 delete the
+/// programmable frame, and `ATRANS`/`AROT` of all 0 and `ASCALE` of all 1
+/// keep it as it is: in pose mode they pass, their X Y Z no pose. A frame
+/// that moves anything is still refused at its keyword, a mirror too
+/// (`MIRROR X0` mirrors X).
+#[test]
+fn identity_frames_change_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = format!("{TRAORI}G1 X20 Y5 Z5 A3=0 B3=0 C3=1\nTRAFOOF\nM30\n");
+    let want = post_converts(dir.path(), "plain.mpf", &plain, &[]);
+    for frame in [
+        "TRANS X0 Y0 Z0",
+        "ATRANS X0",
+        "ROT RPL=0",
+        "AROT Z0",
+        "SCALE X1 Y1 Z1",
+        "ASCALE Z1",
+    ] {
+        let text = format!("{TRAORI}{frame}\nG1 X20 Y5 Z5 A3=0 B3=0 C3=1\nTRAFOOF\nM30\n");
+        let out = post_converts(dir.path(), "id.mpf", &text, &[]);
+        // The frame's line as written, the rest as without it.
+        assert!(out.contains(&format!("\n{frame}\n")), "{frame}: {out}");
+        assert_eq!(out.replace(&format!("{frame}\n"), ""), want, "{frame}");
+    }
+    for (frame, col) in [
+        ("TRANS X0 Y0 Z0.001", 1),
+        ("ATRANS X0 Y1", 1),
+        ("SCALE X1 Y0", 1),
+        ("MIRROR X0", 1),
+        ("N5 AROT RPL=0.5", 4),
+    ] {
+        let text = format!("{TRAORI}{frame}\nG1 X20 Y5 Z5 A3=0 B3=0 C3=1\nTRAFOOF\nM30\n");
+        post_refuses(
+            dir.path(),
+            "id.mpf",
+            &text,
+            &[],
+            &format!("id.mpf:4:{col}: a frame"),
+        );
+    }
+    // Where motion in machine axes is followed: `TRANS X0 Y0 Z0` replaces
+    // a rotation, `AROT Z0` leaves it on.
+    followed(
+        dir.path(),
+        &format!("{START}AROT Z30\nTRANS X0 Y0 Z0\nG1 X50 Y10\n{NEXT}"),
+    );
+    refused_where_followed(
+        dir.path(),
+        &format!("{START}AROT Z30\nAROT Z0\nG1 X50 Y10\n{NEXT}"),
+        "m.ngc:5:4: a move under the Sinumerik frame AROT",
+    );
+}

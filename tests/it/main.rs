@@ -95,5 +95,6 @@ mod sixth_hunt;
 mod tcp_arcs;
 mod thirteenth_hunt;
 mod twelfth_hunt;
+mod twentieth_hunt;
 mod valid_jobs;
 mod wrapped_rotary;

@@ -39,6 +39,12 @@ pub(super) struct ArcRest {
 }
 
 impl BlockReader<'_> {
+    /// The arc modes in force (plane, centre mode, direction) after the
+    /// lines begun, when arcs are read ([`BlockReader::read_arcs`]).
+    pub fn arc_modes(&self) -> &crate::program::arc::ArcModes {
+        &self.arcs[0]
+    }
+
     /// Follows the plane, centre mode and direction of `line` (its `G17`,
     /// `G90.1`, `G3`, …) when arcs are read as poses, also as they stand
     /// with the block delete switch on (`/` lines skipped).
