@@ -270,9 +270,18 @@ impl BlockReader<'_> {
         let opts = self.opts;
         self.lines += 1;
         // After the program's closing `%` a controller reads nothing.
-        if self.tape.after_end(line) {
-            out.extend_from_slice(&line.bytes);
-            return Ok(None);
+        match self.tape.read(line) {
+            crate::program::tape::TapeLine::Program => {}
+            after => {
+                if let crate::program::tape::TapeLine::FirstText(at) = after {
+                    self.warnings.push(((line.number, 0), format!(
+                        "{}: text after the program's closing `%` (line {at}) passed on unread: a controller reads nothing after it",
+                        Location::new(&opts.file_name, line.number, 1)
+                    )));
+                }
+                out.extend_from_slice(&line.bytes);
+                return Ok(None);
+            }
         }
         let loc = |item: Option<usize>| {
             let col = item.map(|i| line.items[i].start + 1).unwrap_or(0);

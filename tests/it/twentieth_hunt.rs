@@ -118,6 +118,21 @@ fn text_after_the_closing_percent_passes_unread() {
         out.ends_with("M30\n%\nTool Path Listing has 3 lines."),
         "{out}"
     );
+    assert!(
+        err.contains("nx.nc:7:1: text after the program's closing `%` (line 6) passed on unread"),
+        "{err}"
+    );
+    // A `%` with a name starts a Sinumerik program and ends none: the
+    // second program of an archive is read, not passed on unread (its
+    // poses come after the first's M30: refused as a subprogram's).
+    let pose = "TRAORI\nG1 X10 Y0 Z5 A3=0 B3=0 C3=1 F500\nTRAFOOF\n";
+    let archive = format!("%_N_ONE_MPF\n{pose}M30\n%_N_TWO_MPF\n{pose}M30\n");
+    let (code, _, err) = run_on(&["post", "-m", "xyzbc-trt"], "a.arc", &archive);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("a.arc:8:4: a pose after the end of the main program"),
+        "{err}"
+    );
     // Past the `%` even a pose is not read.
     let after = "G1 X0 Y0 Z100 B0 C0\n%\nG43.4 H1\nG1 X1 Y2 Z3 I0 J0 K1\n";
     let (code, out, err) = run_on(&["post", "-m", "xyzbc-trt"], "after.nc", after);
