@@ -108,12 +108,19 @@ pub struct LinkageReport {
     pub nonlinear_max_after_mm: f64,
     /// Line of the original block of that segment.
     pub nonlinear_max_after_line: usize,
-    /// Cycle time of the G1/G0 moves at the programmed feed, before, s.
+    /// Cycle time of the feed moves (G1, G2, G3) at the programmed feed,
+    /// before, s. Rapids (G0) are left out: their speed is the machine's,
+    /// not F (the F in force may be deg/min or inverse time).
     pub cycle_time_before_s: f64,
     /// Cycle time after, s.
     pub cycle_time_after_s: f64,
     /// Decimals written per axis (raised to honour --tolerance unless --decimals is given).
     pub decimals: Vec<(String, u32)>,
+    /// The decimals written per axis in blocks in inch (`G20`), where the
+    /// program has any: one more on a linear axis, and raised as the
+    /// tolerance in inch needs.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub decimals_inch: Vec<(String, u32)>,
 }
 
 impl LinkageReport {
@@ -601,6 +608,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
         };
         Some((before, plan, worst))
     };
+    let mut any_inch = false;
     let mut write = |u: Unit, measured: Option<Measured>| -> Result<()> {
         let Pending {
             mline,
@@ -613,6 +621,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
             Unit::Block(b) => *b,
         };
         report.blocks_in += 1;
+        any_inch |= block.units == Units::Inch;
         report.blocks_out += 1;
         let Some(qa) = qa else {
             return mline.write_to(&mut &mut *out).map_err(io);
@@ -620,7 +629,10 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
         let qb = &block.q;
         let moved = axes.moved(&qa, qb);
         report.max_axes_moved_before = report.max_axes_moved_before.max(moved);
-        let time_before = move_minutes(machine, &qa, qb, &block.feed);
+        let time_before = match block.motion {
+            Motion::Rapid => 0.0,
+            _ => move_minutes(machine, &qa, qb, &block.feed),
+        };
         report.cycle_time_before_s += 60.0 * time_before;
         if block.motion != Motion::Linear {
             report.max_axes_moved_after = report.max_axes_moved_after.max(moved);
@@ -861,6 +873,14 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
         }
     }
     report.lines_in = lines_in;
+    if any_inch {
+        report.decimals_inch = machine
+            .axes
+            .iter()
+            .zip(axes.decimals(Units::Inch))
+            .map(|(a, d)| (a.name.clone(), *d as u32))
+            .collect();
+    }
     Ok(report)
 }
 

@@ -164,3 +164,55 @@ fn haas_smoothing_tolerance_in_pose_mode() {
     assert_eq!(code, 1);
     assert!(err.contains("e.nc:3:7: `E` in pose mode"), "{err}");
 }
+
+/// Inch/mm twins (a helper's metamorphic hunt): `linkage` timed a rapid at
+/// the F in force, also where that F is deg/min or inverse time, so its
+/// cycle time differed between a program and its inch twin (66 s and
+/// 8.4 s; under G93 600 s and 23.6 s). A rapid's speed is the machine's:
+/// it is left out now. Its JSON report gave the mm decimals for an inch
+/// program, which is written with 6 (`decimals_inch`).
+#[test]
+fn linkage_times_no_rapid_and_reports_the_inch_decimals() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = ["linkage", "-m", "xyzac-trt"];
+    for (units, x) in [("G21", "100"), ("G20", "3.937007874")] {
+        // A turn of 10° at F100 deg/min: 6 s; the rapid after it none.
+        let text = format!("{units} G90 G94\nG1 X0 Y0 Z0 A0 C0 F100\nG1 A10\nG0 X{x}\nM30\n");
+        let (code, _, err) = run_on(&args, "r.nc", &text);
+        assert_eq!(code, 0, "{err}");
+        assert!(
+            err.contains("programmed feed: 6.000 s before"),
+            "{units}: {err}"
+        );
+        let text = format!("{units} G90 G93\nG1 X0 Y0 Z0 A0 C0 F10\nG94 G0 X{x}\nM30\n");
+        let (code, _, err) = run_on(&args, "r.nc", &text);
+        assert_eq!(code, 0, "{err}");
+        assert!(
+            err.contains("programmed feed: 0.000 s before"),
+            "{units}: {err}"
+        );
+    }
+    let report = dir.path().join("r.json");
+    let mut args = args.to_vec();
+    args.extend(["-o", "/dev/null", "--report", report.to_str().unwrap()]);
+    let (code, _, err) = run_on(
+        &args,
+        "p.nc",
+        "G20 G90\nG1 X0 Y0 Z0 A0 C0 F10\nG1 X1\nM30\n",
+    );
+    assert_eq!(code, 0, "{err}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["decimals"][0], serde_json::json!(["X", 4]));
+    assert_eq!(json["decimals_inch"][0], serde_json::json!(["X", 6]));
+    // A program in mm has no inch decimals to report.
+    let (code, _, err) = run_on(
+        &args,
+        "p.nc",
+        "G21 G90\nG1 X0 Y0 Z0 A0 C0 F10\nG1 X1\nM30\n",
+    );
+    assert_eq!(code, 0, "{err}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert!(json.get("decimals_inch").is_none(), "{json}");
+}
