@@ -215,6 +215,14 @@ impl<'m> Axes<'m> {
         &self.decimals[usize::from(units == Units::Inch)]
     }
 
+    /// The decimals of each axis in a program in `units`, by axis name.
+    fn named_decimals(&self, units: Units) -> Vec<(String, u32)> {
+        (self.machine.axes.iter())
+            .zip(self.decimals(units))
+            .map(|(a, d)| (a.name.clone(), *d as u32))
+            .collect()
+    }
+
     /// External values rounded to the written precision (output order).
     fn rounded(&self, q: &[f64], units: Units) -> Vec<f64> {
         let ext = self.machine.to_external(q);
@@ -464,12 +472,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
         machine: machine.name.clone(),
         ..Default::default()
     };
-    report.decimals = machine
-        .axes
-        .iter()
-        .zip(axes.decimals(Units::Mm))
-        .map(|(a, d)| (a.name.clone(), *d as u32))
-        .collect();
+    report.decimals = axes.named_decimals(Units::Mm);
     let post_opts = PostOptions {
         decimals: opts.decimals,
         pose_start: opts.pose_start,
@@ -874,12 +877,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
     }
     report.lines_in = lines_in;
     if any_inch {
-        report.decimals_inch = machine
-            .axes
-            .iter()
-            .zip(axes.decimals(Units::Inch))
-            .map(|(a, d)| (a.name.clone(), *d as u32))
-            .collect();
+        report.decimals_inch = axes.named_decimals(Units::Inch);
     }
     Ok(report)
 }
