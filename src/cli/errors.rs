@@ -281,7 +281,9 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     let mut progress = RunProgress::new(inp.size, a.quiet, "compensate");
     // The per-block records stream into the summary and (with --report) into
     // the report file as they are computed: memory stays flat.
-    let mut run = |report: Option<&mut dyn Write>| -> Result<RunSummary> {
+    // The summary, and the warnings of reading the program (in program
+    // order; the solver's own come after them).
+    let mut run = |report: Option<&mut dyn Write>| -> Result<(RunSummary, Vec<String>)> {
         let mut summary = RunSummary::start(&machine, method);
         let mut writer = match report {
             Some(w) => Some(
@@ -300,7 +302,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             records.clear();
             Ok(())
         };
-        write_atomically(a.output.as_deref(), |out| {
+        let stats = write_atomically(a.output.as_deref(), |out| {
             let input = if kind == InputKind::Cl {
                 crate::compensate::Input::Cl
             } else {
@@ -319,19 +321,25 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         })?;
         let summary = summary.finish();
         if let Some(w) = writer.take() {
-            w.finish(&summary, &solver.warnings)
+            let warnings: Vec<String> = stats
+                .warnings
+                .iter()
+                .chain(&solver.warnings)
+                .cloned()
+                .collect();
+            w.finish(&summary, &warnings)
                 .map_err(|e| Error::io(report_name.clone(), e))?;
         }
-        Ok(summary)
+        Ok((summary, stats.warnings))
     };
-    let summary = match &a.report {
+    let (summary, read_warnings) = match &a.report {
         Some(r) => write_atomically(Some(r), |w| run(Some(w)))?,
         None => run(None)?,
     };
     progress.finish();
     if !a.quiet {
         let mut e = std::io::stderr().lock();
-        for w in &solver.warnings {
+        for w in read_warnings.iter().chain(&solver.warnings) {
             let _ = writeln!(e, "warning: {w}");
         }
         let _ = write!(e, "{}", summary.to_text());

@@ -9,7 +9,7 @@ use crate::gcode::Line;
 /// Whether `line` ends the program (`M2`, `M30`, `M99`, `%`): such a last
 /// line is whole even without a line end.
 pub fn ends_program(line: &Line) -> bool {
-    line.bytes.trim_ascii() == b"%"
+    super::tape::is_tape_mark(line)
         || ends_main_program(line)
         || line.words().any(|w| w.address == "M" && w.value == 99.0)
 }

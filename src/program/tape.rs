@@ -1,17 +1,33 @@
-//! The `%` lines that delimit a program on tape (Fanuc, Haas, LinuxCNC):
-//! a bare `%` after the program's first block ends it, and a controller
-//! reads nothing after that line. CAM systems write text there (NX: "Tool
+//! The `%` lines that delimit a program on tape (Fanuc, Haas, LinuxCNC).
+//! A controller loading a file reads from the opening `%` to the closing
+//! one. Which bare `%` is which: the first one opens the program, whatever
+//! stands before it (a DNC header, a comment, NX's "Information listing";
+//! kinpost reads those lines as blocks, so that nothing that moves the tool
+//! passes unread); a later one, after a block, closes it, and so does a
+//! `%` after the main program's end (`M2`, `M30`) in a file that has no
+//! opening one. CAM systems write text after the closing `%` (NX: "Tool
 //! Path Listing has 3 lines.", often without a line end); it is no block,
 //! and every command passes it through as it is, unread. A `%` with a
 //! name (Sinumerik `%_N_MAIN_MPF`) starts a program and ends none.
 
 use crate::gcode::Line;
 
+/// Whether `line` is a bare `%` (blanks around it allowed): the mark that
+/// opens and ends a program on tape.
+pub fn is_tape_mark(line: &Line) -> bool {
+    line.bytes.trim_ascii() == b"%"
+}
+
 /// Follows a program's lines to the `%` that ends it.
 #[derive(Debug, Clone, Default)]
 pub struct TapeEnd {
-    /// A line other than a blank one or a bare `%` has been read.
+    /// The opening `%` has been read.
+    opened: bool,
+    /// A line other than a blank one or a bare `%` has been read since the
+    /// opening `%` (since the start where none was).
     content: bool,
+    /// The main program's end (`M2`, `M30`) has been read.
+    main_ended: bool,
     /// The line of the ending `%`, once read.
     ended_at: Option<usize>,
     /// Text after it has been met.
@@ -31,8 +47,7 @@ pub enum TapeLine {
 }
 
 impl TapeEnd {
-    /// Reads `line`, the next of the program: where it stands. A bare `%`
-    /// before the first block opens the program.
+    /// Reads `line`, the next of the program: where it stands.
     pub fn read(&mut self, line: &Line) -> TapeLine {
         if let Some(at) = self.ended_at {
             if self.text_after || line.is_blank() {
@@ -41,12 +56,19 @@ impl TapeEnd {
             self.text_after = true;
             return TapeLine::FirstText(at);
         }
-        if line.bytes.trim_ascii() == b"%" {
-            if self.content {
+        if is_tape_mark(line) {
+            if self.content && (self.opened || self.main_ended) {
                 self.ended_at = Some(line.number);
+            } else if !self.opened {
+                // The opening `%`: what stood before it was a leader.
+                *self = TapeEnd {
+                    opened: true,
+                    ..TapeEnd::default()
+                };
             }
         } else if !line.is_blank() {
             self.content = true;
+            self.main_ended |= super::integrity::ends_main_program(line);
         }
         TapeLine::Program
     }
@@ -86,8 +108,21 @@ mod tests {
             After,
         ];
         assert_eq!(read(t), want);
-        // No opening `%`: the first `%` after a block ends the program.
-        assert_eq!(read("G1 X1\n %\nG1 X2\n"), [Program, Program, FirstText(2)]);
+        // No opening `%`: a `%` after the main program's end closes it.
+        assert_eq!(
+            read("G1 X1\nM30\n %\nG1 X2\n"),
+            [Program, Program, Program, FirstText(3)]
+        );
+        // Before it, a `%` after a block is the opening one (a header, a
+        // comment or a listing before it), and the second one closes.
+        let t = "(JOB 42)\n%\nO1000\nG1 X1\n%\nG1 X2\n";
+        assert_eq!(
+            read(t),
+            [Program, Program, Program, Program, Program, FirstText(5)]
+        );
+        assert_eq!(read("G1 X1\n%\nG1 X2\n"), [Program; 3]);
+        // Two opening marks in a row: the second closes nothing.
+        assert_eq!(read("%\n%\nG1 X1\nM30\n"), [Program; 4]);
         // Only an opening `%`, or none: every line is read.
         assert_eq!(read("%\nG1 X1\nG1 X2\n"), [Program; 3]);
         assert_eq!(read("G1 X1\nG1 X2\n"), [Program; 2]);

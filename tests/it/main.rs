@@ -96,5 +96,6 @@ mod tcp_arcs;
 mod thirteenth_hunt;
 mod twelfth_hunt;
 mod twentieth_hunt;
+mod twenty_first_hunt;
 mod valid_jobs;
 mod wrapped_rotary;

@@ -133,8 +133,8 @@ fn text_after_the_closing_percent_passes_unread() {
         err.contains("a.arc:8:4: a pose after the end of the main program"),
         "{err}"
     );
-    // Past the `%` even a pose is not read.
-    let after = "G1 X0 Y0 Z100 B0 C0\n%\nG43.4 H1\nG1 X1 Y2 Z3 I0 J0 K1\n";
+    // Past the `%` after the main program's end even a pose is not read.
+    let after = "G1 X0 Y0 Z100 B0 C0\nM30\n%\nG43.4 H1\nG1 X1 Y2 Z3 I0 J0 K1\n";
     let (code, out, err) = run_on(&["post", "-m", "xyzbc-trt"], "after.nc", after);
     assert_eq!(code, 0, "{err}");
     assert_eq!(out, after);

@@ -13,10 +13,15 @@ const MIN_QUANTUM: f64 = 1e-9;
 /// Fewest distinct values from which a resolution is read.
 const MIN_DISTINCT: usize = 8;
 
-/// The resolution of a column of values: the largest step `q` of the form
-/// 1, 2 or 5 · 10ᵏ, 2⁻ᵏ, or the smallest gap between two values, such that
-/// every value is a whole multiple of `q`. `None` when the values are not
-/// rounded (or too few of them differ to tell).
+/// The resolution of a column of values: the largest step `q` such that
+/// every value is a whole multiple of `q`, among the steps a controller or
+/// logger rounds to (1, 2 or 5 · 10ᵏ in the file's unit, the same in inch
+/// converted to mm, 2⁻ᵏ) and the smallest gap between two values. `None`
+/// when the values are not rounded (or too few of them differ to tell).
+///
+/// A gap that is one of those steps but for the floating-point noise of a
+/// conversion (0.0001 inch read as 0.0025399999999962 mm) is given as the
+/// step itself (0.00254).
 pub fn quantum(values: &[f64]) -> Option<f64> {
     let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
     v.sort_by(f64::total_cmp);
@@ -35,22 +40,43 @@ pub fn quantum(values: &[f64]) -> Option<f64> {
         .windows(2)
         .map(|w| w[1] - w[0])
         .fold(f64::INFINITY, f64::min);
-    let mut candidates: Vec<f64> = Vec::new();
-    for e in -9..=2 {
+    let mut steps: Vec<f64> = Vec::new();
+    for e in -10..=2 {
         for m in [1.0, 2.0, 5.0] {
-            candidates.push(m * 10f64.powi(e));
+            steps.push(decimal(m, e));
+            // The same step in inch, in mm (25.4 = 254 · 10⁻¹).
+            steps.push(decimal(m * 254.0, e - 1));
         }
     }
     for k in 0..=30 {
-        candidates.push(0.5f64.powi(k));
+        steps.push(0.5f64.powi(k));
     }
-    candidates.push(gap);
-    candidates
-        .into_iter()
-        .filter(|q| q.is_finite() && is_step(*q))
+    let step = steps
+        .iter()
+        .copied()
+        .filter(|&q| is_step(q))
         .fold(None, |best: Option<f64>, q| {
             Some(best.map_or(q, |b| b.max(q)))
-        })
+        });
+    if !(gap.is_finite() && is_step(gap)) || step.is_some_and(|s| s >= gap) {
+        return step;
+    }
+    // The gap is the step: one of the usual ones where it is that step
+    // within rounding.
+    let near = steps
+        .into_iter()
+        .find(|&q| (q - gap).abs() <= 1e-9 * gap && is_step(q));
+    Some(near.unwrap_or(gap))
+}
+
+/// `mantissa · 10^exponent`, the double nearest to it (a whole mantissa
+/// divided or multiplied by an exact power of ten: one rounding).
+fn decimal(mantissa: f64, exponent: i32) -> f64 {
+    if exponent < 0 {
+        mantissa / 10f64.powi(-exponent)
+    } else {
+        mantissa * 10f64.powi(exponent)
+    }
 }
 
 /// The resolutions of a recording: of each axis column (file units) and of
@@ -132,5 +158,16 @@ mod tests {
         assert_eq!(quantum(&free), None);
         // Too few distinct values to tell.
         assert_eq!(quantum(&[0.0, 1.0, 0.0, 1.0]), None);
+        // Inch values to 4 decimals, read in mm: the step is 0.0001 inch,
+        // given as 0.00254 mm, not with the conversion's noise.
+        let inch: Vec<f64> = (0..50)
+            .map(|i| ((i as f64 * 0.731).sin() * 12.3 * 1e4).round() / 1e4 * 25.4)
+            .collect();
+        assert_eq!(quantum(&inch), Some(0.00254));
+        assert_eq!(format!("{}", quantum(&inch).unwrap()), "0.00254");
+        // An odd step (an encoder's 1/3 µm) stays the gap.
+        let odd: Vec<f64> = (0..50).map(|i| (i * i % 97) as f64 / 3000.0).collect();
+        let q = quantum(&odd).unwrap();
+        assert!((q - 1.0 / 3000.0).abs() < 1e-15, "{q}");
     }
 }
