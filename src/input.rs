@@ -35,10 +35,26 @@ pub fn open(path: Option<&Path>) -> Result<Input> {
 }
 
 fn stdin() -> Input {
+    note_stdin();
     Input {
         reader: Box::new(BufReader::with_capacity(1 << 16, std::io::stdin())),
         name: "<stdin>".into(),
         size: None,
+    }
+}
+
+/// Records standard input, where it is a regular file (`< p.nc`), as an
+/// input of the run: no output may be written over it.
+fn note_stdin() {
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsFd;
+        if let Ok(fd) = std::io::stdin().as_fd().try_clone_to_owned() {
+            let file = std::fs::File::from(fd);
+            if file.metadata().is_ok_and(|m| m.is_file()) {
+                crate::output::note_input(&file, "<stdin>");
+            }
+        }
     }
 }
 

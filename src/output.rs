@@ -121,7 +121,9 @@ fn is_input(path: &Path, input: &str) -> Error {
 pub fn check_outputs(outputs: &[(&str, Option<&Path>)], inputs: &[Option<&Path>]) -> Result<()> {
     let mut seen: Vec<(&str, &Path, Identity)> = Vec::new();
     for (flag, path) in outputs {
-        let Some(path) = path else { continue };
+        let Some(path) = path.filter(|p| p.as_os_str() != "-") else {
+            continue;
+        };
         let name = path.display().to_string();
         let meta = std::fs::metadata(path).ok();
         if let Some(m) = &meta {
@@ -254,12 +256,17 @@ pub fn write_atomically<T>(
     path: Option<&Path>,
     f: impl FnOnce(&mut dyn Write) -> Result<T>,
 ) -> Result<T> {
-    let Some(path) = path else {
+    let Some(path) = path.filter(|p| !is_standard_output(p)) else {
         return spool_then(f, "<stdout>", |spool| {
             let stdout = std::io::stdout();
             let mut lock = stdout.lock();
-            std::io::copy(spool, &mut lock)?;
-            lock.flush()
+            // A reader that stopped early (`| head`) takes no more; the
+            // run's other outputs (a report) are still written.
+            let copied = std::io::copy(spool, &mut lock).and_then(|_| lock.flush());
+            match copied {
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+                other => other,
+            }
         });
     };
     let display = path.display().to_string();
@@ -287,6 +294,12 @@ pub fn write_atomically<T>(
                     "is the input {input}; refusing to write an output over it"
                 )));
             }
+            // A file with several links is rewritten in place: a signal
+            // waits for the copy to end (the handler takes this lock), so
+            // that the file holds its old content or the whole new one. Not
+            // a device or FIFO, whose reader may never come.
+            let _signals_wait = (kind == Some(Kind::File))
+                .then(|| TEMPORARIES.lock().unwrap_or_else(|e| e.into_inner()));
             let mut out = std::fs::OpenOptions::new()
                 .write(true)
                 .truncate(kind == Some(Kind::File))
@@ -324,6 +337,31 @@ pub fn write_atomically<T>(
     }
     tmp.persist(&target).map_err(|e| Error::io(&display, e))?;
     Ok(value)
+}
+
+/// Whether the output path `path` is standard output: `-`, or the file,
+/// device or pipe that standard output is (`/dev/stdout`, or the file a
+/// shell's `>` or `>>` opened), which is then written through the open
+/// descriptor, at its offset, not replaced.
+fn is_standard_output(path: &Path) -> bool {
+    if path.as_os_str() == "-" {
+        return true;
+    }
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsFd;
+        let Ok(fd) = std::io::stdout().as_fd().try_clone_to_owned() else {
+            return false;
+        };
+        let stdout = File::from(fd).metadata().ok();
+        let out = std::fs::metadata(path).ok();
+        matches!(
+            (stdout.as_ref().and_then(FileId::of), out.as_ref().and_then(FileId::of)),
+            (Some(a), Some(b)) if a == b
+        )
+    }
+    #[cfg(not(unix))]
+    false
 }
 
 /// A file being written that hands what it holds to the disk as it grows

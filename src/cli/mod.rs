@@ -237,6 +237,9 @@ impl crate::post::SplitSolver for ToolSolvers {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Vector3Arg(pub [f64; 3]);
 
+/// Largest work offset per coordinate, mm (1 km: no machine travels so far).
+const MAX_OFFSET_MM: f64 = 1e6;
+
 fn parse_xyz_mm(s: &str) -> std::result::Result<Vector3Arg, String> {
     let parts: Vec<&str> = s.split(',').collect();
     if parts.len() != 3 {
@@ -250,6 +253,11 @@ fn parse_xyz_mm(s: &str) -> std::result::Result<Vector3Arg, String> {
             .ok()
             .filter(|x| x.is_finite())
             .ok_or_else(|| format!("`{p}` is not a finite length in mm"))?;
+        if v[k].abs() > MAX_OFFSET_MM {
+            return Err(format!(
+                "`{p}` mm is beyond any machine's travel (|offset| ≤ {MAX_OFFSET_MM:.0e} mm)"
+            ));
+        }
     }
     Ok(Vector3Arg(v))
 }

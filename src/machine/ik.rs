@@ -807,6 +807,13 @@ impl IkSolver {
         // also decides whether the axes are dependent.
         let m = self.prismatics.len();
         let a = DMatrix::from_fn(3, m, |r, c| dirs[self.prismatics[c]][r]);
+        // nalgebra's SVD panics on a NaN; one comes from an overflow far
+        // beyond any travel (a work offset of 1e155 mm squared).
+        if !(a.iter().all(|v| v.is_finite()) && b.iter().all(|v| v.is_finite())) {
+            return Err(IkError::Unreachable {
+                reason: "the pose is beyond any machine's travel: its arithmetic overflows".into(),
+            });
+        }
         let b = DVector::from_column_slice(b.as_slice());
         let svd = a.svd(true, true);
         let smax = svd.singular_values.max();

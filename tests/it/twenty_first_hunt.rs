@@ -85,3 +85,112 @@ fn compensate_gives_the_warnings_of_reading_the_program() {
         "{warnings:?}"
     );
 }
+
+/// A pose program of `n` poses for zhao2022-xzbc (about 40 bytes a line).
+fn many_poses(n: usize) -> String {
+    let mut p = String::from("G21 G90\nG43.4 H1\n");
+    for i in 0..n {
+        let x = 10.0 + (i % 1000) as f64 * 0.01;
+        p.push_str(&format!("G1 X{x:.3} Y5 Z5 I0 J0 K1 F100\n"));
+    }
+    p.push_str("G49\nM30\n");
+    p
+}
+
+/// Careless command lines (a helper's output-path hunt): standard input
+/// that is the output file was not caught (`-o p.nc < p.nc` replaced the
+/// program, exit 0); `-o /dev/stdout` with standard output redirected to a
+/// file replaced that file (what a shell's `>>` appended to was lost);
+/// `-o -` wrote a file named `-`.
+#[test]
+fn standard_input_and_output_given_as_paths() {
+    use std::process::{Command, Stdio};
+    let dir = tempfile::tempdir().unwrap();
+    let program = many_poses(20);
+    let p = dir.path().join("p.nc");
+    std::fs::write(&p, &program).unwrap();
+    let out = Command::new(crate::util::BIN)
+        .current_dir(dir.path())
+        .args(["post", "-q", "-o", "p.nc"])
+        .stdin(std::fs::File::open(&p).unwrap())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("p.nc is the input <stdin> (the same file)"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&p).unwrap(), program);
+    // The converted program, as `post` writes it to a pipe.
+    let want = Command::new(crate::util::BIN)
+        .args(["post", "-q"])
+        .arg(&p)
+        .output()
+        .unwrap();
+    assert_eq!(want.status.code(), Some(0));
+    for target in ["/dev/stdout", "-"] {
+        let g = dir.path().join("g.txt");
+        std::fs::write(&g, "HEADER\n").unwrap();
+        let append = std::fs::OpenOptions::new().append(true).open(&g).unwrap();
+        let status = Command::new(crate::util::BIN)
+            .current_dir(dir.path())
+            .args(["post", "-q", "p.nc", "-o", target])
+            .stdout(Stdio::from(append))
+            .status()
+            .unwrap();
+        assert_eq!(status.code(), Some(0));
+        let mut expected = b"HEADER\n".to_vec();
+        expected.extend_from_slice(&want.stdout);
+        assert_eq!(std::fs::read(&g).unwrap(), expected, "{target}");
+        assert!(!dir.path().join("-").exists());
+    }
+}
+
+/// `compensate … --report r.json | head -1`: the reader of standard output
+/// stopped early, and the report was silently not written (exit 0). The
+/// report is written; the program's rest goes nowhere, as with any filter.
+#[test]
+fn the_report_is_written_when_the_reader_stops_early() {
+    use std::io::{BufRead, BufReader};
+    use std::process::{Command, Stdio};
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("p.nc");
+    std::fs::write(&p, many_poses(5000)).unwrap();
+    let report = dir.path().join("r.json");
+    let errors = repo_file("fixtures/errors/zhao2022-xzbc.csv");
+    let mut child = Command::new(crate::util::BIN)
+        .args(["compensate", "-q", "-e", &errors, "--report"])
+        .arg(&report)
+        .arg(&p)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert_eq!(first, "G21 G90\n");
+    // The pipe is closed here: the rest of the output finds no reader.
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(0));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    assert_eq!(json["blocks"].as_array().unwrap().len(), 5000);
+}
+
+/// `--work-offset 1e155,1e155,0`: the program's coordinates are bounded,
+/// the offset added to them was not, and the IK's arithmetic overflowed
+/// into a NaN on which nalgebra's SVD panicked (exit 134).
+#[test]
+fn a_work_offset_beyond_any_travel_is_refused() {
+    let program = "G21 G90\nG43.4 H1\nG1 X10 Y5 Z5 I0 J0 K1 F100\nG49\nM30\n";
+    for offset in ["1e155,1e155,0", "1e308,0,0", "-2e6,0,0"] {
+        let arg = format!("--work-offset={offset}");
+        let (code, _, err) = run_on(&["post", &arg], "s.nc", program);
+        assert_eq!(code, 2, "{offset}: {err}");
+        assert!(err.contains("beyond any machine's travel"), "{err}");
+    }
+    let (code, _, err) = run_on(&["post", "--work-offset=1e6,1e6,0"], "s.nc", program);
+    assert_eq!(code, 1, "{err}");
+}
