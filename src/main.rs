@@ -9,7 +9,7 @@ use clap::Parser;
 // ones are added here).
 use kinpost::{
     analyze, cl, compensate, diagnose, error, gcode, geometric, input, json_stream, linkage,
-    machine, output, post, program, progress, report, text, trajectory,
+    machine, numeric, output, post, program, progress, report, text, trajectory,
 };
 
 mod cli;

@@ -259,3 +259,25 @@ mod tests {
         assert!((x - 0.3).abs() < 1e-7 && (y - 1.0).abs() < 1e-14);
     }
 }
+
+/// `v` for a message: as a plain decimal where that is short (0, and
+/// 1e-4 ≤ |v| < 1e9), else in scientific notation (`1e-320`, not 320
+/// digits).
+pub fn readable(v: f64) -> String {
+    if v == 0.0 || (1e-4..1e9).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}
+
+#[cfg(test)]
+mod readable_tests {
+    #[test]
+    fn short_either_way() {
+        assert_eq!(super::readable(0.5), "0.5");
+        assert_eq!(super::readable(0.0), "0");
+        assert_eq!(super::readable(1e-320), "1e-320");
+        assert_eq!(super::readable(-2.5e12), "-2.5e12");
+    }
+}

@@ -261,10 +261,14 @@ pub fn write_atomically<T>(
             let stdout = std::io::stdout();
             let mut lock = stdout.lock();
             // A reader that stopped early (`| head`) takes no more; the
-            // run's other outputs (a report) are still written.
+            // run's other outputs (a report) are still written, and the
+            // run ends quietly ([`standard_output_closed`]).
             let copied = std::io::copy(spool, &mut lock).and_then(|_| lock.flush());
             match copied {
-                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+                    STDOUT_CLOSED.store(true, std::sync::atomic::Ordering::Relaxed);
+                    Ok(())
+                }
                 other => other,
             }
         });
@@ -337,6 +341,17 @@ pub fn write_atomically<T>(
     }
     tmp.persist(&target).map_err(|e| Error::io(&display, e))?;
     Ok(value)
+}
+
+/// Set when the reader of standard output stopped before the output
+/// ended ([`write_atomically`]).
+static STDOUT_CLOSED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Whether the reader of standard output stopped early (`kinpost … |
+/// head`): the run's other outputs are written, and it ends quietly, as
+/// other filters do (no summary, exit 0).
+pub fn standard_output_closed() -> bool {
+    STDOUT_CLOSED.load(std::sync::atomic::Ordering::Relaxed)
 }
 
 /// Whether the output path `path` is standard output: `-`, or the file,

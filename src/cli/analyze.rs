@@ -334,8 +334,10 @@ fn run(
         step(b.line, b.q, b.restart || b.arc)
     });
     // A program in machine axes (no pose before it ended, or before what
-    // stopped it): the errors have nothing to be analysed at.
-    if analyzer.is_some() && !job.poses && !poses_seen {
+    // stopped it): the errors have nothing to be analysed at. Not where
+    // pose mode is on from the start (`--pose-start on`): what stopped it
+    // then is the answer.
+    if analyzer.is_some() && !job.poses && !poses_seen && job.start != PoseStart::On {
         return Err(Error::Usage(
             "analyze --errors needs a program of tool poses; this one is in machine axes (use --nonlinear alone)".into(),
         ));

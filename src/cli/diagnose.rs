@@ -332,10 +332,10 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         "expected a standard deviation of 0 … 10 mm",
     )?;
     check(
-        (0.0..=1e6).contains(&a.accel),
+        a.accel == 0.0 || (1.0..=1e6).contains(&a.accel),
         "--accel",
         a.accel,
-        "expected an acceleration of 0 … 1e6 mm/s² (0: constant feed per block)",
+        "expected 0 (constant feed per block) or an acceleration of 1 … 1e6 mm/s²",
     )?;
     check(
         a.time_offset.is_finite() && a.time_offset.abs() <= 3600.0,
@@ -367,10 +367,10 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         "expected three offsets of −10 … 10 mm",
     )?;
     check(
-        (0.0..=10.0).contains(&a.round),
+        a.round == 0.0 || (1e-9..=10.0).contains(&a.round),
         "--round",
         a.round,
-        "expected a step of 0 … 10 mm",
+        "expected 0 (no rounding) or a step of 1e-9 … 10 mm",
     )?;
     let model = match &a.errors {
         Some(p) => Some(super::errors::load_errors(p)?),
@@ -435,10 +435,13 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
             let blocks = read_program(&mut |wp| sim.push(wp, &mut sink))?;
             Ok((sim.finish(&mut sink)?, blocks))
         })?;
+        if crate::output::standard_output_closed() {
+            return Ok(());
+        }
         eprintln!(
             "kinpost simulate: joint-feedback trace of {n} samples from {blocks} blocks of {}, noise σ = {} (mm or deg), {} effect(s) injected",
             a.program.display(),
-            a.noise,
+            crate::numeric::readable(a.noise),
             effects.len()
         );
         return Ok(());
@@ -456,10 +459,13 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         let n = sim.finish(&mut sink)?;
         Ok((n, last_t, blocks))
     })?;
+    if crate::output::standard_output_closed() {
+        return Ok(());
+    }
     eprintln!(
         "kinpost simulate: {n} samples over {last_t:.1} s from {blocks} blocks of {}, noise σ = {} µm, {} effect(s) injected",
         a.program.display(),
-        a.noise * 1e3,
+        crate::numeric::readable(a.noise * 1e3),
         effects.len()
     );
     Ok(())
@@ -530,9 +536,11 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
         a.job.check_model(m)?;
     }
     if a.noise_floor
-        .is_some_and(|nf| !(nf.is_finite() && nf > 0.0))
+        .is_some_and(|nf| !(nf.is_finite() && nf > 0.0 && nf <= 10.0))
     {
-        return Err(Error::Usage("--noise-floor must be > 0 mm".into()));
+        return Err(Error::Usage(
+            "--noise-floor must be above 0 and at most 10 mm".into(),
+        ));
     }
     let axes = machine.chain.names();
     if a.sample_rate

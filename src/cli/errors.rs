@@ -337,7 +337,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         None => run(None)?,
     };
     progress.finish();
-    if !a.quiet {
+    if !a.quiet && !crate::output::standard_output_closed() {
         let mut e = std::io::stderr().lock();
         for w in read_warnings.iter().chain(&solver.warnings) {
             let _ = writeln!(e, "warning: {w}");

@@ -143,7 +143,7 @@ pub fn linkage(a: LinkageArgs) -> Result<()> {
                 .map_err(|e| Error::io(r.display().to_string(), e))
         })?;
     }
-    if !a.quiet {
+    if !a.quiet && !crate::output::standard_output_closed() {
         eprint!("{}", report.to_text());
     }
     Ok(())

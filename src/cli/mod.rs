@@ -237,6 +237,9 @@ impl crate::post::SplitSolver for ToolSolvers {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Vector3Arg(pub [f64; 3]);
 
+/// Largest tool length, mm (10 m: far beyond any tool assembly).
+const MAX_TOOL_MM: f64 = 1e4;
+
 /// Largest work offset per coordinate, mm (1 km: no machine travels so far).
 const MAX_OFFSET_MM: f64 = 1e6;
 
@@ -267,9 +270,9 @@ impl JobArgs {
     pub fn setup(&self) -> Result<crate::machine::job::JobSetup> {
         use crate::machine::job::{JobSetup, ToolChoice, ToolTable};
         let tool = match (&self.tool_length, &self.tool_table) {
-            (Some(l), _) if !l.is_finite() => {
+            (Some(l), _) if !(l.is_finite() && l.abs() <= MAX_TOOL_MM) => {
                 return Err(Error::Usage(format!(
-                    "--tool-length {l}: expected a finite length in mm"
+                    "--tool-length {l}: expected a length of −{MAX_TOOL_MM:.0} … {MAX_TOOL_MM:.0} mm"
                 )));
             }
             (Some(l), _) => ToolChoice::Length(*l),
@@ -631,7 +634,7 @@ fn post(a: PostArgs) -> Result<()> {
         }
     })?;
     progress.finish();
-    if !a.quiet {
+    if !a.quiet && !crate::output::standard_output_closed() {
         let mut e = std::io::stderr().lock();
         for w in &stats.warnings {
             let _ = writeln!(e, "warning: {w}");

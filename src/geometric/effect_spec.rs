@@ -126,7 +126,67 @@ pub fn parse_effect_spec(s: &str) -> Result<EffectSpec> {
         }
     }
     let effect = Effect::from_parameters(kind, axis.as_deref(), &params).map_err(bad)?;
+    check_size(&effect).map_err(bad)?;
     Ok(EffectSpec { effect, from_block })
+}
+
+/// Largest length (mm) or angle (deg) an injected effect may have: far
+/// above any machine's error, low enough that the arithmetic stays finite.
+const MAX_EFFECT: f64 = 10.0;
+
+/// Refuses an effect to inject whose size is beyond what a machine shows
+/// (`backlash:X=1e308`, `cyclic:…,period=1e-320`) or of a sign it cannot
+/// have (a negative backlash): the recording would hold `inf` or NaN, or
+/// nothing like a machine.
+fn check_size(effect: &Effect) -> std::result::Result<(), String> {
+    let within = |what: &str, v: f64, lo: f64, hi: f64, unit: &str| {
+        if (lo..=hi).contains(&v) {
+            Ok(())
+        } else {
+            Err(format!("{what} {v}: expected {lo} … {hi} {unit}"))
+        }
+    };
+    let size = |what: &str, v: f64| within(what, v, -MAX_EFFECT, MAX_EFFECT, "mm (or deg)");
+    match effect {
+        Effect::Backlash { value, .. } => {
+            within("backlash", *value, 0.0, MAX_EFFECT, "mm (or deg)")
+        }
+        // A negative lag is a recording that leads its program (a test
+        // of what diagnose makes of a clock ahead).
+        Effect::ServoLag { tau_s, .. } => within("servo_lag τ", *tau_s, -60.0, 60.0, "s"),
+        Effect::ThermalDrift {
+            amplitude_mm,
+            tau_s,
+            ..
+        } => {
+            size("thermal_drift amplitude", *amplitude_mm)?;
+            within("thermal_drift τ", *tau_s, 1e-3, 1e7, "s")
+        }
+        Effect::Scale { ppm, .. } => within("scale", *ppm, -1e5, 1e5, "ppm"),
+        Effect::Squareness { angle_urad, .. } => {
+            within("squareness", *angle_urad, -1e5, 1e5, "µrad")
+        }
+        Effect::Cyclic {
+            amplitude, period, ..
+        } => {
+            size("cyclic amplitude", *amplitude)?;
+            within("cyclic period", *period, 1e-3, 1e6, "mm (or deg)")
+        }
+        Effect::ZeroOffset { value, .. } => size("zero_offset", *value),
+        Effect::RotaryCenterOffset { offset_mm, .. } | Effect::Registration { offset_mm } => {
+            offset_mm.iter().try_for_each(|v| size("offset", *v))
+        }
+        Effect::PivotLength { delta_mm } => size("pivot_length", *delta_mm),
+        Effect::Vibration {
+            amplitude,
+            frequency_hz,
+            ..
+        } => {
+            size("vibration amplitude", *amplitude)?;
+            within("vibration frequency", *frequency_hz, 1e-6, 1e5, "Hz")
+        }
+        _ => Ok(()),
+    }
 }
 
 fn example(kind: EffectKind) -> &'static str {

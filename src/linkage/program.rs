@@ -878,11 +878,11 @@ fn plan_block(
             check(&pts)?;
             Ok(Some(pts))
         }
-        Mode::Tolerance(tol) => {
-            if !too_many && nonlinear <= tol {
+        Mode::Tolerance(tolerance) => {
+            if !too_many && nonlinear <= tolerance {
                 return Ok(None);
             }
-            let tol = tol * PLANNING_SHARE;
+            let tol = tolerance * PLANNING_SHARE;
             // Even division moves every axis in every segment once both
             // rotaries turn (the linear axes follow the swing), so a block
             // that turns both is staggered whenever that would be too many.
@@ -927,8 +927,9 @@ fn plan_block(
                 n = next_count(n, w, tol).min(max_n.max(n + 1));
             }
             Err(format!(
-                "more than {} inserted points would be needed to bring the nonlinear error within {} mm",
-                opts.max_points, tol
+                "more than {} inserted points would be needed to bring the nonlinear error within the tolerance {tolerance:e} mm (planned to {:.0} % of it)",
+                opts.max_points,
+                PLANNING_SHARE * 100.0
             ))
         }
     }

@@ -194,3 +194,63 @@ fn a_work_offset_beyond_any_travel_is_refused() {
     let (code, _, err) = run_on(&["post", "--work-offset=1e6,1e6,0"], "s.nc", program);
     assert_eq!(code, 1, "{err}");
 }
+
+/// Numbers no machine shows, given to `simulate` and `diagnose` (a
+/// helper's hunt): `--round 1e-310` and `cyclic:…,period=1e-320` wrote
+/// `inf` and NaN with exit 0, `rotary_center_offset:C=1e308,0,0` wrote
+/// `inf`; `--accel 1e-9` ran for minutes before its sample count was
+/// refused; `--noise-floor 1e308` hid an injected backlash ("no missing
+/// physics found"); `--tool-length 1e308` gave a median of `inf` mm. Each
+/// is a bad command line now (exit 2) naming the option and its range.
+#[test]
+fn numbers_no_machine_shows_are_refused() {
+    let program =
+        std::fs::read_to_string(repo_file("fixtures/programs/zhao2022-xzbc.ngc")).unwrap();
+    let bad: [(&[&str], &str); 9] = [
+        (&["--round", "1e-310"], "--round"),
+        (
+            &["--inject", "cyclic:X=0.002,period=1e-320,phase=0"],
+            "cyclic period",
+        ),
+        (&["--inject", "rotary_center_offset:C=1e308,0,0"], "offset"),
+        (&["--inject", "backlash:X=-1"], "backlash"),
+        (&["--inject", "servo_lag:X=1e3"], "servo_lag"),
+        (&["--inject", "backlash:X=1e308"], "backlash"),
+        (&["--accel", "1e-9"], "--accel"),
+        (&["--accel", "1e-320"], "--accel"),
+        (&["--tool-length", "1e308"], "--tool-length"),
+    ];
+    for (extra, what) in bad {
+        let mut args = vec!["simulate"];
+        args.extend_from_slice(extra);
+        args.push("-p");
+        let (code, out, err) = run_on(&args, "p.nc", &program);
+        assert_eq!(code, 2, "{extra:?}: {err}");
+        assert!(err.contains(what), "{extra:?}: {err}");
+        assert!(out.is_empty());
+    }
+    // The sizes a machine shows still run.
+    let args = [
+        "simulate",
+        "--round",
+        "1e-6",
+        "--accel",
+        "1",
+        "--inject",
+        "backlash:X=0.003",
+        "-p",
+    ];
+    let (code, recording, err) = run_on(&args, "p.nc", &program);
+    assert_eq!(code, 0, "{err}");
+    // diagnose: a noise floor beyond 10 mm is refused.
+    let (code, _, err) = run_on(
+        &["diagnose", "--noise-floor", "1e308", "-r"],
+        "r.csv",
+        &recording,
+    );
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("--noise-floor must be above 0 and at most 10 mm"),
+        "{err}"
+    );
+}
