@@ -226,13 +226,33 @@ fn gcode_trajectory<R: BufRead>(
         FeedMode::InverseTime => m.feed,
         _ => None,
     };
+    // Where the G-code frame in force was set (G68, G254, …).
+    let mut frame_from: Option<usize> = None;
     for line in crate::gcode::LineReader::new(input) {
         let line = line.map_err(|e| Error::io(file, e))?;
         scratch.clear();
         spindle.line(&line);
         let mut begun = reader.begin(None, &line, &mut scratch)?;
         crate::program::unfollowed::check_line(&line, file, reader.take_unfollowed())?;
+        frame_from = match (reader.modal().frame_seen, frame_from) {
+            (false, _) => None,
+            (true, at) => at.or(Some(line.number)),
+        };
         if begun.is_none() {
+            // A move in machine axes under a frame goes where its words do
+            // not say: refused, as in a program in machine axes alone.
+            if let Some(at) = frame_from
+                && let Some(item) = line.items.iter().find(|i| {
+                    matches!(&i.kind, crate::gcode::ItemKind::Word(w)
+                        if machine.axes.iter().any(|a| w.is(&a.name)))
+                })
+            {
+                return Err(Error::input_with(
+                    crate::error::Location::new(file, line.number, item.start + 1),
+                    crate::program::frames::move_under(crate::program::frames::GCODE_FRAMES, at),
+                    line.text_lossy(),
+                ));
+            }
             match reader.start() {
                 Start::Followed => {
                     // Only a line that moved the machine is a block (a

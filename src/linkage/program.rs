@@ -576,7 +576,7 @@ pub fn linkage<R: BufRead, W: Write + ?Sized>(
         if !block.measurable {
             return Err(Error::input_with(
                 Location::new(&opts.file_name, mline.number, 1),
-                "where this G1 block starts is not known in the program's coordinates (G28, G30 or G53 moved an axis to the reference point or in machine coordinates before it, or a canned cycle ended at a level of its own, and a rotary axis may turn in it): linkage cannot measure or divide it; program every axis moved there (a G0 to a known position) before it",
+                "where this G1 block starts is not known in the program's coordinates (G28, G30 or G53 moved an axis to the reference point or in machine coordinates before it, an axis moved under a frame such as G68 or G254, or a canned cycle ended at a level of its own, and a rotary axis may turn in it): linkage cannot measure or divide it; program every axis moved there (a G0 to a known position) before it",
                 mline.text_lossy(),
             ));
         }

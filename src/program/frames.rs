@@ -18,6 +18,19 @@ pub const SETTING: [&str; 20] = [
 pub const IN_POSE_MODE: &str = "a frame (G68, G68.2–G68.4, G51 scaling, G51.1 mirroring, G16 polar coordinates, Haas G254 dynamic work offset, Fanuc G54.2 rotary table dynamic fixture offset; Sinumerik TRANS, ATRANS, ROT, AROT, SCALE, MIRROR, TOFRAME, TOROT, PAROT, CYCLE800; Fagor #CS, #ACS, #MCS, #FACE, #CYL, #TOOL AX) in pose mode is not converted: the poses must be in the machine's workpiece frame; apply the frame in the CAM system";
 
 /// Why pose mode may not start under a frame set earlier.
+/// What a command that follows the machine's axes (`simulate`, `analyze
+/// --nonlinear`, `linkage`) says of a move under `what`, a frame set at
+/// line `at`.
+pub fn move_under(what: &str, at: usize) -> String {
+    format!(
+        "a move under {what} (line {at}): the controller moves the axes otherwise than its words say, and this command follows the words as they stand; cancel the frame before the moves, or apply it in the CAM system"
+    )
+}
+
+/// The G-code frames the modal state follows, as [`move_under`] names them.
+pub const GCODE_FRAMES: &str =
+    "a frame (G68 rotation, G51 scaling, G51.1 mirroring, G16 polar coordinates, G254, G54.2)";
+
 pub const AT_POSE_START: &str = "pose mode starts while a frame set earlier in the program (G68…, G51, G51.1, G16, G254, G54.2 P1–P8, TRANS, ROT, AROT, SCALE, MIRROR, TOFRAME, TOROT, PAROT, CYCLE800, Fagor #CS, #ACS, #MCS, #FACE, #CYL, #TOOL AX) is active: the controller would move kinpost's machine axis words by it; cancel the frame before, or apply it in the CAM system";
 
 /// What a keyword of a block does to the programmable frame.

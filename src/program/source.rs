@@ -527,13 +527,7 @@ impl MachineAxisTracker {
     /// what it is.
     fn active_frame(&self) -> Option<(usize, String)> {
         self.gcode_frame
-            .map(|at| {
-                (
-                    at,
-                    "a frame (G68 rotation, G51 scaling, G51.1 mirroring, G16 polar coordinates, G254, G54.2)"
-                        .to_string(),
-                )
-            })
+            .map(|at| (at, super::frames::GCODE_FRAMES.to_string()))
             .or_else(|| self.frame.clone())
     }
 
@@ -726,9 +720,7 @@ impl MachineAxisTracker {
                     line.number,
                     line.items[axis_items.first().copied().unwrap_or(0)].start + 1,
                 ),
-                format!(
-                    "a move under {what} (line {at}): the controller moves the axes otherwise than its words say, and this command follows the words as they stand; cancel the frame before the moves, or apply it in the CAM system"
-                ),
+                super::frames::move_under(&what, at),
                 line.text_lossy(),
             ));
         }

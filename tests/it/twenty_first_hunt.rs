@@ -254,3 +254,39 @@ fn numbers_no_machine_shows_are_refused() {
         "{err}"
     );
 }
+
+/// NX's Haas post: a 3+2 section under `G254` (a work offset that turns
+/// with the rotaries) in a program that also holds `G234` poses.
+/// `simulate` and `analyze --nonlinear` left its moves out with exit 0
+/// (the recording went on from the next pose, the warning blaming G28 or
+/// G53); without the poses the same moves are refused. They are refused
+/// alike now; `post` passes them on as they are.
+#[test]
+fn moves_under_a_frame_in_a_pose_program_are_refused() {
+    let program = "G20 G90 G17\nG0 X0 Y0 Z2. B0 C0\nG0 B90. C0.\nG254\nG1 X1. Y0. Z2. F10.\nG1 X2. C30.\nG255\nG234 H1\nG1 X1. Y1. Z1. B0 C0 F10.\nG49\nM30\n";
+    for args in [
+        &["simulate", "-m", "xyzbc-trt", "-p"][..],
+        &["analyze", "--nonlinear", "-m", "xyzbc-trt"][..],
+    ] {
+        let (code, _, err) = run_on(args, "t.nc", program);
+        assert_eq!(code, 1, "{args:?}: {err}");
+        assert!(
+            err.contains("t.nc:5:4: a move under a frame"),
+            "{args:?}: {err}"
+        );
+        assert!(err.contains("G254"), "{err}");
+    }
+    let (code, out, err) = run_on(&["post", "-m", "xyzbc-trt"], "t.nc", program);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("G254\nG1 X1. Y0. Z2. F10.\nG1 X2. C30.\nG255\n"),
+        "{out}"
+    );
+    // The linkage names the frame among the causes.
+    let (code, _, err) = run_on(&["linkage", "-m", "xyzbc-trt"], "t.nc", program);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("an axis moved under a frame such as G68 or G254"),
+        "{err}"
+    );
+}
