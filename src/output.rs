@@ -11,7 +11,8 @@
 //!   link stays. A target that does not exist yet is created, as a shell's
 //!   `>` creates it; a loop of links is refused.
 //! - **A file with several hard links.** The output is spooled and copied
-//!   into the existing file on success, so every link sees the new content.
+//!   into the existing file on success, so every link sees the new content;
+//!   a signal during the copy waits for it to end.
 //! - **A character device or a FIFO** (`/dev/null`, `/dev/stdout`, a named
 //!   pipe). The output is spooled and written to it directly on success;
 //!   the device is never replaced.
@@ -22,7 +23,10 @@
 //!
 //! Standard output is spooled through an anonymous temporary file (memory
 //! stays flat) and copied out only on success, so a filter never hands a
-//! half-converted program down the chain.
+//! half-converted program down the chain. An output path that is standard
+//! output (`-`, `/dev/stdout`, the file a shell's `>` opened) is written
+//! the same way, through the open descriptor. Standard input that is a
+//! regular file counts as an input.
 //!
 //! Temporary files are registered while they exist; the binary calls
 //! [`remove_temporaries_on_signal`] so that SIGINT, SIGTERM or SIGHUP remove

@@ -116,10 +116,10 @@ pub fn linkage(a: LinkageArgs) -> Result<()> {
     // A CAM header can run past 4 KiB before the TCP code.
     let poses = looks_like_poses(&input::peek_far(&mut *inp.reader)?);
     if poses && crate::cl::looks_like_cl(&input::peek(&mut *inp.reader)?) {
-        return Err(Error::Usage(
-            "linkage reads G-code; convert APT CL with `kinpost post` first and pass its output"
-                .into(),
-        ));
+        return Err(Error::Usage(format!(
+            "{}: APT CL; linkage reads G-code: convert it with `kinpost post` first and pass its output",
+            inp.name
+        )));
     }
     let opts = LinkageOptions {
         mode,

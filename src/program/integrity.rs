@@ -14,12 +14,7 @@ pub fn ends_program(line: &Line) -> bool {
         || line.words().any(|w| w.address == "M" && w.value == 99.0)
 }
 
-/// Whether `line` ends the main program (`M2`, `M30`): what follows it
-/// in the file runs only when called.
-pub fn ends_main_program(line: &Line) -> bool {
-    line.words()
-        .any(|w| w.address == "M" && (w.value == 2.0 || w.value == 30.0))
-}
+pub use super::tape::ends_main_program;
 
 /// Refuses `line` of `file` when it holds a NUL byte (a text NC program
 /// never does), or when it is the last line, lacks its line end, does not

@@ -18,6 +18,13 @@ pub fn is_tape_mark(line: &Line) -> bool {
     line.bytes.trim_ascii() == b"%"
 }
 
+/// Whether `line` ends the main program (`M2`, `M30`): what follows it
+/// in the file runs only when called.
+pub fn ends_main_program(line: &Line) -> bool {
+    line.words()
+        .any(|w| w.address == "M" && (w.value == 2.0 || w.value == 30.0))
+}
+
 /// Follows a program's lines to the `%` that ends it.
 #[derive(Debug, Clone, Default)]
 pub struct TapeEnd {
@@ -68,7 +75,10 @@ impl TapeEnd {
             }
         } else if !line.is_blank() {
             self.content = true;
-            self.main_ended |= super::integrity::ends_main_program(line);
+            // Only a file without an opening `%` needs to know.
+            if !self.opened && !self.main_ended {
+                self.main_ended = ends_main_program(line);
+            }
         }
         TapeLine::Program
     }

@@ -290,3 +290,15 @@ fn moves_under_a_frame_in_a_pose_program_are_refused() {
         "{err}"
     );
 }
+
+/// `linkage` on APT CL refused it without naming the file.
+#[test]
+fn linkage_names_the_cl_file_it_refuses() {
+    let cl = std::fs::read_to_string(repo_file("fixtures/programs/zhao2022-xzbc.cls")).unwrap();
+    let (code, _, err) = run_on(&["linkage"], "part.cls", &cl);
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("part.cls: APT CL; linkage reads G-code"),
+        "{err}"
+    );
+}
