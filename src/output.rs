@@ -133,19 +133,34 @@ pub fn check_outputs(outputs: &[(&str, Option<&Path>)], inputs: &[Option<&Path>]
         if let Some(m) = &meta {
             kind_of(path, m)?;
         }
+        let cannot = |kind: std::io::ErrorKind, why: String| {
+            Err(Error::io(
+                &name,
+                std::io::Error::new(kind, format!("cannot be written: {why}")),
+            ))
+        };
+        if meta.is_none() && path.as_os_str().as_encoded_bytes().ends_with(b"/") {
+            return cannot(
+                std::io::ErrorKind::InvalidInput,
+                "a path ending in `/` names a directory; expected a file to write".into(),
+            );
+        }
         let created = match &meta {
             Some(_) => path.to_path_buf(),
             None => new_file_at(path).map_err(|e| Error::io(&name, e))?,
         };
         match created.parent() {
+            Some(d) if !d.as_os_str().is_empty() && d.exists() && !d.is_dir() => {
+                return cannot(
+                    std::io::ErrorKind::InvalidInput,
+                    format!("{} is a file, not a directory", d.display()),
+                );
+            }
             Some(d) if !d.as_os_str().is_empty() && !d.is_dir() => {
-                return Err(Error::io(
-                    &name,
-                    std::io::Error::new(
-                        std::io::ErrorKind::NotFound,
-                        "cannot be written: its directory does not exist",
-                    ),
-                ));
+                return cannot(
+                    std::io::ErrorKind::NotFound,
+                    "its directory does not exist".into(),
+                );
             }
             _ => {}
         }

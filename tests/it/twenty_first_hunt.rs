@@ -302,3 +302,34 @@ fn linkage_names_the_cl_file_it_refuses() {
         "{err}"
     );
 }
+
+/// `-o nodir/` gave the system's "Not a directory (os error 20)", and `-o
+/// p.nc/x` (p.nc a file) said its directory did not exist.
+#[test]
+fn an_output_path_that_cannot_be_a_file_says_why() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("p.nc"), many_poses(3)).unwrap();
+    for (target, says) in [
+        (
+            "nodir/",
+            "nodir/: cannot be written: a path ending in `/` names a directory",
+        ),
+        (
+            "p.nc/x",
+            "p.nc/x: cannot be written: p.nc is a file, not a directory",
+        ),
+        (
+            "missing/x",
+            "missing/x: cannot be written: its directory does not exist",
+        ),
+    ] {
+        let out = std::process::Command::new(crate::util::BIN)
+            .current_dir(dir.path())
+            .args(["post", "p.nc", "-o", target])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(3), "{target}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{target}: {err}");
+    }
+}
