@@ -333,3 +333,42 @@ fn an_output_path_that_cannot_be_a_file_says_why() {
         assert!(err.contains(says), "{target}: {err}");
     }
 }
+
+/// Messages that misled: `analyze --pose-start on -e E` on a program
+/// with an `o`-word said the program "is in machine axes" (no file, wrong
+/// advice) where `post` refuses the `o`-word at its place; `linkage
+/// --tolerance` printed its planning tolerance (85 % of the one given)
+/// with every digit (330 of them for 1e-320); `simulate --noise 1e-320`
+/// printed 320 zeros.
+#[test]
+fn messages_name_the_cause_and_the_numbers_given() {
+    let errors = repo_file("fixtures/errors/zhao2022-xzbc.csv");
+    let program = "G21 G90\no100 if [1 GT 0]\no100 endif\nG1 X30 Y0 Z5 F100\nG1 X31 Y1 Z5\nM30\n";
+    let (code, _, err) = run_on(
+        &["analyze", "--pose-start", "on", "-e", &errors],
+        "p4.nc",
+        program,
+    );
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("p4.nc:2:1:"), "{err}");
+    assert!(!err.contains("machine axes"), "{err}");
+    let wang = std::fs::read_to_string(repo_file("fixtures/programs/wang2023-xyzab.ngc")).unwrap();
+    let args = ["linkage", "-m", "wang2023-xyzab", "--tolerance", "1e-9"];
+    let (code, _, err) = run_on(&args, "w.ngc", &wang);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("within the tolerance 1e-9 mm (planned to 85 % of it)"),
+        "{err}"
+    );
+    let zhao = std::fs::read_to_string(repo_file("fixtures/programs/zhao2022-xzbc.ngc")).unwrap();
+    let (code, _, err) = run_on(&["simulate", "--noise", "1e-320", "-p"], "z.nc", &zhao);
+    assert_eq!(code, 0, "{err}");
+    let noise = err
+        .split("noise σ = ")
+        .nth(1)
+        .unwrap()
+        .split(" µm")
+        .next()
+        .unwrap();
+    assert!(noise.len() < 20 && noise.contains("e-3"), "{err}");
+}
