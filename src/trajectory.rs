@@ -234,10 +234,8 @@ fn gcode_trajectory<R: BufRead>(
         spindle.line(&line);
         let mut begun = reader.begin(None, &line, &mut scratch)?;
         crate::program::unfollowed::check_line(&line, file, reader.take_unfollowed())?;
-        frame_from = match (reader.modal().frame_seen, frame_from) {
-            (false, _) => None,
-            (true, at) => at.or(Some(line.number)),
-        };
+        frame_from =
+            crate::program::frames::frame_since(reader.modal().frame_seen, frame_from, line.number);
         if begun.is_none() {
             // A move in machine axes under a frame goes where its words do
             // not say: refused, as in a program in machine axes alone.

@@ -27,6 +27,12 @@ pub fn move_under(what: &str, at: usize) -> String {
     )
 }
 
+/// Where the G-code frame in force was set, after `line`: `since` while
+/// one stays on (`frame_seen`), `line` where one starts, none once off.
+pub fn frame_since(frame_seen: bool, since: Option<usize>, line: usize) -> Option<usize> {
+    frame_seen.then(|| since.unwrap_or(line))
+}
+
 /// The G-code frames the modal state follows, as [`move_under`] names them.
 pub const GCODE_FRAMES: &str =
     "a frame (G68 rotation, G51 scaling, G51.1 mirroring, G16 polar coordinates, G254, G54.2)";

@@ -516,11 +516,8 @@ impl MachineAxisTracker {
         }
         // The G-code frames, from the modal state: where the first of them
         // was set, while any is active.
-        self.gcode_frame = match (self.modal.frame_seen, self.gcode_frame) {
-            (false, _) => None,
-            (true, None) => Some(line.number),
-            (true, at) => at,
-        };
+        self.gcode_frame =
+            super::frames::frame_since(self.modal.frame_seen, self.gcode_frame, line.number);
     }
 
     /// The active frame a move may not be made under: where it was set and
