@@ -393,13 +393,12 @@ impl<R: BufRead> ClReader<R> {
         // a byte at offset k of it is at column `col + k`.
         let (piece, continued) = statement_piece(start);
         // The text of PPRINT, PARTNO, INSERT and the like is literal: a `$`
-        // at its end is text, not a continuation (which would take the next
-        // statement, a GOTO, into the comment).
-        let (piece, continued) = if continued && literal_text(start) {
-            (&start[..piece.len() + 1], false)
-        } else {
-            (piece, continued)
-        };
+        // at its end is text where a statement follows, a continuation
+        // (CATIA wraps them at 72 columns) where text does.
+        if continued && literal_text(start) {
+            let own = start[..piece.len() + 1].to_vec();
+            return Some(self.literal_statement(first, col, own, text));
+        }
         if !continued {
             return Some(match parse_statement(piece) {
                 Ok(statement) => Ok(ClRecord {
@@ -536,6 +535,67 @@ fn first_non_blank(line: &[u8]) -> Option<usize> {
         .iter()
         .position(|&b| !is_blank(b))
         .map(|p| p + 1)
+}
+
+impl<R: BufRead> ClReader<R> {
+    /// The literal-text statement `own` (line `first`, column `col`, raw
+    /// `text`) that ends with `$`: the `$` is text where the next line
+    /// starts a statement (`GOTO/…`) or there is none; where the next line
+    /// is text, it continues the statement (CATIA wraps `PPRINT` at 72
+    /// columns), and so on while it ends with `$`. A next line of one bare
+    /// word (`END`, `STOP`, `RAPID`) could be either, and is refused.
+    fn literal_statement(
+        &mut self,
+        first: usize,
+        col: usize,
+        mut own: Vec<u8>,
+        mut text: Vec<u8>,
+    ) -> Result<ClRecord, Error> {
+        loop {
+            if !self.read_physical()? {
+                break;
+            }
+            let Some(c) = first_non_blank(&self.buf) else {
+                self.ahead = Some(std::mem::take(&mut self.buf));
+                break;
+            };
+            let line = strip_eol(&self.buf[c - 1..]);
+            let word = leading_letters(line);
+            let after_word = &line[word.len()..];
+            let statement =
+                !word.is_empty() && after_word.iter().find(|&&b| !is_blank(b)) == Some(&b'/');
+            if statement || line.starts_with(b"$$") {
+                self.ahead = Some(std::mem::take(&mut self.buf));
+                break;
+            }
+            if !word.is_empty() && after_word.iter().all(|&b| is_blank(b)) {
+                return Err(self.error(
+                    self.line,
+                    c,
+                    format!("the statement at line {first} holds text and ends with `$`, and this line is the bare word {}: a continuation of the text (CATIA wraps long PPRINT lines with `$`) or a statement of its own? Refused rather than guessed; join the text into one line, or remove the `$`", String::from_utf8_lossy(word)),
+                    line,
+                ));
+            }
+            // Text: the statement goes on (without its `$`).
+            own.pop();
+            let (piece, continued) = statement_piece(&self.buf[c - 1..]);
+            own.extend_from_slice(piece);
+            text.extend_from_slice(&self.buf);
+            if !continued {
+                break;
+            }
+            own.push(b'$');
+        }
+        match parse_statement(&own) {
+            Ok(statement) => Ok(ClRecord {
+                line: first,
+                col,
+                text,
+                statement,
+            }),
+            Err(e) => Err(self.error(first, col, e.message, strip_eol(&text))),
+        }
+    }
 }
 
 /// Whether the statement at the start of `line` holds literal text, in

@@ -382,6 +382,7 @@ impl<R: BufRead> Lowered<R> {
         }
         self.block(r, comment);
         self.cycle = Some(c);
+        self.cycle_line = r.line;
         Ok(())
     }
 }

@@ -147,6 +147,8 @@ pub fn lower<R: BufRead>(
         indirv: None,
         cutcom: false,
         cycle: None,
+        cycle_line: 0,
+        setups: Vec::new(),
         feed: None,
         tool: None,
         per_rev: false,
@@ -178,6 +180,9 @@ impl<R: BufRead> Lowered<R> {
         }
         if let Some(line) = self.cutcom_announced {
             return Err(self.err(r, format!("a motion after CUTCOM/ON (line {line}) and before CUTCOM/LEFT or CUTCOM/RIGHT: the side the tool is offset to is not known; give the side (CUTCOM/LEFT|RIGHT) before the motion")));
+        }
+        if self.rapid_pending && self.cycle.is_some() {
+            return Err(self.err(r, format!("a motion after RAPID while the cycle of line {} is in force (no CYCLE/OFF): every GOTO is a hole until CYCLE/OFF, and CAM systems differ on whether a RAPID one is a hole or a positioning move; end the cycle with CYCLE/OFF before moving on", self.cycle_line)));
         }
         self.rapid_pending = false;
         let from_axis = self.axis;
@@ -327,6 +332,13 @@ impl<R: BufRead> Lowered<R> {
                 }
                 self.block(r, super::state::as_comment(&r.text));
             }
+            "SETUP" if a(0) == "START" && args.len() == 2 => {
+                if let Some(n) = args[1].number() {
+                    self.setup_start(r, n)?;
+                }
+                self.count_commented(major);
+                return Ok(true);
+            }
             // `MODE/MILL` (Autodesk's ISO 4343 APT starts with it): the
             // milling mode kinpost converts in. Lathe modes are refused.
             "MODE" if args.len() == 1 && a(0) == "MILL" => {
@@ -416,6 +428,7 @@ impl<R: BufRead> Lowered<R> {
                 if major == "SELECT" {
                     self.block(r, format!("T{n}"));
                 } else {
+                    self.refuse_tool_change_in_cycle(r, "LOAD/TOOL")?;
                     let mut h = n;
                     if LENGTH_REGISTER.contains(&a(2).as_str())
                         && let Some(x) = args.get(3).and_then(|x| x.number())
@@ -627,8 +640,21 @@ impl<R: BufRead> Lowered<R> {
     /// at the rapid rate has no G-code form. Checked before the arc's
     /// numbers are read.
     fn refuse_rapid_arc(&self, r: &ClRecord, major: &str) -> Result<(), Error> {
+        if self.cycle.is_some() {
+            return Err(self.err(r, format!("{major} while the cycle of line {} is in force (no CYCLE/OFF): the GOTO that ends the arc would be drilled as a hole; end the cycle with CYCLE/OFF before the arc", self.cycle_line)));
+        }
         if self.rapid_pending {
             return Err(self.err(r, format!("{major} after RAPID: an arc at the rapid rate has no G-code form (G0 moves straight, and each axis at its own rate); give the arc a feed, or remove the RAPID")));
+        }
+        Ok(())
+    }
+
+    /// Refuses a tool change (`what`) while a cycle is in force: its holes
+    /// would go on with the new tool, and a CAM system that leaves out
+    /// `CYCLE/OFF` before the next operation (CAMWorks) means them to end.
+    fn refuse_tool_change_in_cycle(&self, r: &ClRecord, what: &str) -> Result<(), Error> {
+        if self.cycle.is_some() {
+            return Err(self.err(r, format!("{what} while the cycle of line {} is in force (no CYCLE/OFF): every GOTO after it would be drilled as a hole with the new tool; end the cycle with CYCLE/OFF before the tool change", self.cycle_line)));
         }
         Ok(())
     }
@@ -782,6 +808,7 @@ impl<R: BufRead> Lowered<R> {
             // As `LOAD/TOOL,n[,ADJUST,h]`: the tool change and its length
             // compensation (h defaults to n).
             ClStatement::LoadTl { tool, adjust } => {
+                self.refuse_tool_change_in_cycle(&r, "LOADTL")?;
                 let (n, h) = (*tool, adjust.unwrap_or(*tool));
                 self.tool = Some(n);
                 self.block(&r, format!("T{n} M6"));

@@ -81,6 +81,11 @@ pub struct Lowered<R: BufRead> {
     /// canned cycles then, so holes are moves.
     pub(super) cutcom: bool,
     pub(super) cycle: Option<Cycle>,
+    /// Per `SETUP/START,n` number seen: the `CSYS` in force there and the
+    /// line (a number started again under another `CSYS` is refused).
+    pub(super) setups: Vec<(f64, Option<([[f64; 3]; 3], [f64; 3])>, usize)>,
+    /// The line of the `CYCLE` statement that put the cycle in force.
+    pub(super) cycle_line: usize,
     pub(super) feed: Option<(f64, FeedUnit)>,
     pub(super) tool: Option<u32>,
     pub(super) per_rev: bool,
@@ -184,6 +189,38 @@ impl<R: BufRead> Lowered<R> {
                 m[0][2] * v[0] + m[1][2] * v[1] + m[2][2] * v[2],
             ],
             None => v,
+        }
+    }
+
+    /// `SETUP/START,n` (CAMWorks): a set-up number started again under
+    /// another `CSYS` than before is a copy of that set-up (a pattern)
+    /// whose points CAMWorks writes placed already, in the CL frame, while
+    /// other posts write a set-up's points in its `CSYS` frame: which one
+    /// a file means cannot be told, so it is refused rather than guessed.
+    pub(super) fn setup_start(&mut self, r: &ClRecord, n: f64) -> Result<(), Error> {
+        let same = |a: &Option<([[f64; 3]; 3], [f64; 3])>,
+                    b: &Option<([[f64; 3]; 3], [f64; 3])>| {
+            let flat = |c: &Option<([[f64; 3]; 3], [f64; 3])>| {
+                let (m, t) = c.unwrap_or((
+                    [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                    [0.0; 3],
+                ));
+                let mut v = m.concat();
+                v.extend_from_slice(&t);
+                v
+            };
+            flat(a)
+                .iter()
+                .zip(flat(b))
+                .all(|(x, y)| (x - y).abs() <= 1e-9 * (1.0 + x.abs()))
+        };
+        match self.setups.iter().find(|(k, _, _)| *k == n) {
+            Some((_, csys, line)) if !same(csys, &self.csys) => Err(self.err(r, format!("SETUP/START,{} again under another CSYS than at line {line}: a copy of the set-up (a pattern), whose points CAMWorks writes already placed, in the CL frame, where kinpost reads a set-up's points in its CSYS frame (as for a part turned over): read that way, every copy would be cut where the first one is; refused rather than guessed: have the CAM system write the copies without a CSYS of their own, or post them as programs of their own", crate::numeric::readable(n)))),
+            Some(_) => Ok(()),
+            None => {
+                self.setups.push((n, self.csys, r.line));
+                Ok(())
+            }
         }
     }
 

@@ -375,16 +375,27 @@ pub struct AxisTolerance {
 }
 
 impl AxisTolerance {
-    /// The tolerance in rad, or a usage error for a negative or NaN value.
+    /// The tolerance in rad, or a usage error (see [`axis_tolerance_rad`]).
     pub fn rad(&self) -> Result<f64> {
-        if self.axis_tolerance_urad.is_nan() || self.axis_tolerance_urad < 0.0 {
-            return Err(Error::Usage(format!(
-                "--axis-tolerance-urad {}: expected a tolerance ≥ 0 µrad",
-                self.axis_tolerance_urad
-            )));
-        }
-        Ok(self.axis_tolerance_urad * 1e-6)
+        axis_tolerance_rad(self.axis_tolerance_urad)
     }
+}
+
+/// Largest `--axis-tolerance-urad`, µrad: no two tool axes are further
+/// apart than π rad (3.14e6 µrad), so a tolerance of that size already
+/// accepts every pose.
+const MAX_AXIS_TOLERANCE_URAD: f64 = 3.2e6;
+
+/// `--axis-tolerance-urad` in rad, or a usage error for a value outside
+/// 0 … [`MAX_AXIS_TOLERANCE_URAD`] (negative, NaN, infinite).
+pub fn axis_tolerance_rad(urad: f64) -> Result<f64> {
+    if !(0.0..=MAX_AXIS_TOLERANCE_URAD).contains(&urad) {
+        return Err(Error::Usage(format!(
+            "--axis-tolerance-urad {}: expected a tolerance of 0 … {MAX_AXIS_TOLERANCE_URAD:.1e} µrad (π rad, 3.14e6 µrad, already accepts every tool axis)",
+            crate::numeric::readable(urad)
+        )));
+    }
+    Ok(urad * 1e-6)
 }
 
 /// When pose mode starts.
@@ -583,11 +594,7 @@ fn check_arc_tolerance(mm: f64) -> Result<()> {
 
 fn post(a: PostArgs) -> Result<()> {
     check_arc_tolerance(a.arc_tolerance_mm)?;
-    if a.axis_tolerance_urad.is_nan() || a.axis_tolerance_urad < 0.0 {
-        return Err(Error::Usage(
-            "--axis-tolerance-urad must be a number ≥ 0".into(),
-        ));
-    }
+    let axis_tolerance_rad = axis_tolerance_rad(a.axis_tolerance_urad)?;
     check_outputs(
         &[("-o", a.output.as_deref())],
         &[a.input.as_deref(), a.machine.file(), a.job.inputs()],
@@ -613,7 +620,7 @@ fn post(a: PostArgs) -> Result<()> {
             PoseStartArg::On => PoseStart::On,
             PoseStartArg::Tcp => PoseStart::Off,
         },
-        axis_tolerance_rad: a.axis_tolerance_urad * 1e-6,
+        axis_tolerance_rad,
         modal_axes: a.modal_axes,
         file_name: inp.name.clone(),
         arc_tolerance_mm: a.arc_tolerance_mm,

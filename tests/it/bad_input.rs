@@ -781,11 +781,24 @@ fn bad_option_values_are_usage_errors() {
         ),
         (
             &["post", "--axis-tolerance-urad=-1", "p.nc"],
-            "--axis-tolerance-urad must be a number ≥ 0",
+            "--axis-tolerance-urad -1: expected a tolerance of 0 … 3.2e6 µrad",
         ),
         (
             &["post", "--axis-tolerance-urad=NaN", "p.nc"],
-            "--axis-tolerance-urad must be a number ≥ 0",
+            "--axis-tolerance-urad NaN: expected a tolerance of 0 … 3.2e6 µrad",
+        ),
+        (
+            &["post", "--axis-tolerance-urad=inf", "p.nc"],
+            "--axis-tolerance-urad inf: expected a tolerance of 0 … 3.2e6 µrad",
+        ),
+        (
+            &[
+                "simulate",
+                "--axis-tolerance-urad=1e300",
+                "--program",
+                "p.nc",
+            ],
+            "--axis-tolerance-urad 1e300: expected a tolerance of 0 … 3.2e6 µrad",
         ),
         (
             &["post", "--pose-start", "sometimes", "p.nc"],

@@ -97,5 +97,6 @@ mod thirteenth_hunt;
 mod twelfth_hunt;
 mod twentieth_hunt;
 mod twenty_first_hunt;
+mod twenty_second_hunt;
 mod valid_jobs;
 mod wrapped_rotary;

@@ -1,0 +1,123 @@
+//! Twenty-second hunt (session 38, `docs/robustness.md`): CAMWorks and
+//! CATIA APT from public repositories not used before, and recordings as
+//! loggers write them. Each test failed on the session's first build
+//! (78ea2b4).
+
+use crate::util::run_on;
+
+const HOLE: &str = "UNITS/MM\nLOAD/TOOL,1\nRAPID\nGOTO/10,0,50\nCYCLE/DRILL,FEDTO,5,MMPM,100,RAPTO,3,RTRCTO,50\nGOTO/10,0,0\n";
+
+/// A cycle left in force (CAMWorks writes no `CYCLE/OFF` before the next
+/// operation) made every later `GOTO` a hole: the end mill's contour was
+/// drilled 7.65 mm below the pocket's floor, and an arc started from the
+/// hole's retract level became a helix, exit 0. An arc, a rapid motion and
+/// a tool change under a cycle are refused now, naming the cycle's line.
+#[test]
+fn motions_of_another_kind_under_a_cycle_are_refused() {
+    let cases = [
+        (
+            "CIRCLE/0,0,0,0,0,1,10\nGOTO/0,10,0\n",
+            "p.apt:7:1: CIRCLE while the cycle of line 5 is in force",
+        ),
+        (
+            "RAPID\nGOTO/30,0,20\nGOTO/30,0,0\n",
+            "p.apt:8:1: a motion after RAPID while the cycle of line 5 is in force",
+        ),
+        (
+            "LOAD/TOOL,2\nGOTO/30,0,20\n",
+            "p.apt:7:1: LOAD/TOOL while the cycle of line 5 is in force",
+        ),
+        (
+            "LOADTL/2\nGOTO/30,0,20\n",
+            "p.apt:7:1: LOADTL while the cycle of line 5 is in force",
+        ),
+    ];
+    for (rest, want) in cases {
+        let program = format!("{HOLE}{rest}CYCLE/OFF\nFINI\n");
+        for command in ["post", "compensate"] {
+            let mut args = vec![command, "-m", "xyzac-trt"];
+            if command == "compensate" {
+                args.extend(["-e", "fixtures/errors/wang2023-xyzab.csv"]);
+                args[2] = "wang2023-xyzab";
+            }
+            let (code, out, err) = run_on(&args, "p.apt", &program);
+            assert_eq!(code, 1, "{command} {rest:?}: {out}");
+            assert!(err.contains(want), "{command} {rest:?}: {err}");
+        }
+        // With the cycle ended first, the same motions are converted.
+        let ended = format!("{HOLE}CYCLE/OFF\n{rest}FINI\n");
+        let (code, out, err) = run_on(&["post", "-m", "xyzac-trt"], "p.apt", &ended);
+        assert_eq!(code, 0, "{rest:?}: {err}");
+        assert_eq!(out.matches("G81").count(), 1, "{out}");
+    }
+}
+
+/// CAMWorks writes a pattern's copies as the same `SETUP/START,n` again
+/// under another `CSYS`, with the points already placed in the CL frame:
+/// read in the `CSYS` frame, all three copies of a nested plate were
+/// drilled where the first is, exit 0. Refused now; a set-up number seen
+/// again under the same `CSYS`, and `CSYS` without `SETUP`, read as before.
+#[test]
+fn a_setup_copied_under_another_csys_is_refused() {
+    let copy = |csys: &str, x: f64| {
+        format!(
+            "TRNTYP/WORLD,0,0,0\nCSYS/{csys}\nSETUP/START,2\nRAPID\nGOTO/{x},90,25\nGOTO/{x},90,0\nSETUP/END,2\n"
+        )
+    };
+    let identity = "1.,0,0,0,0,1.,0,0,0,0,1.,0";
+    let turned = "-1.,0,0,456.34944,0,-1.,0,197.0266,0,0,1.,0";
+    let program = format!(
+        "UNIT/MM\nLOAD/TOOL,18\n{}{}FINI\n",
+        copy(identity, 160.9),
+        copy(turned, 295.4)
+    );
+    let (code, out, err) = run_on(&["post", "-m", "xyzac-trt"], "p.apt", &program);
+    assert_eq!(code, 1, "{out}");
+    assert!(
+        err.contains("p.apt:12:1: SETUP/START,2 again under another CSYS than at line 5"),
+        "{err}"
+    );
+    // The same set-up twice in the same frame: both passes converted.
+    let program = format!(
+        "UNIT/MM\nLOAD/TOOL,18\n{}{}FINI\n",
+        copy(turned, 295.4),
+        copy(turned, 295.4)
+    );
+    let (code, out, err) = run_on(&["post", "-m", "xyzac-trt"], "p.apt", &program);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(out.matches("X160.9494 Y107.0266").count(), 4, "{out}");
+}
+
+/// CATIA wraps long `PPRINT` lines at 72 columns with the continuation
+/// `$`; kinpost read a final `$` of literal text as text, so the wrapped
+/// part was refused as a statement ("expected an APT statement"), and a
+/// wrapped `END` or `STOP` became `M2` or `M0` in the middle of the
+/// program, exit 0. Text after the `$` continues the statement now; a
+/// statement after it (`GOTO/…`) is read as one; a bare word, which could
+/// be either, is refused.
+#[test]
+fn literal_text_continued_over_lines() {
+    let catia = "UNITS/MM\nPPRINT/(=====$\n=======) \nPPRINT/(USING .250\" DIAM. O$\nRIFICE ) \nLOADTL/1\nGOTO/1,2,3\nFINI\n";
+    let (code, out, err) = run_on(&["post", "-m", "xyzac-trt"], "p.apt", catia);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("(PPRINT/[=====$ =======])"), "{out}");
+    assert!(out.contains("O$ RIFICE ])"), "{out}");
+    assert!(out.contains("X1.0000 Y2.0000 Z3.0000"), "{out}");
+    for word in ["END", "STOP", "FINI"] {
+        let program = format!(
+            "UNITS/MM\nLOADTL/1\nGOTO/0,0,10\nPPRINT/CHECK THE CLAMPS, THEN $\n{word}\nGOTO/10,0,10\nFINI\n"
+        );
+        let (code, out, err) = run_on(&["post", "-m", "xyzac-trt"], "p.apt", &program);
+        assert_eq!(code, 1, "{word}: {out}");
+        assert!(
+            err.contains(&format!("p.apt:5:1: the statement at line 4 holds text and ends with `$`, and this line is the bare word {word}")),
+            "{err}"
+        );
+    }
+    // A statement after the `$`: the `$` is text, as before.
+    let program = "UNITS/MM\nLOADTL/1\nPPRINT/PRICE IN $\nGOTO/1,2,3\nFINI\n";
+    let (code, out, err) = run_on(&["post", "-m", "xyzac-trt"], "p.apt", program);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("(PPRINT/PRICE IN $)"), "{out}");
+    assert!(out.contains("X1.0000 Y2.0000 Z3.0000"), "{out}");
+}
