@@ -181,9 +181,6 @@ impl<R: BufRead> Lowered<R> {
         if let Some(line) = self.cutcom_announced {
             return Err(self.err(r, format!("a motion after CUTCOM/ON (line {line}) and before CUTCOM/LEFT or CUTCOM/RIGHT: the side the tool is offset to is not known; give the side (CUTCOM/LEFT|RIGHT) before the motion")));
         }
-        if self.rapid_pending && self.cycle.is_some() {
-            return Err(self.err(r, format!("a motion after RAPID while the cycle of line {} is in force (no CYCLE/OFF): every GOTO is a hole until CYCLE/OFF, and CAM systems differ on whether a RAPID one is a hole or a positioning move; end the cycle with CYCLE/OFF before moving on", self.cycle_line)));
-        }
         self.rapid_pending = false;
         let from_axis = self.axis;
         if let Some(a) = axis {

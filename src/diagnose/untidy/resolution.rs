@@ -29,17 +29,21 @@ pub fn quantum(values: &[f64]) -> Option<f64> {
     if v.len() < MIN_DISTINCT {
         return None;
     }
+    let gap = v
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .fold(f64::INFINITY, f64::min);
+    // Values rounded to `q` differ by `q` at least: a larger step would
+    // only seem to divide values far below it (noise about 0, each "0 · q"
+    // within the test's tolerance).
     let is_step = |q: f64| {
         q >= MIN_QUANTUM
+            && q <= gap * (1.0 + 1e-6)
             && v.iter().all(|x| {
                 let k = x / q;
                 k.abs() < 1e12 && (k - k.round()).abs() <= 1e-6
             })
     };
-    let gap = v
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .fold(f64::INFINITY, f64::min);
     let mut steps: Vec<f64> = Vec::new();
     for e in -10..=2 {
         for m in [1.0, 2.0, 5.0] {
@@ -158,6 +162,13 @@ mod tests {
         assert_eq!(quantum(&free), None);
         // Too few distinct values to tell.
         assert_eq!(quantum(&[0.0, 1.0, 0.0, 1.0]), None);
+        // Noise about 0 (an axis that stands at 0, its tip coordinate
+        // measured): no step, where every value seemed "0 · 12700 mm".
+        let about_zero: Vec<f64> = (0..50).map(|i| (i as f64 * 0.731).sin() * 1e-3).collect();
+        assert_eq!(quantum(&about_zero), None);
+        // The same rounded to 0.1 µm: that step.
+        let rounded: Vec<f64> = about_zero.iter().map(|x| (x * 1e4).round() / 1e4).collect();
+        assert_eq!(quantum(&rounded), Some(1e-4));
         // Inch values to 4 decimals, read in mm: the step is 0.0001 inch,
         // given as 0.00254 mm, not with the conversion's noise.
         let inch: Vec<f64> = (0..50)
