@@ -172,3 +172,55 @@ fn an_axis_at_zero_is_not_read_as_rounded() {
     assert!(!text.contains("values rounded"), "{text}");
     assert!(text.contains("1. backlash X: value = "), "{text}");
 }
+
+/// A joint-feedback trace whose only fault is its clock: the delay every
+/// axis shares was estimated from its linear term, 19.76 ms of 20 (the
+/// command's acceleration biases it), and the 0.24 ms left was reported as
+/// servo lags of C and X, or at 0.1 s sampling as a zero offset of C or
+/// an unexplained mismatch. The delay the axes still share after the
+/// alignment is now added to the clock's: no machine physics is claimed.
+#[test]
+fn a_clock_offset_alone_claims_no_servo_lag() {
+    let program = crate::util::repo_file("fixtures/programs/zhao2022-xzbc-exercise.nc");
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("r.csv");
+    let rec = rec.to_str().unwrap();
+    for (interval, offset, seed) in [("0.01", "0.02", "1"), ("0.1", "0.015", "2")] {
+        let sim = std::process::Command::new(crate::util::BIN)
+            .args([
+                "simulate",
+                "-m",
+                "zhao2022-xzbc",
+                "-p",
+                &program,
+                "--feedback",
+            ])
+            .args(["--noise", "0.0005", "--sample-interval", interval])
+            .args(["--time-offset", offset, "--seed", seed, "-o", rec])
+            .output()
+            .unwrap();
+        assert!(
+            sim.status.success(),
+            "{}",
+            String::from_utf8_lossy(&sim.stderr)
+        );
+        let out = std::process::Command::new(crate::util::BIN)
+            .args(["diagnose", "-m", "zhao2022-xzbc", "-r", rec])
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            text.contains("time_offset: offset = "),
+            "{interval}: {text}"
+        );
+        assert!(
+            text.contains("verdict: consistent with measurement noise"),
+            "{interval}: {text}"
+        );
+    }
+}

@@ -105,11 +105,16 @@ fn solve(
 ///    their weighted mean. Without a drift it is an offset when it lowers
 ///    χ² by more than ln n + `bic_margin` and is at least 1 % of the
 ///    sampling interval; with one, the offset goes with it.
+///
+/// `found`: a clock was found and removed already, and this is what the
+/// axes still share: the offset is then taken without the tests of step 2
+/// (it refines one that passed them).
 pub fn trace_clock(
     axes: &[AxisTiming<'_>],
     t: &[f64],
     use_sample: &[bool],
     bic_margin: f64,
+    found: bool,
 ) -> Option<TraceClock> {
     let n = t.len();
     let n_ax = axes.len();
@@ -178,9 +183,8 @@ pub fn trace_clock(
         (den > 0.0).then(|| (num / den, den.sqrt().recip()))
     };
     let offset = match (&shared, rate) {
-        (Some(set), None) => {
-            weighted(set).filter(|(d, sd)| (d / sd).powi(2) > min_chi2 && d.abs() >= 0.01 * dt)
-        }
+        (Some(set), None) => weighted(set)
+            .filter(|(d, sd)| found || ((d / sd).powi(2) > min_chi2 && d.abs() >= 0.01 * dt)),
         (Some(set), Some(_)) => weighted(set),
         // A drift whose axes do not share one delay at its mean time: the
         // delay of the axes that share the rate.
