@@ -543,11 +543,15 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
         ));
     }
     let axes = machine.chain.names();
+    // A drive trace is sampled at 1 Hz or faster (a servo thread at 1 kHz,
+    // a slow logger at a few Hz); a rate far below that stretches the
+    // trace's time, and a lag read on it becomes a backlash or an offset.
     if a.sample_rate
-        .is_some_and(|r| !(r.is_finite() && r > 0.0 && r <= 1e7))
+        .is_some_and(|r| !(r.is_finite() && (0.1..=1e7).contains(&r)))
     {
         return Err(Error::Usage(
-            "--sample-rate must be above 0 and at most 1e7 Hz".into(),
+            "--sample-rate must be 0.1 … 1e7 Hz (a joint-feedback trace's samples per second)"
+                .into(),
         ));
     }
     let rec_name = a.recording.display().to_string();

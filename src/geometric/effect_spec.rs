@@ -121,11 +121,14 @@ pub fn parse_effect_spec(s: &str) -> Result<EffectSpec> {
                 let (k, v) = p
                     .split_once('=')
                     .ok_or_else(|| bad(format!("expected `key=value`, found `{}`", p.trim())))?;
-                params.insert(k.trim().to_ascii_lowercase(), num(v)?);
+                let k = k.trim().to_ascii_lowercase();
+                if params.insert(k.clone(), num(v)?).is_some() {
+                    return Err(bad(format!("`{k}` given twice")));
+                }
             }
         }
     }
-    let effect = Effect::from_parameters(kind, axis.as_deref(), &params).map_err(bad)?;
+    let effect = Effect::from_parameters_strict(kind, axis.as_deref(), &params).map_err(bad)?;
     check_size(&effect).map_err(bad)?;
     Ok(EffectSpec { effect, from_block })
 }
@@ -232,6 +235,30 @@ mod tests {
             let s = parse_effect_spec(c).unwrap_or_else(|e| panic!("{c}: {e}"));
             let back = EffectSpec::from_json(&s.to_json(None)).unwrap();
             assert_eq!(back, s, "{c}");
+        }
+        // A parameter the effect does not have, one given twice, or under
+        // two names: refused (each was ignored, or the first one won).
+        for (spec, want) in [
+            (
+                "cyclic:X=0.002,period=20,phse=90",
+                "cyclic has no parameter `phse`",
+            ),
+            (
+                "cyclic:X=0.002,period=20,phase=10,phase=90",
+                "`phase` given twice",
+            ),
+            (
+                "cyclic:X=0.002,period=20,amplitude=0.003",
+                "`amplitude` given besides the value",
+            ),
+            (
+                "thermal_drift:Z=0.01,tau=600,tau_s=60",
+                "`tau_s` and `tau` name the same",
+            ),
+            ("backlash:X=0.003,tau=1", "backlash has no parameter `tau`"),
+        ] {
+            let e = parse_effect_spec(spec).unwrap_err().to_string();
+            assert!(e.contains(want), "{spec}: {e}");
         }
         let s = parse_effect_spec("thermal_drift:Z=0.01,tau=600@block=7").unwrap();
         assert_eq!(s.from_block, Some(7));

@@ -448,7 +448,65 @@ impl Effect {
         axis: Option<&str>,
         params: &BTreeMap<String, f64>,
     ) -> std::result::Result<Effect, String> {
-        let get = |names: &[&str]| -> std::result::Result<f64, String> {
+        Self::from_parameters_with(kind, axis, params, false)
+    }
+
+    /// [`Effect::from_parameters`], refusing besides a parameter the
+    /// effect does not have (`phse=90`: a typing error that would leave
+    /// the phase at its default), as given on a command line.
+    pub fn from_parameters_strict(
+        kind: EffectKind,
+        axis: Option<&str>,
+        params: &BTreeMap<String, f64>,
+    ) -> std::result::Result<Effect, String> {
+        Self::from_parameters_with(kind, axis, params, true)
+    }
+
+    fn from_parameters_with(
+        kind: EffectKind,
+        axis: Option<&str>,
+        params: &BTreeMap<String, f64>,
+        strict: bool,
+    ) -> std::result::Result<Effect, String> {
+        // The names asked for, to tell the parameters given that no one
+        // asked for.
+        let asked: std::cell::RefCell<Vec<&str>> = Default::default();
+        let effect = Self::from_known_parameters(kind, axis, params, &asked)?;
+        if strict && kind != EffectKind::ErrorMotion {
+            let asked = asked.borrow();
+            if let Some(k) = params.keys().find(|k| !asked.contains(&k.as_str())) {
+                return Err(format!(
+                    "{kind} has no parameter `{k}` (its parameters: {})",
+                    asked.join(", ")
+                ));
+            }
+        }
+        Ok(effect)
+    }
+
+    fn from_known_parameters<'n>(
+        kind: EffectKind,
+        axis: Option<&str>,
+        params: &BTreeMap<String, f64>,
+        asked: &std::cell::RefCell<Vec<&'n str>>,
+    ) -> std::result::Result<Effect, String> {
+        let get = |names: &[&'n str]| -> std::result::Result<f64, String> {
+            asked.borrow_mut().extend_from_slice(names);
+            let given: Vec<&&str> = names.iter().filter(|n| params.contains_key(**n)).collect();
+            if given.len() > 1 {
+                // `value` is what follows the axis (`X=0.002`).
+                let other = given.iter().find(|n| ***n != "value").unwrap_or(&given[0]);
+                return Err(if given.contains(&&"value") {
+                    format!(
+                        "{kind}: `{other}` given besides the value after the axis (`X=…`), which is the same parameter; give one"
+                    )
+                } else {
+                    format!(
+                        "{kind}: `{}` and `{}` name the same parameter; give one",
+                        given[0], given[1]
+                    )
+                });
+            }
             for n in names {
                 if let Some(v) = params.get(*n) {
                     return if v.is_finite() {
@@ -464,7 +522,8 @@ impl Effect {
                 params.keys().cloned().collect::<Vec<_>>().join(", ")
             ))
         };
-        let opt = |names: &[&str], default: f64| -> std::result::Result<f64, String> {
+        let opt = |names: &[&'n str], default: f64| -> std::result::Result<f64, String> {
+            asked.borrow_mut().extend_from_slice(names);
             if names.iter().any(|n| params.contains_key(*n)) {
                 get(names)
             } else {

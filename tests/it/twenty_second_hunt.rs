@@ -224,3 +224,29 @@ fn a_clock_offset_alone_claims_no_servo_lag() {
         );
     }
 }
+
+/// `--sample-rate 1e-300` and `0.001` were accepted: a joint-feedback
+/// trace's time stretched so far that a 4 ms servo lag was reported as a
+/// backlash of 110 µm. Refused below 0.1 Hz, naming the range.
+#[test]
+fn a_sample_rate_no_drive_trace_has_is_refused() {
+    for rate in ["1e-300", "0.001", "0"] {
+        let (code, _, err) = run_on(
+            &[
+                "diagnose",
+                "-m",
+                "zhao2022-xzbc",
+                "--sample-rate",
+                rate,
+                "-r",
+            ],
+            "trace.csv",
+            "X,fb_X\n0,0\n",
+        );
+        assert_eq!(code, 2, "{rate}: {err}");
+        assert!(
+            err.contains("--sample-rate must be 0.1 … 1e7 Hz"),
+            "{rate}: {err}"
+        );
+    }
+}
