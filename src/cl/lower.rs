@@ -493,7 +493,16 @@ impl<R: BufRead> Lowered<R> {
                 if v.len() == 6 {
                     self.axis = [v[3], v[4], v[5]];
                 }
-                self.go(r, [v[0], v[1], v[2]], true);
+                // FROM declares where the tool starts (ISO 4343); before
+                // the first tool change (CATIA writes it before LOADTL) no
+                // tool length is compensated yet, and a rapid to the tip's
+                // point would leave the tip a tool length past it: it is
+                // kept as a comment there, and the first GOTO moves.
+                if self.tool.is_none() {
+                    self.block(r, super::state::as_comment(&r.text));
+                } else {
+                    self.go(r, [v[0], v[1], v[2]], true);
+                }
             }
             "GODLTA" => {
                 let v = self.numbers(r, &args, "GODLTA")?;

@@ -250,3 +250,20 @@ fn a_sample_rate_no_drive_trace_has_is_refused() {
         );
     }
 }
+
+/// CATIA writes `FROM` (where the tool starts) before `LOADTL`: it was
+/// written as a rapid before `T1 M6` and `G43 H1`, without tool length
+/// compensation, so the tip went a tool length past the point. Before the
+/// first tool change it is a comment now; after one, a rapid as before.
+#[test]
+fn from_before_the_tool_change_is_no_rapid() {
+    let program =
+        "UNITS/MM\nFROM/0,0,100\nLOADTL/1\nFEDRAT/100,MMPM\nGOTO/1,2,3\nFROM/0,0,50\nFINI\n";
+    let (code, out, err) = run_on(&["post", "-m", "xyzac-trt"], "p.apt", program);
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<&str> = out.lines().collect();
+    let tool = lines.iter().position(|l| *l == "T1 M6").unwrap();
+    assert!(lines[..tool].contains(&"(FROM/0,0,100)"), "{out}");
+    assert!(!lines[..tool].iter().any(|l| l.starts_with("G0")), "{out}");
+    assert!(out.contains("G0 X0.0000 Y0.0000 Z50.0000"), "{out}");
+}
