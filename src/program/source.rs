@@ -622,9 +622,19 @@ impl MachineAxisTracker {
                 keyword.into_iter().chain(m128).min()
             });
         if let Some(i) = tcp {
+            // `post` converts the poses of the others; M128's are the
+            // control's to convert, and `post` passes them on.
+            let m128 = matches!(&line.items[i].kind, ItemKind::Word(w) if w.address == "M");
+            let advice = if m128 {
+                "the control converts them itself (M128), and `kinpost post` passes them on unconverted; give this command the program in machine axes (without M128)"
+            } else {
+                "convert the program with `kinpost post` first, or give a program that switches TCP on at its start"
+            };
             return Err(Error::input_with(
                 Location::new(file, line.number, line.items[i].start + 1),
-                "tool centre point control (G43.4, G43.5, G234, TRAORI, Heidenhain ISO M128, Fagor #RTCP ON) in a program read as machine axes: from here its X Y Z are tool-tip positions, which this command does not read as axes; convert the program with `kinpost post` first, or give a program that switches TCP on at its start",
+                format!(
+                    "tool centre point control (G43.4, G43.5, G234, TRAORI, Heidenhain ISO M128, Fagor #RTCP ON) in a program read as machine axes: from here its X Y Z are tool-tip positions, which this command does not read as axes; {advice}"
+                ),
                 line.text_lossy(),
             ));
         }

@@ -267,3 +267,32 @@ fn from_before_the_tool_change_is_no_rapid() {
     assert!(!lines[..tool].iter().any(|l| l.starts_with("G0")), "{out}");
     assert!(out.contains("G0 X0.0000 Y0.0000 Z50.0000"), "{out}");
 }
+
+/// Heidenhain ISO's `M128` in a program read as machine axes: `linkage`
+/// and `analyze` advised converting it with `kinpost post` first, which
+/// passes M128 programs on unconverted (the control converts them), so
+/// the advice led back to the same refusal. It names what to do now.
+#[test]
+fn m128_refusal_does_not_send_the_user_round_in_a_circle() {
+    let program = "%1001 G71 *\nN30 T1 G17 S5000 *\nN40 G00 G40 G90 Z+100 M03 *\nN50 G01 X+10 Y+10 Z+5 B+0 C+0 F500 M128 *\nN60 G01 X+20 Y+10 Z+5 B+10 C+0 *\nN70 M129 *\nN80 G00 Z+100 M02 *\nN99999 %1001 G71 *\n";
+    for args in [
+        &["linkage", "-m", "xyzbc-trt"][..],
+        &["analyze", "--nonlinear", "-m", "xyzbc-trt"][..],
+    ] {
+        let (code, _, err) = run_on(args, "p.h", program);
+        assert_eq!(code, 1, "{args:?}: {err}");
+        assert!(err.contains("p.h:4:36: tool centre point control"), "{err}");
+        assert!(
+            err.contains("`kinpost post` passes them on unconverted"),
+            "{err}"
+        );
+        assert!(
+            !err.contains("convert the program with `kinpost post` first"),
+            "{err}"
+        );
+    }
+    // post passes the program on as it is.
+    let (code, out, err) = run_on(&["post", "-m", "xyzbc-trt"], "p.h", program);
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(out, program);
+}
