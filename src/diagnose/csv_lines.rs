@@ -249,3 +249,13 @@ mod tests {
         assert_eq!(lines.buf, "0,1");
     }
 }
+
+/// The message for a value beyond the header's `n` fields (`f`, the
+/// first): a row with a field too many is refused as one with a field too
+/// few is (empty fields there, a trailing separator, are no values).
+pub fn beyond_header(n: usize, f: &str) -> String {
+    format!(
+        "a value beyond the header's {n} fields: `{}` (a column missing from the header, or a separator too many in this row?)",
+        f.trim()
+    )
+}

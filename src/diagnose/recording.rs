@@ -207,6 +207,16 @@ impl<R: BufRead> RecordingReader<R> {
                 line.to_string(),
             ));
         }
+        if let Some(&(col, f)) = fs[self.layout.n_fields..]
+            .iter()
+            .find(|(_, f)| !f.trim().is_empty())
+        {
+            return Err(Error::input_with(
+                loc(col),
+                super::csv_lines::beyond_header(self.layout.n_fields, f),
+                line.to_string(),
+            ));
+        }
         let num = |idx: usize, what: &str| -> Result<f64> {
             let (col, f) = fs[idx];
             let v = self.layout.dialect.number(f).ok_or_else(|| {

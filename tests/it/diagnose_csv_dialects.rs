@@ -123,7 +123,7 @@ fn wrong_units_and_misread_numbers_are_refused_at_their_column() {
             "r.csv:1:1: column `t [fortnight]`: `fortnight` is not a unit of time",
         ),
         (
-            "t,X,Z,B,C,meas_x,meas_y,meas_z\n0,1,1,1,1,1,1,1\n0.5,1,1,1,1,1,1,1,5\n1,1,1,1,1,1,1,2;5\n",
+            "t,X,Z,B,C,meas_x,meas_y,meas_z\n0,1,1,1,1,1,1,1\n0.5,1,1,1,1,1,1,5\n1,1,1,1,1,1,1,2;5\n",
             "r.csv:4:15: meas_z (mm): `2;5` is not a number",
         ),
     ] {

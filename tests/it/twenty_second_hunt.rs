@@ -296,3 +296,37 @@ fn m128_refusal_does_not_send_the_user_round_in_a_circle() {
     assert_eq!(code, 0, "{err}");
     assert_eq!(out, program);
 }
+
+/// A recording row with a value more than the header has fields was read
+/// silently (its last value dropped), while a row with one fewer is
+/// refused; a shifted row then gave a later, misleading error. Refused
+/// now at the extra value, in tool-tip and joint-feedback recordings; a
+/// trailing separator (an empty field) stays accepted.
+#[test]
+fn a_row_longer_than_the_header_is_refused() {
+    let mut tip = String::from("t,block,C,X,Z,B,meas_x,meas_y,meas_z\n");
+    let mut fb = String::from("t,block,C,X,Z,B,fb_C,fb_X,fb_Z,fb_B\n");
+    for i in 0..30 {
+        let t = i as f64 * 0.1;
+        tip.push_str(&format!("{t:.1},3,0,{t},0,0,{t},0,-20\n"));
+        fb.push_str(&format!("{t:.1},3,0,{t},0,0,0,{t},0,0,\n"));
+    }
+    for (text, extra) in [
+        (&tip, "0.5,3,0,0.5,0,0,0.5,0,-20,7\n"),
+        (&fb, "0.5,3,0,0.5,0,0,0,0.5,0,0,7\n"),
+    ] {
+        let (code, _, err) = run_on(&["diagnose", "-m", "zhao2022-xzbc", "-r"], "r.csv", text);
+        assert_ne!(code, 1, "{err}");
+        assert!(!err.contains("beyond the header"), "{err}");
+        let mut lines: Vec<&str> = text.lines().collect();
+        lines.insert(7, extra.trim_end());
+        let bad = lines.join("\n") + "\n";
+        let (code, _, err) = run_on(&["diagnose", "-m", "zhao2022-xzbc", "-r"], "r.csv", &bad);
+        assert_eq!(code, 1, "{err}");
+        let col = extra.len() - 1;
+        assert!(
+            err.contains(&format!("r.csv:8:{col}: a value beyond the header's")),
+            "{err}"
+        );
+    }
+}

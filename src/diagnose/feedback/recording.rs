@@ -160,6 +160,13 @@ impl FeedbackRecording {
                     line,
                 ));
             }
+            if let Some(&(col, f)) = fs[hf.len()..].iter().find(|(_, f)| !f.trim().is_empty()) {
+                return Err(Error::input_with(
+                    loc(col),
+                    super::super::csv_lines::beyond_header(hf.len(), f),
+                    line,
+                ));
+            }
             let num = |idx: usize, what: &str| -> Result<f64> {
                 let (col, f) = fs[idx];
                 match dialect.number(f).map(|v| v * factor[idx]) {
