@@ -57,6 +57,10 @@ pub(super) struct Cycle {
 pub(super) const MAX_FEED_MM_MIN: f64 = 1e6;
 pub(super) const MAX_FEED_MM_REV: f64 = 100.0;
 
+/// A `CSYS` set-up frame in the CL frame: the rotation (its columns the
+/// set-up's axes) and the origin.
+pub(super) type SetupFrame = ([[f64; 3]; 3], [f64; 3]);
+
 /// The lowering iterator: wraps a [`ClReader`] and yields records the
 /// converter writes directly.
 #[derive(Debug)]
@@ -71,7 +75,7 @@ pub struct Lowered<R: BufRead> {
     pub(super) mm_per_unit: f64,
     pub(super) units_seen: bool,
     pub(super) warned_units: bool,
-    pub(super) csys: Option<([[f64; 3]; 3], [f64; 3])>,
+    pub(super) csys: Option<SetupFrame>,
     pub(super) pos: Option<[f64; 3]>,
     pub(super) axis: [f64; 3],
     pub(super) circle: Option<Circle>,
@@ -83,7 +87,7 @@ pub struct Lowered<R: BufRead> {
     pub(super) cycle: Option<Cycle>,
     /// Per `SETUP/START,n` number seen: the `CSYS` in force there and the
     /// line (a number started again under another `CSYS` is refused).
-    pub(super) setups: Vec<(f64, Option<([[f64; 3]; 3], [f64; 3])>, usize)>,
+    pub(super) setups: Vec<(f64, Option<SetupFrame>, usize)>,
     /// The line of the `CYCLE` statement that put the cycle in force.
     pub(super) cycle_line: usize,
     pub(super) feed: Option<(f64, FeedUnit)>,

@@ -214,6 +214,16 @@ pub(crate) fn read_units_row<R: BufRead>(
     }
 }
 
+/// The message for a value beyond the header's `n` fields (`f`, the
+/// first): a row with a field too many is refused as one with a field too
+/// few is (empty fields there, a trailing separator, are no values).
+pub fn beyond_header(n: usize, f: &str) -> String {
+    format!(
+        "a value beyond the header's {n} fields: `{}` (a column missing from the header, or a separator too many in this row?)",
+        f.trim()
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -248,14 +258,4 @@ mod tests {
         assert!(read_units_row(&mut lines, &h, d, &mut factor, Some(0)).unwrap());
         assert_eq!(lines.buf, "0,1");
     }
-}
-
-/// The message for a value beyond the header's `n` fields (`f`, the
-/// first): a row with a field too many is refused as one with a field too
-/// few is (empty fields there, a trailing separator, are no values).
-pub fn beyond_header(n: usize, f: &str) -> String {
-    format!(
-        "a value beyond the header's {n} fields: `{}` (a column missing from the header, or a separator too many in this row?)",
-        f.trim()
-    )
 }
