@@ -425,7 +425,7 @@ impl<R: BufRead> Lowered<R> {
                 if major == "SELECT" {
                     self.block(r, format!("T{n}"));
                 } else {
-                    self.refuse_tool_change_in_cycle(r, "LOAD/TOOL")?;
+                    self.refuse_tool_change_in_mode(r, "LOAD/TOOL")?;
                     let mut h = n;
                     if LENGTH_REGISTER.contains(&a(2).as_str())
                         && let Some(x) = args.get(3).and_then(|x| x.number())
@@ -655,12 +655,17 @@ impl<R: BufRead> Lowered<R> {
         Ok(())
     }
 
-    /// Refuses a tool change (`what`) while a cycle is in force: its holes
+    /// Refuses a tool change (`what`) while a cycle is in force (its holes
     /// would go on with the new tool, and a CAM system that leaves out
-    /// `CYCLE/OFF` before the next operation (CAMWorks) means them to end.
-    fn refuse_tool_change_in_cycle(&self, r: &ClRecord, what: &str) -> Result<(), Error> {
+    /// `CYCLE/OFF` before the next operation, CAMWorks, means them to end)
+    /// or cutter compensation is on (`G41`/`G42 D` would keep the old
+    /// tool's radius; LinuxCNC refuses the tool change then).
+    fn refuse_tool_change_in_mode(&self, r: &ClRecord, what: &str) -> Result<(), Error> {
         if self.cycle.is_some() {
             return Err(self.err(r, format!("{what} while the cycle of line {} is in force (no CYCLE/OFF): every GOTO after it would be drilled as a hole with the new tool; end the cycle with CYCLE/OFF before the tool change", self.cycle_line)));
+        }
+        if self.cutcom {
+            return Err(self.err(r, format!("{what} while cutter compensation is on (CUTCOM/LEFT or RIGHT, no CUTCOM/OFF): the new tool would be offset by the radius of the old one's register; switch it off (CUTCOM/OFF) before the tool change")));
         }
         Ok(())
     }
@@ -814,7 +819,7 @@ impl<R: BufRead> Lowered<R> {
             // As `LOAD/TOOL,n[,ADJUST,h]`: the tool change and its length
             // compensation (h defaults to n).
             ClStatement::LoadTl { tool, adjust } => {
-                self.refuse_tool_change_in_cycle(&r, "LOADTL")?;
+                self.refuse_tool_change_in_mode(&r, "LOADTL")?;
                 let (n, h) = (*tool, adjust.unwrap_or(*tool));
                 self.tool = Some(n);
                 self.block(&r, format!("T{n} M6"));

@@ -20,6 +20,7 @@ pub mod bound;
 pub mod bspline;
 pub mod cache;
 pub mod direction;
+mod effect_parameters;
 pub mod effect_spec;
 pub mod effects;
 pub mod error_motion;

@@ -330,3 +330,21 @@ fn a_row_longer_than_the_header_is_refused() {
         );
     }
 }
+
+/// `CUTCOM/LEFT` on across a tool change: `G41 D1` stayed in force for
+/// tool 2, which was then offset by tool 1's radius, exit 0 (LinuxCNC
+/// refuses `M6` under G41). The tool change is refused now.
+#[test]
+fn a_tool_change_under_cutter_compensation_is_refused() {
+    let program = "UNITS/MM\nLOAD/TOOL,1\nFEDRAT/100,MMPM\nGOTO/0,0,0\nCUTCOM/LEFT\nGOTO/10,0,0\nLOAD/TOOL,2\nGOTO/20,0,0\nCUTCOM/OFF\nFINI\n";
+    let (code, out, err) = run_on(&["post", "-m", "xyzac-trt"], "p.apt", program);
+    assert_eq!(code, 1, "{out}");
+    assert!(
+        err.contains("p.apt:7:1: LOAD/TOOL while cutter compensation is on"),
+        "{err}"
+    );
+    let off_first = program.replace("LOAD/TOOL,2\n", "CUTCOM/OFF\nLOAD/TOOL,2\n");
+    let (code, out, err) = run_on(&["post", "-m", "xyzac-trt"], "p.apt", &off_first);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("G40\nT2 M6"), "{out}");
+}
