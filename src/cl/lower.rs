@@ -139,6 +139,7 @@ pub fn lower<R: BufRead>(
             _ => 1.0,
         },
         units_seen: default_units.is_some(),
+        default_units,
         warned_units: false,
         csys: None,
         pos: None,
@@ -226,13 +227,11 @@ impl<R: BufRead> Lowered<R> {
         match major {
             "UNIT" => match a(0).as_str() {
                 "MM" => {
-                    self.units_seen = true;
-                    self.mm_per_unit = 1.0;
+                    self.own_units(r, ClUnits::Mm);
                     self.emit(r, ClStatement::Units(ClUnits::Mm));
                 }
                 "INCHES" | "INCH" => {
-                    self.units_seen = true;
-                    self.mm_per_unit = 25.4;
+                    self.own_units(r, ClUnits::Inches);
                     self.emit(r, ClStatement::Units(ClUnits::Inches));
                 }
                 w => {
@@ -809,11 +808,7 @@ impl<R: BufRead> Lowered<R> {
                 false
             }
             ClStatement::Units(u) => {
-                self.units_seen = true;
-                self.mm_per_unit = match u {
-                    ClUnits::Mm => 1.0,
-                    ClUnits::Inches => 25.4,
-                };
+                self.own_units(&r, *u);
                 true
             }
             // As `LOAD/TOOL,n[,ADJUST,h]`: the tool change and its length

@@ -7,7 +7,7 @@ use std::io::BufRead;
 use arrayvec::ArrayVec;
 
 use super::vec3::sub;
-use super::{Arg, ClReader, ClRecord, ClStatement, FeedUnit};
+use super::{Arg, ClReader, ClRecord, ClStatement, ClUnits, FeedUnit};
 use crate::error::{Error, Location};
 
 /// Largest feed accepted, mm/min (per minute) or mm/rev (per revolution).
@@ -74,6 +74,9 @@ pub struct Lowered<R: BufRead> {
     pub(super) tol_mm: f64,
     pub(super) mm_per_unit: f64,
     pub(super) units_seen: bool,
+    /// `--units`, the units of a program without `UNITS`, until the
+    /// program's own statement says otherwise (a warning then, once).
+    pub(super) default_units: Option<ClUnits>,
     pub(super) warned_units: bool,
     pub(super) csys: Option<SetupFrame>,
     pub(super) pos: Option<[f64; 3]>,
@@ -225,6 +228,28 @@ impl<R: BufRead> Lowered<R> {
                 self.setups.push((n, self.csys, r.line));
                 Ok(())
             }
+        }
+    }
+
+    /// The program's own `UNITS`/`UNIT` statement `u` (at `r`): followed;
+    /// where `--units` said other units, a warning (once).
+    pub(super) fn own_units(&mut self, r: &ClRecord, u: ClUnits) {
+        self.units_seen = true;
+        self.mm_per_unit = match u {
+            ClUnits::Mm => 1.0,
+            ClUnits::Inches => 25.4,
+        };
+        if let Some(given) = self.default_units.take()
+            && given != u
+        {
+            let name = |u: ClUnits| if u == ClUnits::Mm { "mm" } else { "inch" };
+            self.emit(
+                r,
+                ClStatement::Warning(format!(
+                    "{}:{}:{}: the program says its units ({}), which it follows; --units {} applies to a program without a UNITS statement",
+                    self.file, r.line, r.col, name(u), name(given)
+                )),
+            );
         }
     }
 

@@ -348,3 +348,29 @@ fn a_tool_change_under_cutter_compensation_is_refused() {
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("G40\nT2 M6"), "{out}");
 }
+
+/// `--units inch` on a program that says `UNIT/MM` was dropped without a
+/// word (the program's own statement is followed, rightly): the user
+/// learns now that the option did not apply.
+#[test]
+fn units_given_and_units_said_differ_with_a_warning() {
+    let program = "UNIT/MM\nLOADTL/1\nFEDRAT/100,MMPM\nGOTO/1,2,3\nFINI\n";
+    let (code, out, err) = run_on(
+        &["post", "-m", "xyzac-trt", "--units", "inch"],
+        "p.apt",
+        program,
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("X1.0000 Y2.0000 Z3.0000"), "{out}");
+    assert!(
+        err.contains("p.apt:1:1: the program says its units (mm), which it follows; --units inch applies to a program without a UNITS statement"),
+        "{err}"
+    );
+    let (code, _, err) = run_on(
+        &["post", "-m", "xyzac-trt", "--units", "mm"],
+        "p.apt",
+        program,
+    );
+    assert_eq!(code, 0, "{err}");
+    assert!(!err.contains("--units"), "{err}");
+}
