@@ -241,7 +241,7 @@ impl<R: BufRead> Lowered<R> {
                 }
             },
             "CIRCLE" => {
-                self.refuse_rapid_arc(r, "CIRCLE")?;
+                self.refuse_arc_here(r, "CIRCLE")?;
                 if args.iter().any(|a| a.is("TIMES")) {
                     return Err(self.err(r, "CIRCLE/…,TIMES,n: NX's helix of n turns is not converted; refused rather than cut as a single turn; have the CAM system write the helix as one CIRCLE per turn or as GOTO points"));
                 }
@@ -255,7 +255,7 @@ impl<R: BufRead> Lowered<R> {
             // then the `GOTO` that ends it: a `CIRCLE` whose swept angle
             // about (i,j,k) must be `a`.
             "MOVARC" => {
-                self.refuse_rapid_arc(r, "MOVARC")?;
+                self.refuse_arc_here(r, "MOVARC")?;
                 let form = "MOVARC expects xc,yc,zc,i,j,k,r,ANGLE,a (degrees)";
                 if args.len() != 9 || !args[7].is("ANGLE") {
                     return Err(self.err(r, form));
@@ -641,10 +641,10 @@ impl<R: BufRead> Lowered<R> {
         compact.contains("GOTO") || MOVING.iter().any(|m| compact == *m || first == *m)
     }
 
-    /// Refuses an arc (`CIRCLE`, `MOVARC`) that follows a `RAPID`: an arc
-    /// at the rapid rate has no G-code form. Checked before the arc's
-    /// numbers are read.
-    fn refuse_rapid_arc(&self, r: &ClRecord, major: &str) -> Result<(), Error> {
+    /// Refuses an arc (`CIRCLE`, `MOVARC`) under a cycle (the `GOTO` that
+    /// ends it would be a hole) or after a `RAPID` (an arc at the rapid
+    /// rate has no G-code form). Checked before the arc's numbers are read.
+    fn refuse_arc_here(&self, r: &ClRecord, major: &str) -> Result<(), Error> {
         if self.cycle.is_some() {
             return Err(self.err(r, format!("{major} while the cycle of line {} is in force (no CYCLE/OFF): the GOTO that ends the arc would be drilled as a hole; end the cycle with CYCLE/OFF before the arc", self.cycle_line)));
         }

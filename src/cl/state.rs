@@ -205,20 +205,18 @@ impl<R: BufRead> Lowered<R> {
     /// other posts write a set-up's points in its `CSYS` frame: which one
     /// a file means cannot be told, so it is refused rather than guessed.
     pub(super) fn setup_start(&mut self, r: &ClRecord, n: f64) -> Result<(), Error> {
-        let same = |a: &Option<([[f64; 3]; 3], [f64; 3])>,
-                    b: &Option<([[f64; 3]; 3], [f64; 3])>| {
-            let flat = |c: &Option<([[f64; 3]; 3], [f64; 3])>| {
-                let (m, t) = c.unwrap_or((
-                    [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-                    [0.0; 3],
-                ));
-                let mut v = m.concat();
-                v.extend_from_slice(&t);
-                v
-            };
-            flat(a)
+        // The frame as twelve numbers (no CSYS: the identity).
+        let parts = |c: &Option<SetupFrame>| -> Vec<f64> {
+            let (m, t) = c.unwrap_or((
+                [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                [0.0; 3],
+            ));
+            m.iter().flatten().chain(&t).copied().collect()
+        };
+        let same = |a: &Option<SetupFrame>, b: &Option<SetupFrame>| {
+            parts(a)
                 .iter()
-                .zip(flat(b))
+                .zip(parts(b))
                 .all(|(x, y)| (x - y).abs() <= 1e-9 * (1.0 + x.abs()))
         };
         match self.setups.iter().find(|(k, _, _)| *k == n) {
