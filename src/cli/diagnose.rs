@@ -543,8 +543,8 @@ pub fn diagnose(a: DiagnoseArgs) -> Result<()> {
         ));
     }
     let axes = machine.chain.names();
-    // A drive trace is sampled at 1 Hz or faster (a servo thread at 1 kHz,
-    // a slow logger at a few Hz); a rate far below that stretches the
+    // A drive trace is sampled at a few Hz or faster (a servo thread at
+    // 1 kHz, a slow logger at a few Hz); a rate far below that stretches the
     // trace's time, and a lag read on it becomes a backlash or an offset.
     if a.sample_rate
         .is_some_and(|r| !(r.is_finite() && (0.1..=1e7).contains(&r)))
