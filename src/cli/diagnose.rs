@@ -299,6 +299,37 @@ fn check(ok: bool, option: &str, value: f64, expected: &str) -> Result<()> {
     }
 }
 
+/// Refuses an injected effect that would never act, or a clock offset
+/// that leaves nothing of the program in the recording: an effect's
+/// `@block=N` beyond `last_block`, the program's last block that moves,
+/// and a `time_offset` (s) of `span` (s, the recording's length) or more,
+/// where every sample would show the machine before its start or after
+/// its end.
+fn check_reach(
+    effects: &[crate::geometric::effects::EffectSpec],
+    last_block: u64,
+    time_offset: f64,
+    span: f64,
+) -> Result<()> {
+    if let Some(n) = effects
+        .iter()
+        .filter_map(|e| e.from_block)
+        .find(|&n| n > last_block)
+    {
+        return Err(Error::Usage(format!(
+            "--inject …@block={n}: the program's last move is at block {last_block}, so the effect would never act; expected a block of the program"
+        )));
+    }
+    if time_offset != 0.0 && time_offset.abs() >= span {
+        return Err(Error::Usage(format!(
+            "--time-offset {}: the recording lasts {} s, and every sample would show the machine before the program starts or after it ends; expected an offset shorter than the recording",
+            shown(time_offset),
+            crate::numeric::readable(span)
+        )));
+    }
+    Ok(())
+}
+
 /// Runs `kinpost simulate`.
 pub fn simulate(a: SimulateArgs) -> Result<()> {
     super::check_outputs(
@@ -396,16 +427,26 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
         PoseStartArg::On => PoseStart::On,
         PoseStartArg::Tcp => PoseStart::Off,
     };
+    // The program is read while the recording is written: what an effect's
+    // `@block=` and the clock offset need of it (its last block, its
+    // length) is checked once it is read, and the recording is then
+    // dropped unwritten (`check_reach`).
+    // The program's blocks and the last block that moves.
     let read_program = |each: &mut dyn FnMut(&Waypoint) -> Result<()>| {
-        program_waypoints(
+        let mut last_block = 0u64;
+        let blocks = program_waypoints(
             &machine,
             &a.program,
             start,
             super::cl_units(a.units),
             a.rapid_feed,
             a.axis_tolerance.rad()?,
-            each,
-        )
+            &mut |wp: &Waypoint| {
+                last_block = last_block.max(wp.block);
+                each(wp)
+            },
+        )?;
+        Ok::<_, Error>((blocks, last_block))
     };
     let axes = machine.chain.names();
     let io = |e| Error::io("<output>", e);
@@ -432,8 +473,15 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
             let mut sink = |r: FeedbackRow| {
                 write_feedback_row(&mut *w, r.t, r.block, &r.cmd, &r.fb).map_err(io)
             };
-            let blocks = read_program(&mut |wp| sim.push(wp, &mut sink))?;
-            Ok((sim.finish(&mut sink)?, blocks))
+            let mut span = 0.0f64;
+            let mut sink = |r: FeedbackRow| {
+                span = span.max(r.t.abs());
+                sink(r)
+            };
+            let (blocks, last_block) = read_program(&mut |wp| sim.push(wp, &mut sink))?;
+            let n = sim.finish(&mut sink)?;
+            check_reach(&effects, last_block, a.time_offset, span)?;
+            Ok((n, blocks))
         })?;
         if crate::output::standard_output_closed() {
             return Ok(());
@@ -455,8 +503,9 @@ pub fn simulate(a: SimulateArgs) -> Result<()> {
             last_t = s.t;
             csv.write_sample(&mut *w, &s).map_err(io)
         };
-        let blocks = read_program(&mut |wp| sim.push(wp, &mut sink))?;
+        let (blocks, last_block) = read_program(&mut |wp| sim.push(wp, &mut sink))?;
         let n = sim.finish(&mut sink)?;
+        check_reach(&effects, last_block, a.time_offset, last_t)?;
         Ok((n, last_t, blocks))
     })?;
     if crate::output::standard_output_closed() {

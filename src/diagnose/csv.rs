@@ -33,7 +33,7 @@ impl Dialect {
     /// that a comma inside a column name of a `;`-separated file (`meas,x`)
     /// does not make every line one field.
     pub(crate) fn of_header(header: &str) -> Dialect {
-        let count = |c: u8| header.bytes().filter(|&b| b == c).count();
+        let count = |c: u8| unquoted(header).filter(|&(_, b)| b == c).count();
         let sep = [b',', b';', b'\t']
             .into_iter()
             .fold((b',', 0), |best, c| {
@@ -48,11 +48,26 @@ impl Dialect {
     }
 
     /// The fields of `line`, trimmed and without their double quotes, with
-    /// their 1-based byte columns.
+    /// their 1-based byte columns. A separator between double quotes is
+    /// part of the field (`"X, cmd"`, `"-20,25"`: RFC 4180, as spreadsheets
+    /// write a field that holds one); such a number is then refused where
+    /// it is read, as a comma in a comma-separated file is no decimal
+    /// point.
     pub(crate) fn fields<'a>(&self, line: &'a str) -> Vec<(usize, &'a str)> {
         let mut out = Vec::with_capacity(12);
         let mut start = 0;
-        for piece in line.split(self.sep as char) {
+        let mut ends = unquoted(line)
+            .filter(|&(_, b)| b == self.sep)
+            .map(|(i, _)| i)
+            .chain([line.len()]);
+        let mut from = 0;
+        let pieces = std::iter::from_fn(|| {
+            let end = ends.next()?;
+            let piece = &line[from..end];
+            from = end + 1;
+            Some(piece)
+        });
+        for piece in pieces {
             let lead = piece.len() - piece.trim_start().len();
             let mut text = piece.trim();
             let mut col = start + lead + 1;
@@ -77,6 +92,18 @@ impl Dialect {
         }
         None
     }
+}
+
+/// The bytes of `line` outside double quotes, with their indices (a
+/// doubled quote inside quotes, `""`, is one quote of the field).
+fn unquoted(line: &str) -> impl Iterator<Item = (usize, u8)> + '_ {
+    let mut quoted = false;
+    line.bytes().enumerate().filter(move |&(_, b)| {
+        if b == b'"' {
+            quoted = !quoted;
+        }
+        !quoted && b != b'"'
+    })
 }
 
 /// What a column holds, for the check of its unit.
@@ -285,6 +312,27 @@ mod tests {
         let tab = Dialect::of_header("t\tX");
         assert_eq!(tab.fields("1\t2,5"), vec![(1, "1"), (3, "2,5")]);
         assert_eq!(tab.number("2,5"), Some(2.5));
+    }
+
+    #[test]
+    fn a_separator_in_quotes_is_part_of_the_field() {
+        // A spreadsheet's comma-separated export of a German locale quotes
+        // the numbers with a decimal comma: one field each, refused as a
+        // number (a comma is no decimal point there), never split in two.
+        let c = Dialect::of_header("t,\"X, cmd\",meas_x");
+        assert_eq!(c, Dialect::of_header("t,X,meas_x"));
+        assert_eq!(
+            c.fields("0.5,\"-20,25\",3"),
+            vec![(1, "0.5"), (6, "-20,25"), (14, "3")]
+        );
+        assert_eq!(c.number("-20,25"), None);
+        assert_eq!(
+            c.fields("t,\"X, cmd\",meas_x"),
+            vec![(1, "t"), (4, "X, cmd"), (12, "meas_x")]
+        );
+        // A `;` file whose header names hold commas keeps `;`.
+        let d = Dialect::of_header("\"t, s\";\"X, mm\"");
+        assert_eq!(d.fields("1,5;2"), vec![(1, "1,5"), (5, "2")]);
     }
 
     #[test]

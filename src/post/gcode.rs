@@ -9,7 +9,9 @@ mod arc;
 mod finish;
 
 pub use super::pending::{ArcPart, Continuation, PendingPose};
-use super::position::{Lost, goes_where_not_known, loses_position, tip_known};
+use super::position::{
+    self, Lost, goes_where_not_known, loses_position, tip_known, turns_rotaries,
+};
 use super::rotary_pose::RotaryPositions;
 use super::{AxisWriter, PoseSolver, PostOptions, PostStats};
 use crate::error::{Error, Location, Result};
@@ -116,6 +118,10 @@ pub struct BlockReader<'a> {
     /// The line of a LinuxCNC subroutine's definition (`o100 sub`) while
     /// its body is read: the body runs under the modes of each call.
     in_sub: Option<usize>,
+    /// The first line of program flow outside pose mode (a jump, branch,
+    /// loop or subroutine definition): from there on no block in machine
+    /// axes is known to leave the machine where its words say.
+    flow_at: Option<usize>,
     /// The `%` that ends the program: what follows it is not read.
     tape: crate::program::tape::TapeEnd,
     warnings: Warnings,
@@ -193,6 +199,7 @@ impl<'a> GcodeConverter<'a> {
                 max_vector_deviation: 0.0,
                 ended_at: None,
                 in_sub: None,
+                flow_at: None,
                 tape: Default::default(),
                 warnings: Vec::new(),
             },
@@ -388,8 +395,11 @@ impl BlockReader<'_> {
             {
                 // `G28`, `G53 G0 Z0`, a tool change between poses: the next
                 // pose starts where the program does not say, and must give
-                // X Y Z.
+                // X Y Z (and its orientation if the rotaries went too).
                 self.lose_position();
+                if turns_rotaries(line, self.machine) {
+                    self.modal.lose_orientation(line.number);
+                }
             }
             // It may move the machine (a pass-through move, G28, a tool
             // change) or change the controlled point (G43).
@@ -651,6 +661,33 @@ impl BlockReader<'_> {
         line: &Line,
         meaning: &crate::program::BlockMeaning,
     ) -> Result<()> {
+        // Program flow (a jump, branch, loop, a subroutine's definition)
+        // outside pose mode: which of the blocks after it run, how often
+        // and from where is not known, so none of their moves is known
+        // to have left the machine where its words say.
+        if self.flow_at.is_none()
+            && (crate::program::flow::flow_statement(line).is_some()
+                || subroutine_bound(line).is_some())
+        {
+            self.flow_at = Some(line.number);
+        }
+        self.follow_words(line, meaning)?;
+        let turns = match position::not_followed(line, meaning, self.machine) {
+            Some(turns) => turns,
+            None if self.flow_at.is_some() && self.has_axis_word(line) => true,
+            None => return Ok(()),
+        };
+        self.moved_since_pose = true;
+        self.lose_position_since_start();
+        if turns {
+            self.modal.lose_orientation(line.number);
+        }
+        Ok(())
+    }
+
+    /// [`BlockReader::follow_machine_words`] of a block whose axis words
+    /// say where the machine goes.
+    fn follow_words(&mut self, line: &Line, meaning: &crate::program::BlockMeaning) -> Result<()> {
         match loses_position(line, self.new_offset) {
             // A call: its words are its arguments (`G65 P9000 A5. B20.`),
             // and it moves the machine where this file does not say.
@@ -677,8 +714,12 @@ impl BlockReader<'_> {
                 self.moved_since_pose = true;
                 // Home, machine coordinates, offsets reset: where the tool
                 // is in program coordinates is no longer known, so the
-                // next pose must give X, Y and Z.
+                // next pose must give X, Y and Z (and its orientation if
+                // the rotaries went too).
                 self.lose_position();
+                if turns_rotaries(line, self.machine) {
+                    self.modal.lose_orientation(line.number);
+                }
             }
             if g(92.0) {
                 // A new origin: the machine stays, its words change.

@@ -5,6 +5,8 @@
 
 use crate::gcode::{ItemKind, Line};
 use crate::machine::Machine;
+use crate::program::BlockMeaning;
+use crate::program::modal::Motion;
 use nalgebra::Vector3;
 
 /// How a line loses the machine's position ([`loses_position`]).
@@ -66,6 +68,65 @@ pub(super) fn loses_position(line: &Line, new_offset: bool) -> Option<Lost> {
     (m(6.0) || offset || set_offsets).then_some(Lost::Before)
 }
 
+/// Whether `line`, a block outside pose mode that kinpost passes on as
+/// it is, may leave the machine where its axis words do not say, so that
+/// the position followed through it is not known after it: what the
+/// commands that follow motion refuse in such a block (docs/programs.md)
+/// — a code not followed (`meaning.unfollowed`: a probing move, a
+/// special interpolation, a code kinpost does not know), a
+/// transformation, a value kinpost does not evaluate where an axis goes
+/// (`A#1`, `Z=R1`, `A[30]`, `Z 5 0 0`), an axis named by its number
+/// (`AX4=30`) or a path word, and a move in a motion mode that goes
+/// elsewhere than its words (a canned cycle ends at its clearance level,
+/// a tapping or threading move returns, a spline passes its points
+/// otherwise). `Some(true)` where the rotaries may have turned too (the
+/// next pose must then give its orientation besides X, Y and Z): always
+/// but for a cycle or a probing move without a rotary word of `machine`.
+pub(super) fn not_followed(line: &Line, meaning: &BlockMeaning, machine: &Machine) -> Option<bool> {
+    use crate::program::{opaque, unfollowed};
+    let rotary_word = || {
+        line.words().any(|w| {
+            machine
+                .axes
+                .iter()
+                .any(|a| a.kind == crate::machine::JointKind::Revolute && a.name == w.address)
+        })
+    };
+    let probe = line.words().any(|w| {
+        w.address == "G"
+            && [31.0, 31.1, 31.2, 31.3, 31.4, 38.2, 38.3, 38.4, 38.5].contains(&w.value)
+    });
+    if meaning.unfollowed.is_some() || unfollowed::in_line(line, None).is_some() {
+        return Some(!probe || rotary_word());
+    }
+    let axis_word = |a: &str| crate::program::modal::is_axis_address(a);
+    if meaning.motion == Motion::Other && line.words().any(|w| axis_word(&w.address)) {
+        return Some(rotary_word());
+    }
+    let unread = line
+        .items
+        .iter()
+        .enumerate()
+        .any(|(index, item)| match &item.kind {
+            ItemKind::Word(w) => {
+                unfollowed::numbered_axis(&w.address)
+                    || (unfollowed::PATH_WORDS.contains(&w.address.as_str())
+                        && !matches!(w.address.as_str(), "CR" | "AR"))
+            }
+            ItemKind::Opaque => {
+                let text = String::from_utf8_lossy(line.item_bytes(item));
+                let after_word = line.items[..index]
+                    .iter()
+                    .rev()
+                    .find(|it| it.kind != ItemKind::Space)
+                    .is_some_and(|it| matches!(it.kind, ItemKind::Word(_)));
+                opaque::unreadable_motion(text.trim(), after_word)
+            }
+            _ => false,
+        });
+    unread.then_some(true)
+}
+
 /// Whether `line` sends the machine somewhere its program coordinates do
 /// not say: home (`G28`, `G30`), machine coordinates (`G53`, Sinumerik
 /// `G153`, `SUPA`), the offsets reset (`G92.1`–`G92.3`), Fanuc's tool
@@ -91,6 +152,35 @@ pub(super) fn goes_where_not_known(line: &Line) -> bool {
                     || ((w.value == 53.0 || w.value == 153.0) && moves())
                     || ((w.value == 74.0 || w.value == 75.0) && indexed()))
         })
+}
+
+/// Whether `line`, a block that [`goes_where_not_known`], may turn the
+/// rotaries of `machine` too: it names one (`G28 G91 A0 C0`, `G53 C0`),
+/// or it is a move home without axis words (LinuxCNC's `G28` alone sends
+/// every axis home). `G28 G91 Z0` leaves the tool's orientation as it was.
+pub(super) fn turns_rotaries(line: &Line, machine: &Machine) -> bool {
+    if machine
+        .axes
+        .iter()
+        .all(|x| x.kind != crate::machine::JointKind::Revolute)
+    {
+        return false;
+    }
+    let rotary = |a: &str| {
+        machine
+            .axes
+            .iter()
+            .any(|x| x.kind == crate::machine::JointKind::Revolute && x.name == a)
+    };
+    let axis_words = line
+        .words()
+        .filter(|w| crate::program::modal::is_axis_address(&w.address))
+        .count();
+    line.words().any(|w| rotary(&w.address))
+        || (axis_words == 0
+            && line
+                .words()
+                .any(|w| w.address == "G" && [28.0, 30.0].contains(&w.value)))
 }
 
 /// The coordinates of the tool tip `tip` (at joint values `q` of `chain`,

@@ -34,8 +34,12 @@ pub fn block_words<'l>(
             ItemKind::BlockDelete => keywords.push((i, "/")),
             ItemKind::Opaque => {
                 let text = String::from_utf8_lossy(line.item_bytes(item));
-                if let Some(k) =
-                    super::opaque::known_call(&text).or_else(|| super::fagor::instruction(&text))
+                if let Some(k) = super::opaque::known_call(&text)
+                    .or_else(|| super::fagor::instruction(&text))
+                    .or_else(|| {
+                        super::frames::frame_variable(&text)
+                            .then_some(super::frames::FRAME_VARIABLE)
+                    })
                 {
                     keywords.push((i, k));
                 }

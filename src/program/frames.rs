@@ -14,8 +14,35 @@ pub const SETTING: [&str; 20] = [
     "PAROT",
 ];
 
+/// The pseudo-keyword of an assignment to a Sinumerik frame variable
+/// (`$P_PFRAME=CTRANS(X,10)`, `$P_BFRAME=…`): a frame set, as `TRANS`
+/// ([`frame_variable`]).
+pub const FRAME_VARIABLE: &str = "$P_…FRAME=";
+
+/// Whether the unparsed text `text` assigns a Sinumerik frame variable
+/// (`$P_PFRAME`, `$P_IFRAME`, `$P_BFRAME`, `$P_CHBFRAME[1]`, `$P_TOOLFRAME`,
+/// … `=`): the active frame changes, as by `TRANS` or `ROT`. (The settable
+/// frames' data, `$P_UIFR[1]=…`, change a work offset, as `G10 L2` does.)
+pub fn frame_variable(text: &str) -> bool {
+    let t = text.trim_start().to_ascii_uppercase();
+    let Some(rest) = t.strip_prefix("$P_") else {
+        return false;
+    };
+    let name_len = rest
+        .bytes()
+        .take_while(|b| b.is_ascii_alphanumeric() || *b == b'_')
+        .count();
+    let after = rest[name_len..].trim_start();
+    // An index (`[1]`) may stand between the name and the `=`.
+    let after = match after.strip_prefix('[') {
+        Some(x) => x.split_once(']').map_or("", |(_, r)| r).trim_start(),
+        None => after,
+    };
+    rest[..name_len].ends_with("FRAME") && after.starts_with('=') && !after.starts_with("==")
+}
+
 /// Why a frame in pose mode is refused.
-pub const IN_POSE_MODE: &str = "a frame (G68, G68.2–G68.4, G51 scaling, G51.1 mirroring, G16 polar coordinates, Haas G254 dynamic work offset, Fanuc G54.2 rotary table dynamic fixture offset; Sinumerik TRANS, ATRANS, ROT, AROT, SCALE, MIRROR, TOFRAME, TOROT, PAROT, CYCLE800; Fagor #CS, #ACS, #MCS, #FACE, #CYL, #TOOL AX) in pose mode is not converted: the poses must be in the machine's workpiece frame; apply the frame in the CAM system";
+pub const IN_POSE_MODE: &str = "a frame (G68, G68.2–G68.4, G51 scaling, G51.1 mirroring, G16 polar coordinates, Haas G254 dynamic work offset, Fanuc G54.2 rotary table dynamic fixture offset; Sinumerik TRANS, ATRANS, ROT, AROT, SCALE, MIRROR, TOFRAME, TOROT, PAROT, CYCLE800, G58/G59 with axis words, $P_PFRAME= and the other frame variables; Fagor #CS, #ACS, #MCS, #FACE, #CYL, #TOOL AX) in pose mode is not converted: the poses must be in the machine's workpiece frame; apply the frame in the CAM system";
 
 /// Why pose mode may not start under a frame set earlier.
 /// What a command that follows the machine's axes (`simulate`, `analyze
@@ -37,7 +64,7 @@ pub fn frame_since(frame_seen: bool, since: Option<usize>, line: usize) -> Optio
 pub const GCODE_FRAMES: &str =
     "a frame (G68 rotation, G51 scaling, G51.1 mirroring, G16 polar coordinates, G254, G54.2)";
 
-pub const AT_POSE_START: &str = "pose mode starts while a frame set earlier in the program (G68…, G51, G51.1, G16, G254, G54.2 P1–P8, TRANS, ROT, AROT, SCALE, MIRROR, TOFRAME, TOROT, PAROT, CYCLE800, Fagor #CS, #ACS, #MCS, #FACE, #CYL, #TOOL AX) is active: the controller would move kinpost's machine axis words by it; cancel the frame before, or apply it in the CAM system";
+pub const AT_POSE_START: &str = "pose mode starts while a frame set earlier in the program (G68…, G51, G51.1, G16, G254, G54.2 P1–P8, TRANS, ROT, AROT, SCALE, MIRROR, TOFRAME, TOROT, PAROT, CYCLE800, $P_PFRAME= and the other frame variables, Fagor #CS, #ACS, #MCS, #FACE, #CYL, #TOOL AX) is active: the controller would move kinpost's machine axis words by it; cancel the frame before, or apply it in the CAM system";
 
 /// What a keyword of a block does to the programmable frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -100,7 +127,7 @@ pub fn change(keyword: &str, values: FrameValues) -> Option<FrameChange> {
         "TRANS" | "ROT" | "SCALE" if identity => Some(FrameChange::Delete),
         "ATRANS" | "AROT" | "ASCALE" if identity => Some(FrameChange::Keep),
         "TOROTOF" | "PAROTOF" | "CYCLE800()" => Some(FrameChange::Delete),
-        "CYCLE800" | super::fagor::FRAME_ON => Some(FrameChange::Set),
+        "CYCLE800" | super::fagor::FRAME_ON | FRAME_VARIABLE => Some(FrameChange::Set),
         super::fagor::FRAME_OFF => Some(FrameChange::Delete),
         k if SETTING.contains(&k) => Some(FrameChange::Set),
         _ => None,
@@ -121,6 +148,28 @@ mod tests {
         assert_eq!(change("TOFRAME", of(&[])), Some(FrameChange::Set));
         assert_eq!(change("TOROTOF", of(&[])), Some(FrameChange::Delete));
         assert_eq!(change("TRAORI", of(&[])), None);
+        assert_eq!(change(FRAME_VARIABLE, of(&[])), Some(FrameChange::Set));
+    }
+
+    #[test]
+    fn frame_variables_are_told_from_other_assignments() {
+        for t in [
+            "$P_PFRAME=CTRANS(X,10)",
+            " $p_pframe = crot(z,30)",
+            "$P_CHBFRAME[1]=CTRANS(Z,5)",
+            "$P_TOOLFRAME=CROT(Y,90)",
+        ] {
+            assert!(frame_variable(t), "{t}");
+        }
+        for t in [
+            "$P_UIFR[1]=CTRANS(X,10)",
+            "R1=$P_PFRAME",
+            "IF $P_PFRAME==CTRANS()",
+            "$P_PFRAME==x",
+            "$AA_IM[X]=1",
+        ] {
+            assert!(!frame_variable(t), "{t}");
+        }
     }
 
     #[test]

@@ -33,7 +33,9 @@ pub use super::tool_vector::{QUIET_NORMALISATION, TOOL_VECTOR_TOLERANCE};
 use super::unfollowed;
 use nalgebra::Vector3;
 
+mod meaning;
 mod modes;
+pub use meaning::{BlockError, BlockMeaning, POSE_ITEMS_INLINE, PoseItems, TcpCode};
 pub use modes::{FeedMode, Motion, PoseStart, Units};
 
 /// One word of a block, as the modal state needs it.
@@ -50,81 +52,6 @@ pub struct WordRef<'a> {
 /// The (address, value) pairs of `words`, as `program::ijk` reads them.
 fn pairs<'a>(words: &'a [WordRef<'a>]) -> impl ijk::Words<'a> {
     words.iter().map(|w| (w.address, w.value))
-}
-
-/// A TCP code in the block that the emitter must rewrite.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum TcpCode {
-    /// `G43.4` or `G43.5` (word item index).
-    FanucOn(usize),
-    /// `TRAORI` keyword (keyword item index).
-    SiemensOn(usize),
-}
-
-/// Pose words a block's [`BlockMeaning::pose_items`] holds without
-/// allocating: one of each of the nine pose addresses.
-pub const POSE_ITEMS_INLINE: usize = 9;
-
-/// The item indices of a block's pose words.
-pub type PoseItems = smallvec::SmallVec<[usize; POSE_ITEMS_INLINE]>;
-
-/// What one block means.
-#[derive(Debug, Clone, PartialEq)]
-pub struct BlockMeaning {
-    /// The tool pose this block commands (tip in mm, unit axis), if it is a pose block.
-    pub pose: Option<(Vector3<f64>, Vector3<f64>)>,
-    /// Items of the words that describe the pose (X Y Z I J K A3 B3 C3), to
-    /// be replaced, in order (inline up to [`POSE_ITEMS_INLINE`]).
-    pub pose_items: PoseItems,
-    /// `Some` when the pose's tool orientation is given by rotary axis
-    /// positions rather than a tool vector: the block's rotary words (the
-    /// other rotary axes keep their positions). The pose's axis is then
-    /// not the tool axis: the machine's chain gives it at those positions
-    /// (`post`). Their items are in [`BlockMeaning::pose_items`].
-    pub rotaries: Option<RotaryWords>,
-    /// TCP-on codes to be rewritten to their machine-coordinate equivalent.
-    pub tcp_codes: Vec<TcpCode>,
-    /// Item of the `H` (or `D`) word that goes with a Fanuc TCP code, dropped with it.
-    pub tcp_offset_items: Vec<usize>,
-    /// Motion mode in force for this block.
-    pub motion: Motion,
-    /// Feed mode in force.
-    pub feed_mode: FeedMode,
-    /// Units in force.
-    pub units: Units,
-    /// Units of the feed `F` (per minute or per revolution): those of the
-    /// lengths, except that Sinumerik's `G70`/`G71` switch the lengths
-    /// alone and leave F in the control's basic system, taken as metric
-    /// (`G700`/`G710` switch both).
-    pub feed_units: Units,
-    /// Absolute (`G90`) or incremental (`G91`).
-    pub absolute: bool,
-    /// Feed in force (program units per minute, or 1/min in G93), if any.
-    pub feed: Option<f64>,
-    /// Item index of an `F` word in this block, if any.
-    pub feed_item: Option<usize>,
-    /// Warnings (e.g. a tool vector normalised).
-    pub warnings: Vec<String>,
-    /// How far the programmed tool vector's length was from 1 (0 when it
-    /// was not given or exactly 1); normalised quietly up to
-    /// [`QUIET_NORMALISATION`], with a warning beyond.
-    pub vector_deviation: f64,
-    /// A non-modal block (`G4`, `G10`, `G28`, `G30`, `G52`, `G53`, `G92`, a
-    /// frame, a pole): its axis words are not a move in program
-    /// coordinates.
-    pub non_modal: bool,
-    /// A code or transformation kinpost does not follow (outside pose
-    /// mode; in it the block is refused): its item and what it does.
-    pub unfollowed: Option<(usize, String)>,
-}
-
-/// A problem with a block: message and the item it concerns.
-#[derive(Debug, Clone, PartialEq)]
-pub struct BlockError {
-    /// Item index the problem concerns, if one.
-    pub item: Option<usize>,
-    /// What is wrong and what was expected.
-    pub message: String,
 }
 
 /// The modal state of a program.
@@ -152,6 +79,11 @@ pub struct ModalState {
     /// the controller, where it would move the machine axis words kinpost
     /// writes, so pose mode may not start after it.
     pub frame_seen: bool,
+    /// A keyword only Sinumerik has (`TRAORI`, `TRAFOOF`, `ORIWKS`,
+    /// `ORIMKS`, a frame statement) came: `G58`/`G59` with axis words are
+    /// then its programmable frame's translation, not Fanuc's fifth and
+    /// sixth work offsets.
+    pub sinumerik: bool,
     /// A shift of the program's coordinates (`G52` with an offset other
     /// than 0, `G92`) is on, until `G52` with offsets 0 or `G92.1`/`G92.2`:
     /// it would move kinpost's linear axis words, so pose mode may not
@@ -175,6 +107,10 @@ pub struct ModalState {
     /// Whether the program has set the tool axis (else it is (0, 0, 1) or
     /// seeded from the machine position).
     pub axis_set: bool,
+    /// The tool axis is not known since this line: the machine went where
+    /// the program does not say ([`ModalState::lose_position`]) since the
+    /// axis was set or seeded, and a pose must give its orientation.
+    pub axis_lost: Option<usize>,
     /// The TCP code in force orients the tool by rotary axis positions
     /// (Fanuc `G43.4` type 1, Haas `G234`, Sinumerik `TRAORI`): `A B C`
     /// words in pose mode are the rotary axes' positions. Not under
@@ -224,6 +160,7 @@ impl ModalState {
             pose_mode: start == PoseStart::On,
             fanuc_tcp: false,
             frame_seen: false,
+            sinumerik: false,
             shift_seen: false,
             interpolation_mode: false,
             cutter_comp: false,
@@ -231,6 +168,7 @@ impl ModalState {
             tip: [None; 3],
             axis: Vector3::z(),
             axis_set: false,
+            axis_lost: None,
             tcp_rotaries: false,
             rotary_orientation: false,
             work_offset: None,
@@ -248,7 +186,16 @@ impl ModalState {
         self.tip = [Some(tip.x), Some(tip.y), Some(tip.z)];
         self.axis = axis;
         self.axis_set = false;
+        self.axis_lost = None;
         self.skippable.reset();
+    }
+
+    /// How the tool is oriented is no longer known after line `at` (a
+    /// move kinpost does not follow, a move home of the rotaries): a pose
+    /// must give its orientation. The first such line since the
+    /// orientation was last known is kept, to be named.
+    pub fn lose_orientation(&mut self, at: usize) {
+        self.axis_lost.get_or_insert(at);
     }
 
     /// Applies one block and says what it means. `keywords` are the bare
@@ -407,6 +354,14 @@ impl ModalState {
                             }
                             setup = setup.or(Some((w.item, "changes the coordinate system the poses are given in (G10, G52, G92)")));
                         }
+                        // Sinumerik G58/G59 X…: the programmable frame's
+                        // translation replaced or added to, as by `TRANS`.
+                        580 | 590
+                            if self.sinumerik
+                                && words.iter().any(|o| is_axis_address(o.address)) =>
+                        {
+                            frame = Some(w.item)
+                        }
                         // G54.1 P (Fanuc), G154 P (Haas): more work offsets.
                         540..=590 | 591..=593 | 1540 | 5000..=5990 => {
                             let p = (code == 541 || code == 1540)
@@ -446,6 +401,9 @@ impl ModalState {
                         }
                     }
                 }
+                // Sinumerik `G4 F2`: a dwell of 2 s, and the feed in
+                // force stays.
+                "F" if words.iter().any(|o| o.address == "G" && o.value == 4.0) => {}
                 "F" => {
                     self.feed = Some(w.value);
                     feed_item = Some(w.item);
@@ -478,6 +436,12 @@ impl ModalState {
             frames::values(words.iter().map(|w| (w.address, w.value)))
         };
         for (item, k) in keywords {
+            if matches!(*k, "TRAORI" | "TRAORI(…)" | "TRAFOOF" | "ORIWKS" | "ORIMKS")
+                || frames::SETTING.contains(k)
+                || *k == frames::FRAME_VARIABLE
+            {
+                self.sinumerik = true;
+            }
             match *k {
                 "TRAORI" => {
                     self.pose_mode = true;
@@ -549,6 +513,11 @@ impl ModalState {
         // A new work offset in pose mode before its first pose is as one
         // set before TCP was switched on; after a pose it would move the
         // later ones.
+        // A new work offset in the first pose's block: the coordinates
+        // the block does not give are not known in it.
+        if offset_change.is_some() && self.pose_mode {
+            self.tip = [None; 3];
+        }
         if let Some(item) = offset_change
             && self.posed
         {
@@ -922,6 +891,22 @@ impl ModalState {
                     ),
                 });
             }
+        }
+        // After a move that may have turned the rotaries, the orientation
+        // must be given.
+        let oriented = has_rotary || axis_given.iter().any(|g| *g);
+        if let Some(at) = self.axis_lost
+            && !oriented
+        {
+            return Err(BlockError {
+                item: meaning.pose_items.first().copied(),
+                message: format!(
+                    "the tool orientation is not known here: line {at} left the machine where the program's coordinates do not say (a move kinpost does not follow or cannot read, home, machine coordinates, program flow before it), and where the rotaries stand is not known; give the tool vector (I J K, A3 B3 C3) or, under G43.4, G234 and TRAORI, the rotary positions in this pose"
+                ),
+            });
+        }
+        if oriented {
+            self.axis_lost = None;
         }
         let axis_item = words.iter().find(|w| is_axis(w.address)).map(|w| w.item);
         let (unit, norm) =

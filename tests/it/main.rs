@@ -98,5 +98,6 @@ mod twelfth_hunt;
 mod twentieth_hunt;
 mod twenty_first_hunt;
 mod twenty_second_hunt;
+mod twenty_third_hunt_programs;
 mod valid_jobs;
 mod wrapped_rotary;
