@@ -98,6 +98,7 @@ mod twelfth_hunt;
 mod twentieth_hunt;
 mod twenty_first_hunt;
 mod twenty_second_hunt;
+mod twenty_third_hunt;
 mod twenty_third_hunt_programs;
 mod valid_jobs;
 mod wrapped_rotary;

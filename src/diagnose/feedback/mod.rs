@@ -484,6 +484,9 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
     let mut findings = Vec::new();
     let mut rejected = Vec::new();
     let mut axes = Vec::new();
+    // Per axis: the standard deviation of χ² per sample when the residual
+    // is noise (for the verdict).
+    let mut chi_sds = Vec::new();
     let (mut lin_before, mut lin_after, mut lin_hb, mut lin_ha, mut lin_floor, mut lin_n) =
         (0.0, 0.0, 0.0, 0.0, 0.0, 0usize);
     for k in 0..n_ax {
@@ -640,6 +643,9 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
                 (d.t[i], d.e[i], d.e[i] - model)
             })
             .collect();
+        let qf = res_fb[k].unwrap_or(0.0);
+        let qc = res_cmd[k].unwrap_or(0.0);
+        chi_sds.push(chi_sd(d, qf.max(qc), (qf * qf + qc * qc) / 12.0, sigma[k]));
         axes.push(AxisSummary {
             axis: rec.axes[k].clone(),
             unit: if rec.rotary[k] { "deg" } else { "mm" }.into(),
@@ -735,10 +741,12 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
     }
     let above: Vec<String> = axes
         .iter()
-        .filter(|a| {
+        .zip(&chi_sds)
+        .filter(|(a, sd)| {
             let chi = (a.rms_after / a.noise_floor).powi(2);
-            chi > 1.1 && (chi - 1.0) * (used as f64 / 2.0).sqrt() > 4.0
+            chi > 1.1 && chi - 1.0 > 4.0 * **sd
         })
+        .map(|(a, _)| a)
         .map(|a| a.axis.clone())
         .collect();
     let verdict = if findings.is_empty() {
@@ -781,6 +789,44 @@ pub fn diagnose_feedback(rec: &FeedbackRecording, opts: &DiagOptions) -> Result<
         rejected,
         verdict,
     })
+}
+
+/// The standard deviation of χ² per sample (the mean of `e²/σ²`) of axis
+/// `d`'s kept residual when it is noise of floor `sigma`, of which the
+/// variance `frozen` is the rounding of the values (feedback and command,
+/// `step` the coarser step). White noise gives `2/n`. A rounding error is
+/// no fresh draw at every sample: while the axis stands, or creeps by less
+/// than a step, it stays what it was, so a run of samples within one step
+/// of its first holds one draw of a uniform error (its square has a
+/// relative variance of 0.8), counted with the run's length. A trace in
+/// whole encoder counts whose axes rest for seconds at a time has a few
+/// hundred such draws, not tens of thousands of samples, and its χ² spreads
+/// accordingly (a B axis at 0.001 deg, noise-free, resting at 168
+/// effective positions: χ² 1.12, within its 4 standard deviations of
+/// 0.28; it was an "unexplained mismatch").
+fn chi_sd(d: &AxisData, step: f64, frozen: f64, sigma: f64) -> f64 {
+    let kept: Vec<usize> = (0..d.t.len()).filter(|&i| d.keep[i]).collect();
+    let n = kept.len().max(1) as f64;
+    let rho = (frozen / (sigma * sigma).max(1e-300)).clamp(0.0, 1.0);
+    // Σ L² / (Σ L)² over the runs of samples sharing one rounding error.
+    let mut sum_sq = 0.0;
+    let mut run = 0.0;
+    let mut start: Option<f64> = None;
+    for &i in &kept {
+        match start {
+            Some(q0) if step > 0.0 && (d.q[i] - q0).abs() < step => run += 1.0,
+            _ => {
+                sum_sq += run * run;
+                run = 1.0;
+                start = Some(d.q[i]);
+            }
+        }
+    }
+    sum_sq += run * run;
+    let share = sum_sq / (n * n);
+    let var = (2.0 * (1.0 - rho).powi(2) + 4.0 * rho * (1.0 - rho)) / n + 0.8 * rho * rho * share;
+    // Never below white noise's (the floor is itself an estimate).
+    var.max(2.0 / n).sqrt()
 }
 
 /// The command `y(t)` at `tt` (within `t`): [`monotone_hermite`].
