@@ -533,7 +533,16 @@ pub fn diagnose(
     // 2.0 rather than 1.34; a clean 30-sample trace had been an
     // "unexplained mismatch" at χ = 1.42).
     let above = |chi: f64| chi > 1.1 && (chi - 1.0) > 4.0 * ((1.0 / 1.5 + 5.4) / n_rows).sqrt();
-    let unexplained = if above(chi_after) {
+    // A residual white and steady in time is noise whatever its tails,
+    // which the robust floor reads low (`unexplained::white_level`): the
+    // RMS its first differences give, then.
+    let white = |r: &[[f64; 3]]| {
+        unexplained::white_level(r)
+            .filter(|(v, steady)| *steady && !above(rms(r).powi(2) / v))
+            .map(|(v, _)| v.sqrt())
+    };
+    let beyond = |r: &[[f64; 3]], chi: f64| above(chi) && white(r).is_none();
+    let unexplained = if beyond(&after, chi_after) {
         unexplained::unexplained(&prep, &after, sigma, &locate.windows)
     } else {
         None
@@ -543,18 +552,25 @@ pub fn diagnose(
         .map_or(String::new(), |u| format!(": it shows {}", u.condition));
     // The residual the machine effects are judged on: after the
     // measurement faults fitted with them (a registration, a wander).
-    let (chi_physics, rms_physics) = if measurement.iter().any(|m| {
+    let (chi_physics, rms_physics, r_physics) = if measurement.iter().any(|m| {
         matches!(
             m.effect.as_str(),
             "registration" | "registration_step" | "wander"
         )
     }) {
-        (chi_after, rms_after)
+        (chi_after, rms_after, &after)
     } else {
-        (chi_before, rms_before)
+        (chi_before, rms_before, &prep.r)
     };
     let verdict = if findings.is_empty() {
-        if !above(chi_physics) {
+        if let Some(w) = white(r_physics).filter(|_| above(chi_physics)) {
+            format!(
+                "consistent with measurement noise{faults}: the residual RMS {:.3} µm is above the robust noise floor {:.3} µm, but white and steady in time (its first differences give {:.3} µm): noise with heavier tails than a normal distribution's; no missing physics found",
+                rms_physics * 1e3,
+                sigma * 1e3,
+                w * 1e3
+            )
+        } else if !above(chi_physics) {
             format!(
                 "consistent with measurement noise{faults}: the residual RMS {:.3} µm is at the noise floor {:.3} µm; no missing physics found",
                 rms_physics * 1e3,
@@ -580,7 +596,7 @@ pub fn diagnose(
                 )
             })
             .collect();
-        let rest = if above(chi_after) {
+        let rest = if beyond(&after, chi_after) {
             format!(
                 "; a mismatch above the noise remains (RMS {:.3} µm vs floor {:.3} µm){where_text}",
                 rms_after * 1e3,
