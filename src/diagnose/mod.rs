@@ -127,6 +127,10 @@ pub fn diagnose(
         ));
     }
     let machine = ModelMachine::new(chain, errors)?;
+    // Commands forward-filled from a slower stream: only the rows where
+    // they were sampled.
+    let held = untidy::held_commands(rec);
+    let rec = held.as_ref().map_or(rec, |h| &h.rec);
     // Stamps rounded or jittered off the fixed rate the samples were taken
     // at: the samples are placed at the rate's times.
     let regular = untidy::regular_clock(rec);
@@ -662,6 +666,7 @@ pub fn diagnose(
         measurement,
         gaps: untidy::gaps_finding(original),
         time_stamps: regular.as_ref().map(untidy::RegularClock::note),
+        held_commands: held.as_ref().map(untidy::HeldCommands::note),
         samples_used: prep.n,
         // Rounding far below the noise (an export with many decimals) is
         // not worth a line.

@@ -339,6 +339,12 @@ pub struct Report {
     /// stray), and the clock's times were used: reported, not a finding.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub time_stamps: Option<MeasurementFinding>,
+    /// Where the commands were forward-filled from a slower stream
+    /// (`held_commands`: rows per command sample, its period, rows left
+    /// out), and only the rows where they were sampled were fitted:
+    /// reported, not a finding.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub held_commands: Option<MeasurementFinding>,
     /// Samples the machine effects were fitted on (without outliers and
     /// the ends a clock offset leaves without a command).
     pub samples_used: usize,
@@ -499,6 +505,12 @@ impl Report {
         if let Some(g) = &self.gaps {
             s.push_str(&format!(
                 "  gaps in the recording, not machine physics: {}\n",
+                g.where_.condition
+            ));
+        }
+        if let Some(g) = &self.held_commands {
+            s.push_str(&format!(
+                "  commands held over several rows, not machine physics: {}\n",
                 g.where_.condition
             ));
         }

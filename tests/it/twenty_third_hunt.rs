@@ -114,3 +114,55 @@ fn heavy_tailed_noise_is_noise() {
         assert!(text.contains("white and steady in time"), "{seed}: {text}");
     }
 }
+
+/// Every line of a recording with its command columns (block and axes)
+/// held over `every` rows, as a logger forward-fills a slower stream.
+fn hold_commands(every: usize) -> impl FnMut(usize, &str) -> String {
+    let mut held: Vec<String> = Vec::new();
+    move |i, l| {
+        if i == 0 {
+            return l.to_string();
+        }
+        let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
+        let cmd = 1..f.len() - 3;
+        if (i - 1) % every == 0 {
+            held = f[cmd.clone()].to_vec();
+        } else {
+            f[cmd].clone_from_slice(&held);
+        }
+        f.join(",")
+    }
+}
+
+/// A controller's trace merged onto a tracker's stream five times as
+/// fast, the commands forward-filled between their samples: the stale
+/// rows lag the measured tip by up to 80 ms of motion, and `diagnose`
+/// claimed a vibration of Z (384 µm) beside 475 outliers. The rows
+/// between the commands' samples are told apart now (the commands change
+/// only every 5th row, and at rest after whole multiples of 5) and left
+/// out: no finding, the held commands named; a backlash under them found.
+#[test]
+fn commands_held_over_rows_are_named_not_a_vibration() {
+    let opts = ["--sample-interval", "0.02"];
+    let text = diagnose_edited(&opts, &mut hold_commands(5));
+    assert!(
+        text.contains("commands held over several rows, not machine physics: the commands change only every 5 rows (every 100.000 ms)"),
+        "{text}"
+    );
+    assert!(!text.contains("vibration"), "{text}");
+    assert!(
+        text.contains("verdict: consistent with measurement noise"),
+        "{text}"
+    );
+    let mut with_backlash = opts.to_vec();
+    with_backlash.extend(["--inject", "backlash:X=0.004"]);
+    let text = diagnose_edited(&with_backlash, &mut hold_commands(5));
+    assert!(text.contains("commands held over several rows"), "{text}");
+    assert!(
+        text.contains("verdict: missing physics found: backlash of X; held-out RMS"),
+        "{text}"
+    );
+    // Commands recorded at every row are not held.
+    let text = diagnose_edited(&opts, &mut hold_commands(1));
+    assert!(!text.contains("commands held"), "{text}");
+}

@@ -15,13 +15,15 @@
 //!   measured tip, weighed among the machine effects;
 //! * [`wander`](mod@wander): a slow wander of the measured tip with time,
 //!   weighed alike;
-//! * [`stamps`]: time stamps rounded or jittered off a regular clock.
+//! * [`stamps`]: time stamps rounded or jittered off a regular clock;
+//! * [`held`]: commands forward-filled from a slower stream.
 
 // Numerical code: several parallel arrays are indexed by one counter.
 #![allow(clippy::needless_range_loop)]
 
 pub mod align;
 pub mod coarse;
+pub mod held;
 pub mod offset;
 pub mod outliers;
 pub mod rate;
@@ -33,6 +35,7 @@ pub mod wander;
 use std::collections::BTreeMap;
 
 pub use align::{Aligned, Clock, align, align_clock, monotone_hermite, without};
+pub use held::{HeldCommands, held_commands};
 pub use offset::{LOOSE, OffsetEstimate, STRICT, Tolerance, clock_offset};
 pub use outliers::{
     OUTLIER_SIGMAS, are_faults, beyond_chance_at_reversals, departure, flag_in_passes,
