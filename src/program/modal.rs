@@ -108,7 +108,7 @@ pub struct ModalState {
     /// seeded from the machine position).
     pub axis_set: bool,
     /// The tool axis is not known since this line: the machine went where
-    /// the program does not say ([`ModalState::lose_position`]) since the
+    /// the program does not say ([`ModalState::lose_orientation`]) since the
     /// axis was set or seeded, and a pose must give its orientation.
     pub axis_lost: Option<usize>,
     /// The TCP code in force orients the tool by rotary axis positions
