@@ -118,9 +118,9 @@ pub struct BlockReader<'a> {
     /// The line of a LinuxCNC subroutine's definition (`o100 sub`) while
     /// its body is read: the body runs under the modes of each call.
     in_sub: Option<usize>,
-    /// The first line of program flow outside pose mode (a jump, branch,
-    /// loop or subroutine definition): from there on no block in machine
-    /// axes is known to leave the machine where its words say.
+    /// The first line of program flow outside pose mode (a jump, branch
+    /// or loop): from there on no block in machine axes is known to leave
+    /// the machine where its words say.
     flow_at: Option<usize>,
     /// The `%` that ends the program: what follows it is not read.
     tape: crate::program::tape::TapeEnd,
@@ -661,14 +661,17 @@ impl BlockReader<'_> {
         line: &Line,
         meaning: &crate::program::BlockMeaning,
     ) -> Result<()> {
-        // Program flow (a jump, branch, loop, a subroutine's definition)
-        // outside pose mode: which of the blocks after it run, how often
-        // and from where is not known, so none of their moves is known
-        // to have left the machine where its words say.
-        if self.flow_at.is_none()
-            && (crate::program::flow::flow_statement(line).is_some()
-                || subroutine_bound(line).is_some())
-        {
+        // A LinuxCNC subroutine's definition (`o100 sub` … `o100 endsub`)
+        // does not run where it stands: its moves are not followed (a call
+        // of it loses the position, as any call does).
+        if self.in_sub.is_some() || subroutine_bound(line).is_some() {
+            return Ok(());
+        }
+        // Program flow (a jump, branch, loop) outside pose mode: which of
+        // the blocks after it run, how often and from where is not known,
+        // so none of their moves is known to have left the machine where
+        // its words say.
+        if self.flow_at.is_none() && crate::program::flow::flow_statement(line).is_some() {
             self.flow_at = Some(line.number);
         }
         self.follow_words(line, meaning)?;
