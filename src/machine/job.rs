@@ -62,6 +62,9 @@ impl ToolTable {
             file: file.to_string(),
             tools: BTreeMap::new(),
         };
+        // A Windows editor's byte-order mark, as machine files and error
+        // tables accept it.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         for (i, raw) in text.lines().enumerate() {
             let line = i + 1;
             let content = raw.split(';').next().unwrap_or("");
@@ -87,8 +90,10 @@ impl ToolTable {
                 while k < bytes.len() && !bytes[k].is_ascii_whitespace() {
                     k += 1;
                 }
-                let value_text = &content[start + 1..k];
-                if !"TPZDXYUVWABCIJQ".contains(letter) || !letter.is_ascii_alphabetic() {
+                // A word starts with an ASCII letter (checked before its
+                // value is cut after that letter: `Ø6mm` starts with a
+                // two-byte character).
+                if !bytes[start].is_ascii_alphabetic() || !"TPZDXYUVWABCIJQ".contains(letter) {
                     return Err(err(
                         start + 1,
                         format!(
@@ -104,6 +109,7 @@ impl ToolTable {
                     ));
                 }
                 seen.push(letter);
+                let value_text = &content[start + 1..k];
                 let value: f64 = value_text
                     .parse()
                     .ok()
@@ -428,5 +434,28 @@ mod tests {
         assert!(e.to_string().contains("without a T word"));
         let e = ToolTable::parse("T1 G1\n", "t.tbl", 1.0).unwrap_err();
         assert!(e.to_string().contains("t.tbl:1:4"), "{e}");
+    }
+
+    /// A byte-order mark, and a word that starts with a character of more
+    /// than one byte (`Ø6mm`, a non-breaking space), panicked: the value
+    /// was cut inside the character (session 39).
+    #[test]
+    fn a_byte_order_mark_passes_and_other_characters_are_refused() {
+        let t = ToolTable::parse("\u{feff}T1 P1 Z+50.000 D6 ;end mill\n", "t.tbl", 1.0).unwrap();
+        assert_eq!(t.tools[&1].length_mm, 50.0);
+        let t = ToolTable::parse("\u{feff};tools\nT2 Z5\n", "t.tbl", 1.0).unwrap();
+        assert_eq!(t.tools[&2].length_mm, 5.0);
+        for (text, col) in [
+            ("T1 P1 Z+50.000 D6 Ø6mm endmill\n", "t.tbl:1:19"),
+            ("T1 \u{a0}Z5\n", "t.tbl:1:4"),
+        ] {
+            let e = ToolTable::parse(text, "t.tbl", 1.0)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains(col) && e.contains("not a tool-table word"),
+                "{e}"
+            );
+        }
     }
 }

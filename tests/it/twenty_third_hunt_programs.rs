@@ -342,3 +342,34 @@ fn a_quoted_field_with_a_comma_is_one_field() {
         "{err}"
     );
 }
+
+/// The positioning column of a rotary (`EAA`, `EBB`, `ECC`) is εx, εy or
+/// εz in the joint's frame (`kinematics.md`), not a turn about the axis in
+/// the sense the machine file gives it: on a table axis written `[0, 0,
+/// -1]` (zhao2022's C) a positive value turns the table less, and the
+/// compensation adds it; on B (`[0, 1, 0]`) a positive value turns it
+/// more, and the compensation takes it off. `docs/error-tables.md` said
+/// "reached minus target" for every axis; it now says how the sign goes
+/// with the axis's direction. This test keeps the convention.
+#[test]
+fn a_rotary_positioning_error_is_a_turn_about_the_frames_axis() {
+    let table = "C,ECC[arcsec]\n0,36\n180,36\n360,36\nB,EBB[arcsec]\n-90,36\n90,36\n";
+    let dir = tempfile::tempdir().unwrap();
+    let t = dir.path().join("t.csv");
+    std::fs::write(&t, table).unwrap();
+    let out = std::process::Command::new(crate::util::BIN)
+        .env("KINPOST_CACHE_DIR", "off")
+        .args(["compensate", "-m", "zhao2022-xzbc", "-e"])
+        .arg(&t)
+        .arg(crate::util::repo_file("fixtures/programs/zhao2022-lens.nc"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    // 36″ = 174.5329 µrad.
+    assert!(err.contains("compensation B: -174.53"), "{err}");
+    assert!(
+        err.contains("compensation C: 174.5329 … 174.5329 µrad"),
+        "{err}"
+    );
+}
