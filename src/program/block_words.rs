@@ -36,10 +36,7 @@ pub fn block_words<'l>(
                 let text = String::from_utf8_lossy(line.item_bytes(item));
                 if let Some(k) = super::opaque::known_call(&text)
                     .or_else(|| super::fagor::instruction(&text))
-                    .or_else(|| {
-                        super::frames::frame_variable(&text)
-                            .then_some(super::frames::FRAME_VARIABLE)
-                    })
+                    .or_else(|| super::frames::frame_variable(&text))
                 {
                     keywords.push((i, k));
                 }

@@ -19,15 +19,18 @@ pub const SETTING: [&str; 20] = [
 /// ([`frame_variable`]).
 pub const FRAME_VARIABLE: &str = "$P_…FRAME=";
 
+/// The pseudo-keyword of an assignment of the null frame to a Sinumerik
+/// frame variable (`$P_PFRAME=CTRANS()`): the frame deleted, as by
+/// `TRANS` alone ([`frame_variable`]).
+pub const NULL_FRAME_VARIABLE: &str = "$P_…FRAME=C…()";
+
 /// Whether the unparsed text `text` assigns a Sinumerik frame variable
 /// (`$P_PFRAME`, `$P_IFRAME`, `$P_BFRAME`, `$P_CHBFRAME[1]`, `$P_TOOLFRAME`,
 /// … `=`): the active frame changes, as by `TRANS` or `ROT`. (The settable
 /// frames' data, `$P_UIFR[1]=…`, change a work offset, as `G10 L2` does.)
-pub fn frame_variable(text: &str) -> bool {
+pub fn frame_variable(text: &str) -> Option<&'static str> {
     let t = text.trim_start().to_ascii_uppercase();
-    let Some(rest) = t.strip_prefix("$P_") else {
-        return false;
-    };
+    let rest = t.strip_prefix("$P_")?;
     let name_len = rest
         .bytes()
         .take_while(|b| b.is_ascii_alphanumeric() || *b == b'_')
@@ -38,7 +41,22 @@ pub fn frame_variable(text: &str) -> bool {
         Some(x) => x.split_once(']').map_or("", |(_, r)| r).trim_start(),
         None => after,
     };
-    rest[..name_len].ends_with("FRAME") && after.starts_with('=') && !after.starts_with("==")
+    if !rest[..name_len].ends_with("FRAME") || !after.starts_with('=') || after.starts_with("==") {
+        return None;
+    }
+    // `CTRANS()`, `CROT()`, `CSCALE()`, `CMIRROR()` without arguments: the
+    // null frame.
+    let value: String = after[1..].chars().filter(|c| !c.is_whitespace()).collect();
+    let null = value.starts_with('C')
+        && value.ends_with("()")
+        && value[1..value.len() - 2]
+            .bytes()
+            .all(|b| b.is_ascii_alphabetic());
+    Some(if null {
+        NULL_FRAME_VARIABLE
+    } else {
+        FRAME_VARIABLE
+    })
 }
 
 /// Why a frame in pose mode is refused.
@@ -126,7 +144,7 @@ pub fn change(keyword: &str, values: FrameValues) -> Option<FrameChange> {
         "TRANS" | "ROT" | "SCALE" | "MIRROR" if !values.any => Some(FrameChange::Delete),
         "TRANS" | "ROT" | "SCALE" if identity => Some(FrameChange::Delete),
         "ATRANS" | "AROT" | "ASCALE" if identity => Some(FrameChange::Keep),
-        "TOROTOF" | "PAROTOF" | "CYCLE800()" => Some(FrameChange::Delete),
+        "TOROTOF" | "PAROTOF" | "CYCLE800()" | NULL_FRAME_VARIABLE => Some(FrameChange::Delete),
         "CYCLE800" | super::fagor::FRAME_ON | FRAME_VARIABLE => Some(FrameChange::Set),
         super::fagor::FRAME_OFF => Some(FrameChange::Delete),
         k if SETTING.contains(&k) => Some(FrameChange::Set),
@@ -159,7 +177,10 @@ mod tests {
             "$P_CHBFRAME[1]=CTRANS(Z,5)",
             "$P_TOOLFRAME=CROT(Y,90)",
         ] {
-            assert!(frame_variable(t), "{t}");
+            assert_eq!(frame_variable(t), Some(FRAME_VARIABLE), "{t}");
+        }
+        for t in ["$P_PFRAME=CTRANS()", "$P_BFRAME = CROT( )"] {
+            assert_eq!(frame_variable(t), Some(NULL_FRAME_VARIABLE), "{t}");
         }
         for t in [
             "$P_UIFR[1]=CTRANS(X,10)",
@@ -168,7 +189,7 @@ mod tests {
             "$P_PFRAME==x",
             "$AA_IM[X]=1",
         ] {
-            assert!(!frame_variable(t), "{t}");
+            assert_eq!(frame_variable(t), None, "{t}");
         }
     }
 

@@ -439,6 +439,7 @@ impl ModalState {
             if matches!(*k, "TRAORI" | "TRAORI(…)" | "TRAFOOF" | "ORIWKS" | "ORIMKS")
                 || frames::SETTING.contains(k)
                 || *k == frames::FRAME_VARIABLE
+                || *k == frames::NULL_FRAME_VARIABLE
             {
                 self.sinumerik = true;
             }

@@ -231,6 +231,10 @@ fn sinumerik_g58_and_frame_variables_are_frames() {
             "{err}"
         );
     }
+    // The null frame assigned deletes it, as `TRANS` alone does.
+    let reset = pframe.replace("TRAORI\n", "$P_PFRAME=CTRANS()\nTRAORI\n");
+    let [(code, _, err), _] = post_and_compensate("r15.mpf", &reset);
+    assert_eq!(code, 0, "{err}");
     // Fanuc's G58 (the fifth work offset) with a move, in a program
     // without Sinumerik keywords, passes as a work offset does.
     let fanuc = "G21 G90\nG58 G0 X0 Y0 Z50 A0 C0\nG43.4 H1\nG1 X10 Y0 Z5 I0 J0 K1 F500\nG49\nM30\n";
