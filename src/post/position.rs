@@ -84,18 +84,10 @@ pub(super) fn loses_position(line: &Line, new_offset: bool) -> Option<Lost> {
 /// but for a cycle or a probing move without a rotary word of `machine`.
 pub(super) fn not_followed(line: &Line, meaning: &BlockMeaning, machine: &Machine) -> Option<bool> {
     use crate::program::{opaque, unfollowed};
-    let rotary_word = || {
-        line.words().any(|w| {
-            machine
-                .axes
-                .iter()
-                .any(|a| a.kind == crate::machine::JointKind::Revolute && a.name == w.address)
-        })
-    };
-    let probe = line.words().any(|w| {
-        w.address == "G"
-            && [31.0, 31.1, 31.2, 31.3, 31.4, 38.2, 38.3, 38.4, 38.5].contains(&w.value)
-    });
+    let rotary_word = || line.words().any(|w| is_rotary(machine, &w.address));
+    let probe = line
+        .words()
+        .any(|w| w.address == "G" && unfollowed::is_probe((w.value * 10.0).round() as i64));
     if meaning.unfollowed.is_some() || unfollowed::in_line(line, None).is_some() {
         return Some(!probe || rotary_word());
     }
@@ -113,15 +105,7 @@ pub(super) fn not_followed(line: &Line, meaning: &BlockMeaning, machine: &Machin
                     || (unfollowed::PATH_WORDS.contains(&w.address.as_str())
                         && !matches!(w.address.as_str(), "CR" | "AR"))
             }
-            ItemKind::Opaque => {
-                let text = String::from_utf8_lossy(line.item_bytes(item));
-                let after_word = line.items[..index]
-                    .iter()
-                    .rev()
-                    .find(|it| it.kind != ItemKind::Space)
-                    .is_some_and(|it| matches!(it.kind, ItemKind::Word(_)));
-                opaque::unreadable_motion(text.trim(), after_word)
-            }
+            ItemKind::Opaque => opaque::unreadable_motion_at(line, index),
             _ => false,
         });
     unread.then_some(true)
@@ -166,21 +150,23 @@ pub(super) fn turns_rotaries(line: &Line, machine: &Machine) -> bool {
     {
         return false;
     }
-    let rotary = |a: &str| {
-        machine
-            .axes
-            .iter()
-            .any(|x| x.kind == crate::machine::JointKind::Revolute && x.name == a)
-    };
     let axis_words = line
         .words()
         .filter(|w| crate::program::modal::is_axis_address(&w.address))
         .count();
-    line.words().any(|w| rotary(&w.address))
+    line.words().any(|w| is_rotary(machine, &w.address))
         || (axis_words == 0
             && line
                 .words()
                 .any(|w| w.address == "G" && [28.0, 30.0].contains(&w.value)))
+}
+
+/// Whether `name` is a rotary axis of `machine`.
+fn is_rotary(machine: &Machine, name: &str) -> bool {
+    machine
+        .axes
+        .iter()
+        .any(|a| a.kind == crate::machine::JointKind::Revolute && a.name == name)
 }
 
 /// The coordinates of the tool tip `tip` (at joint values `q` of `chain`,

@@ -487,6 +487,19 @@ fn holds_tool_vector(bytes: &[u8]) -> bool {
     (0..up.len()).any(|i| (ijk(i) || abc3(i)) && starts_word(i))
 }
 
+/// [`unreadable_motion`] of the opaque item `index` of `line`: whether
+/// its text may hold where an axis goes, the item following a word of the
+/// block or not.
+pub fn unreadable_motion_at(line: &Line, index: usize) -> bool {
+    let text = String::from_utf8_lossy(line.item_bytes(&line.items[index]));
+    let after_word = line.items[..index]
+        .iter()
+        .rev()
+        .find(|it| it.kind != ItemKind::Space)
+        .is_some_and(|it| matches!(it.kind, ItemKind::Word(_)));
+    unreadable_motion(text.trim(), after_word)
+}
+
 /// Whether the unreadable text `text` of a block may hold where an axis
 /// goes: a motion address followed by what is not a plain number (`Y#1`,
 /// `Y [2]`, `Y sqrt[2]`, `X=R1`: a parameter, an expression or a

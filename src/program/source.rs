@@ -451,12 +451,7 @@ impl MachineAxisTracker {
                             ),
                         );
                     }
-                    let after_word = line.items[..index]
-                        .iter()
-                        .rev()
-                        .find(|it| it.kind != ItemKind::Space)
-                        .is_some_and(|it| matches!(it.kind, ItemKind::Word(_)));
-                    if super::opaque::unreadable_motion(text, after_word) {
+                    if super::opaque::unreadable_motion_at(line, index) {
                         return refuse(
                             item,
                             format!(

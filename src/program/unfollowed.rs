@@ -187,6 +187,13 @@ const LEAVES_AXES_ALONE: &[i64] = &[
 /// not follow, or `None` when it is read or leaves the axes alone
 /// (the list above). Codes the modal state reads itself never get
 /// here.
+/// Whether G code `code` (its value times ten) is a probing or skip
+/// move (`G31`–`G31.4`, `G38.2`–`G38.5`), which stops where a signal
+/// comes.
+pub fn is_probe(code: i64) -> bool {
+    matches!(code, 310..=314 | 382..=385)
+}
+
 pub fn g_code(code: i64) -> Option<String> {
     if LEAVES_AXES_ALONE.contains(&code) {
         return None;
@@ -203,7 +210,7 @@ pub fn g_code(code: i64) -> Option<String> {
         70 => {
             "diameter mode (LinuxCNC G7: X is a diameter) or hypothetical axis interpolation (Fanuc G07)"
         }
-        310..=314 | 382..=385 => {
+        c if is_probe(c) => {
             "a probing or skip move (G31, G38.x): it stops where a signal comes, not where its words say"
         }
         21 | 22 | 23 | 24 | 31 | 32 | 33 | 34 => {
